@@ -1,0 +1,234 @@
+// The light table as kernels read it (SoA, gathered per lane by index) and the two
+// halves of light sampling every estimator needs:
+//   sample_light_point: a point/direction on source s seen from x, with its density in
+//                       solid angle at x (area sampling converted by d^2 / cos, or
+//                       uniform in the subtended solid angle);
+//   pdf_light_point_sa: the same density for a direction that reached source s another
+//                       way (a cosine-sampled ray), for MIS.
+// Both use the same fallback rule (solid angle only where it is numerically safe), so
+// the pdf always belongs to the strategy that would have produced the sample.
+// Source: Veach's thesis §9 (direct lighting), Arvo 1995, Ureña et al. 2013, pbrt-v4's
+// shapes for the cone of a sphere.
+#pragma once
+#include "sampling.h"
+#include "vec.h"
+
+namespace tuile {
+
+enum class LightPoint : int { area = 0, solid_angle = 1 };
+
+// light types as in src/scene.h LightType
+inline constexpr int32_t lt_triangle = 0, lt_parallelogram = 1, lt_sphere = 2, lt_point = 3, lt_spot = 4,
+                         lt_distant = 5;
+
+struct LightView {
+  int32_t count = 0;
+  const int32_t* type = nullptr;
+  const float *p0x = nullptr, *p0y = nullptr, *p0z = nullptr;
+  const float *e1x = nullptr, *e1y = nullptr, *e1z = nullptr;
+  const float *e2x = nullptr, *e2y = nullptr, *e2z = nullptr;
+  const float *nx = nullptr, *ny = nullptr, *nz = nullptr;  // unit normal of the emitting side
+  const float *Lr = nullptr, *Lg = nullptr, *Lb = nullptr;
+  const float* area = nullptr;
+  const float* two_sided = nullptr;   // 1 or 0
+  const float* pick_pdf = nullptr;    // probability of picking each source (1 with "all")
+  const float* alias_prob = nullptr;  // alias table of pick_pdf
+  const int32_t* alias_idx = nullptr;
+};
+
+// Picks a source with the alias table: one uniform number, O(1).
+template <class T> inline i32_t<T> pick_light(const LightView& L, T u) {
+  const T scaled = u * T(static_cast<float>(L.count));
+  i32_t<T> i = to_i32(scaled);
+  i = min(i, i32_t<T>(L.count - 1));
+  const T frac = scaled - to_f32(i);
+  const T prob = gather(L.alias_prob, i);
+  const i32_t<T> alt = gather(L.alias_idx, i);
+  if constexpr (std::is_same_v<T, float>) return frac < prob ? i : alt;
+  else return sel(i_mask_from_f(frac < prob), i, alt);
+}
+
+// Geometry of the sources of each lane.
+template <class T> struct LightGeom {
+  i32_t<T> type;
+  Vec3<T> p0, e1, e2, n;
+  T area, two_sided;
+};
+
+template <class I> inline auto gather_light(const LightView& L, const I& idx) {
+  using T = decltype(gather(L.area, idx));
+  LightGeom<T> g;
+  g.type = gather(L.type, idx);
+  g.p0 = gather3(L.p0x, L.p0y, L.p0z, idx);
+  g.e1 = gather3(L.e1x, L.e1y, L.e1z, idx);
+  g.e2 = gather3(L.e2x, L.e2y, L.e2z, idx);
+  g.n = gather3(L.nx, L.ny, L.nz, idx);
+  g.area = gather(L.area, idx);
+  g.two_sided = gather(L.two_sided, idx);
+  return g;
+}
+
+template <class T> inline mask_t<T> type_is(const i32_t<T>& type, int32_t t) {
+  if constexpr (std::is_same_v<T, float>) return type == t;
+  else return f_mask_from_i(type == vint(t));
+}
+
+// Solid angle a triangle/parallelogram/sphere source subtends from x (0 where x is
+// behind a one-sided source, where it emits nothing towards x).
+template <class T> inline T light_solid_angle(const LightGeom<T>& g, const Vec3<T>& x) {
+  const auto is_tri = type_is<T>(g.type, lt_triangle);
+  const auto is_par = type_is<T>(g.type, lt_parallelogram);
+  const auto is_sph = type_is<T>(g.type, lt_sphere);
+  T omega(0.f);
+  if (any(is_tri)) omega = sel(is_tri, spherical_triangle_solid_angle(x, g.p0, g.p0 + g.e1, g.p0 + g.e2), omega);
+  if (any(is_par)) omega = sel(is_par, parallelogram_solid_angle(x, g.p0, g.e1, g.e2), omega);
+  if (any(is_sph)) {
+    const T r = g.e1.x;
+    const T d2 = length_sq(g.p0 - x);
+    const T sin2 = min(T(1.f), r * r / max(d2, T(1e-30f)));
+    const T cos_max = sqrt(max(T(0.f), T(1.f) - sin2));
+    // 2 pi (1 - cos) computed as 2 pi sin^2 / (1 + cos) to keep precision for tiny cones
+    omega = sel(is_sph, sel(d2 > r * r, T(6.2831853f) * sin2 / (T(1.f) + cos_max), T(0.f)), omega);
+  }
+  return omega;
+}
+
+// Density in solid angle of a direction from x reaching the source at point y (distance
+// d, unit direction wi) under the chosen point strategy, not including the pick pdf.
+template <class T>
+inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist) {
+  const T cos_y_signed = -dot(wi, g.n);
+  const T cos_y = sel(g.two_sided > T(0.f), abs(cos_y_signed), cos_y_signed);
+  const auto is_sph = type_is<T>(g.type, lt_sphere);
+  // sphere: cos at y from its outward normal
+  T cos_sph(0.f);
+  if (any(is_sph)) {
+    const Vec3<T> y = x + wi * dist;
+    cos_sph = -dot(wi, (y - g.p0)) / max(g.e1.x, T(1e-30f));
+  }
+  const T cos_eff = sel(is_sph, cos_sph, cos_y);
+  const T pdf_area = sel(cos_eff > T(0.f), dist * dist / (cos_eff * g.area), T(0.f));
+  if (mode == LightPoint::area) return finite_or_zero(pdf_area);
+  const T omega = light_solid_angle(g, x);
+  const auto safe = solid_angle_sampling_safe(omega) || (is_sph && omega > T(0.f));
+  const T pdf_sa = sel(omega > T(0.f), T(1.f) / omega, T(0.f));
+  return finite_or_zero(sel(safe, pdf_sa, pdf_area));
+}
+
+// A sampled point on a source. wi is the unit direction from x, dist the distance
+// (infinite for distant lights), pdf_sa its density (0 for delta lights, which are
+// flagged by is_delta), emitted radiance or intensity factor in scale (1/d^2 for point
+// lights, spot falloff / d^2 for spots, 1 otherwise).
+template <class T> struct LightPointSample {
+  Vec3<T> wi;
+  T dist, pdf_sa, scale;
+  mask_t<T> valid, is_delta;
+};
+
+template <class T>
+inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, T u1,
+                                              T u2) {
+  LightPointSample<T> s;
+  const auto is_tri = type_is<T>(g.type, lt_triangle);
+  const auto is_par = type_is<T>(g.type, lt_parallelogram);
+  const auto is_sph = type_is<T>(g.type, lt_sphere);
+  const auto is_pt = type_is<T>(g.type, lt_point);
+  const auto is_spot = type_is<T>(g.type, lt_spot);
+  const auto is_dist = type_is<T>(g.type, lt_distant);
+  s.is_delta = is_pt || is_spot || is_dist;
+  s.scale = T(1.f);
+
+  // area sampling: a point y on the surface
+  Vec3<T> y = g.p0;
+  if (any(is_tri)) {
+    T b1, b2;
+    sample_triangle_area(u1, u2, b1, b2);
+    y = sel(is_tri, g.p0 + g.e1 * b1 + g.e2 * b2, y);
+  }
+  if (any(is_par)) y = sel(is_par, g.p0 + g.e1 * u1 + g.e2 * u2, y);
+  if (any(is_sph)) y = sel(is_sph, sample_sphere_area(g.p0, g.e1.x, u1, u2), y);
+  Vec3<T> d = y - x;
+  T dist2 = length_sq(d);
+  T dist = sqrt(dist2);
+  Vec3<T> wi = d * (T(1.f) / sel(dist > T(0.f), dist, T(1.f)));
+  s.valid = dist > T(0.f);
+
+  if (mode == LightPoint::solid_angle) {
+    const T omega = light_solid_angle(g, x);
+    auto use_sa = (solid_angle_sampling_safe(omega) && (is_tri || is_par)) || (is_sph && omega > T(0.f));
+    if (any(use_sa)) {
+      Vec3<T> dir = wi;
+      T pdf(0.f);
+      auto ok = use_sa;
+      if (any(is_tri && use_sa)) {
+        Vec3<T> dt;
+        T pt;
+        const auto m = sample_spherical_triangle(x, g.p0, g.p0 + g.e1, g.p0 + g.e2, u1, u2, dt, pt);
+        dir = sel(is_tri, dt, dir);
+        ok = sel_mask(is_tri, ok && m, ok);
+      }
+      if (any(is_par && use_sa)) {
+        Vec3<T> dp;
+        T pp;
+        const auto m = sample_parallelogram_sa(x, g.p0, g.e1, g.e2, u1, u2, dp, pp);
+        dir = sel(is_par, dp, dir);
+        ok = sel_mask(is_par, ok && m, ok);
+      }
+      if (any(is_sph && use_sa)) {
+        Vec3<T> ds;
+        T ps;
+        const auto m = sample_sphere_cone(x, g.p0, g.e1.x, u1, u2, ds, ps);
+        dir = sel(is_sph, ds, dir);
+        ok = sel_mask(is_sph, ok && m, ok);
+      }
+      // distance along dir to the source's plane (triangle/parallelogram) or sphere
+      const T denom = dot(dir, g.n);
+      const T t_plane = dot(g.p0 - x, g.n) / sel(abs(denom) > T(0.f), denom, T(1.f));
+      const Vec3<T> oc = x - g.p0;
+      const T bq = dot(oc, dir);
+      const T cq = length_sq(oc) - g.e1.x * g.e1.x;
+      const T disc = max(T(0.f), bq * bq - cq);
+      // nearer root, computed stably
+      const T t_sph = cq / max(-bq + sqrt(disc), T(1e-30f));
+      const T t_sa = sel(is_sph, t_sph, t_plane);
+      wi = sel(use_sa, dir, wi);
+      dist = sel(use_sa, t_sa, dist);
+      s.valid = sel_mask(use_sa, ok && t_sa > T(0.f), s.valid);
+    }
+  }
+
+  // delta lights
+  if (any(is_pt || is_spot)) {
+    const Vec3<T> dp = g.p0 - x;
+    const T d2 = length_sq(dp);
+    const T dd = sqrt(d2);
+    const Vec3<T> w = dp * (T(1.f) / sel(dd > T(0.f), dd, T(1.f)));
+    const auto m = is_pt || is_spot;
+    wi = sel(m, w, wi);
+    dist = sel(m, dd, dist);
+    T sc = T(1.f) / max(d2, T(1e-30f));
+    if (any(is_spot)) {
+      // pbrt-v4 spot falloff: smoothstep between cos(total) and cos(falloff start)
+      const T cos_t = -dot(w, g.e1);
+      const T c0 = g.e2.y, c1 = g.e2.x;
+      T t = (cos_t - c0) / max(c1 - c0, T(1e-12f));
+      t = min(T(1.f), max(T(0.f), t));
+      sc = sel(is_spot, sc * t * t * (T(3.f) - T(2.f) * t), sc);
+    }
+    s.scale = sel(m, sc, s.scale);
+    s.valid = sel_mask(m, dd > T(0.f), s.valid);
+  }
+  if (any(is_dist)) {
+    wi = sel(is_dist, g.e1, wi);
+    dist = sel(is_dist, T(3.0e38f), dist);
+    s.valid = sel_mask(is_dist, mask_t<T>(true), s.valid);
+  }
+  s.wi = wi;
+  s.dist = dist;
+  const T pdf = pdf_light_point_sa(mode, g, x, wi, dist);
+  s.pdf_sa = sel(s.is_delta, T(0.f), pdf);
+  s.valid = s.valid && (s.is_delta || s.pdf_sa > T(0.f)) && is_finite(dist);
+  return s;
+}
+
+}  // namespace tuile

@@ -1,0 +1,25 @@
+// Ray packets in the exact memory layout Embree 3 reads for rtcIntersect16 /
+// rtcOccluded16 (RTCRayHit16, RTCRay16), so the intersect stage copies nothing.
+// src/embree.cpp static_asserts that the layouts match.
+#pragma once
+#include <cstdint>
+
+namespace tuile {
+
+inline constexpr int packet_width = 16;
+inline constexpr uint32_t invalid_id = 0xffffffffu;
+
+struct alignas(64) Ray16 {
+  float org_x[16], org_y[16], org_z[16], tnear[16];
+  float dir_x[16], dir_y[16], dir_z[16], time[16];
+  float tfar[16];
+  uint32_t mask[16], id[16], flags[16];
+};
+
+struct alignas(64) RayHit16 {
+  Ray16 ray;
+  float Ng_x[16], Ng_y[16], Ng_z[16], u[16], v[16];
+  uint32_t primID[16], geomID[16], instID[1][16];
+};
+
+}  // namespace tuile

@@ -1,0 +1,165 @@
+// Counter-based random numbers: every value is a pure function of
+// (seed, pixel, sample index, dimension), so images do not depend on threads,
+// tile size or tile order.
+//
+// Three samplers, all producing pairs (u, v) in [0,1)^2 for a "dimension pair":
+//  - independent: a 32-bit integer hash of the counters (lowbias32 finaliser,
+//    C. Wellons' hash-prospector constants).
+//  - stratified: per dimension pair, spp jittered strata (an n x n grid when spp is a
+//    square, else Latin-hypercube strata per axis), visited in an order permuted per
+//    pixel and pair by a bijective hash with cycle walking.
+//  - sobol: the first two Sobol' dimensions (a (0,2)-sequence), Owen-scrambled by the
+//    hash-based nested uniform scramble of Burley 2020 ("Practical Hash-based Owen
+//    Scrambling", JCGT 9(4)), with the sample index itself scrambled per pixel and pair
+//    so that pairs are decorrelated (padding).
+// Templated on U = uint32_t (scalar reference) or vuint (one SIMD batch).
+#pragma once
+#include "simd.h"
+
+namespace tuile {
+
+enum class SamplerKind : int { independent = 0, stratified = 1, sobol = 2 };
+
+template <class U> inline U hash_u32(U x) noexcept {
+  x ^= x >> 16;
+  x *= U(0x7feb352du);
+  x ^= x >> 15;
+  x *= U(0x846ca68bu);
+  x ^= x >> 16;
+  return x;
+}
+
+template <class U> inline U hash_combine(U a, U b) noexcept { return hash_u32(a ^ (b * U(0x9e3779b9u) + U(0x7f4a7c15u))); }
+
+// 24 high bits to a float in [0, 1): exactly representable, never 1.
+template <class U> inline auto u32_to_unit(U x) noexcept {
+  constexpr float k = 1.0f / 16777216.0f;
+  if constexpr (std::is_same_v<U, uint32_t>) return static_cast<float>(x >> 8) * k;
+  else return u32_to_f32(x >> 8) * vfloat(k);
+}
+
+template <class U> inline U reverse_bits(U x) noexcept {
+  x = ((x >> 1) & U(0x55555555u)) | ((x & U(0x55555555u)) << 1);
+  x = ((x >> 2) & U(0x33333333u)) | ((x & U(0x33333333u)) << 2);
+  x = ((x >> 4) & U(0x0f0f0f0fu)) | ((x & U(0x0f0f0f0fu)) << 4);
+  x = ((x >> 8) & U(0x00ff00ffu)) | ((x & U(0x00ff00ffu)) << 8);
+  return (x >> 16) | (x << 16);
+}
+
+// Burley 2020, eq. for the Laine-Karras-style permutation on reversed bits.
+template <class U> inline U laine_karras_permutation(U x, U seed) noexcept {
+  x ^= x * U(0x3d20adeau);
+  x += seed;
+  x *= (seed >> 16) | U(1u);
+  x ^= x * U(0x05526c56u);
+  x ^= x * U(0x53a22864u);
+  return x;
+}
+template <class U> inline U nested_uniform_scramble(U x, U seed) noexcept {
+  return reverse_bits(laine_karras_permutation(reverse_bits(x), seed));
+}
+
+// Sobol' dimension 0 (van der Corput) and 1 (generator matrix of the polynomial x + 1),
+// as 32-bit fixed point.
+template <class U> inline U sobol_dim0(U i) noexcept { return reverse_bits(i); }
+template <class U> inline U sobol_dim1(U i) noexcept {
+  U r(0u), v(0x80000000u);
+  for (int b = 0; b < 32; ++b) {
+    const U bit = (i >> b) & U(1u);
+    r ^= v & (U(0u) - bit);
+    v ^= v >> 1;
+  }
+  return r;
+}
+
+// Key of one pixel's sample stream for one dimension pair.
+template <class U> inline U stream_key(uint32_t seed, U pixel, uint32_t pair) noexcept {
+  return hash_combine(hash_combine(U(hash_u32(seed + 0x51ed270bu)), pixel), U(hash_u32(pair * 0x2c1b3c6du + 1u)));
+}
+
+// A bijection of [0, n) chosen by key: a bijective hash on the enclosing power of two,
+// with cycle walking back into [0, n). Scalar: used per lane by the stratified sampler.
+inline uint32_t permute_index(uint32_t i, uint32_t n, uint32_t key) noexcept {
+  if (n <= 1) return 0;
+  uint32_t mask = n - 1;
+  mask |= mask >> 1; mask |= mask >> 2; mask |= mask >> 4; mask |= mask >> 8; mask |= mask >> 16;
+  const uint32_t k1 = hash_u32(key) | 1u, k2 = hash_u32(key ^ 0xa511e9b3u);
+  do {
+    i = (i * k1) & mask;           // odd multiplier: bijective mod 2^k
+    i ^= (i & mask) >> 3;          // xorshift: bijective
+    i = (i + k2) & mask;
+    i ^= (i >> 5);
+    i = (i * 0x9e3779b1u | 0u) & mask;
+    i ^= i >> 7;
+  } while (i >= n);
+  return i;
+}
+
+// One dimension pair for one lane (scalar reference of every sampler).
+inline void sample_pair_scalar(SamplerKind kind, uint32_t seed, uint32_t pixel, uint32_t index, uint32_t spp,
+                               uint32_t pair, float& u, float& v) noexcept {
+  const uint32_t key = stream_key<uint32_t>(seed, pixel, pair);
+  switch (kind) {
+    case SamplerKind::independent: {
+      const uint32_t h = hash_combine(key, index);
+      u = u32_to_unit(h);
+      v = u32_to_unit(hash_u32(h ^ 0x68e31da4u));
+      return;
+    }
+    case SamplerKind::sobol: {
+      const uint32_t i = nested_uniform_scramble(index, key);
+      u = u32_to_unit(nested_uniform_scramble(sobol_dim0(i), hash_u32(key ^ 0x1b873593u)));
+      v = u32_to_unit(nested_uniform_scramble(sobol_dim1(i), hash_u32(key ^ 0xcc9e2d51u)));
+      return;
+    }
+    case SamplerKind::stratified: {
+      const uint32_t h = hash_combine(key, index);
+      const float ju = u32_to_unit(h), jv = u32_to_unit(hash_u32(h ^ 0x68e31da4u));
+      if (index >= spp || spp == 0) {  // beyond the planned count: plain random
+        u = ju; v = jv;
+        return;
+      }
+      uint32_t side = 1;
+      while ((side + 1) * (side + 1) <= spp) ++side;
+      if (side * side == spp) {
+        const uint32_t cell = permute_index(index, spp, key);
+        u = (static_cast<float>(cell % side) + ju) / static_cast<float>(side);
+        v = (static_cast<float>(cell / side) + jv) / static_cast<float>(side);
+      } else {
+        u = (static_cast<float>(permute_index(index, spp, key)) + ju) / static_cast<float>(spp);
+        v = (static_cast<float>(permute_index(index, spp, key ^ 0x85ebca6bu)) + jv) / static_cast<float>(spp);
+      }
+      u = u < 1.f ? u : 0x1.fffffep-1f;
+      v = v < 1.f ? v : 0x1.fffffep-1f;
+      return;
+    }
+  }
+  u = v = 0.f;
+}
+
+// One dimension pair for W lanes (pixel per lane, same sample index): SIMD for the
+// hash-based samplers, the scalar reference per lane for stratified.
+inline void sample_pairs(SamplerKind kind, uint32_t seed, const uint32_t* pixel, uint32_t index, uint32_t spp,
+                         uint32_t pair, int count, float* u, float* v) noexcept {
+  int i = 0;
+  if (kind != SamplerKind::stratified) {
+    for (; i + simd_width <= count; i += simd_width) {
+      const vuint key = stream_key<vuint>(seed, vuint::load_unaligned(pixel + i), pair);
+      vfloat fu, fv;
+      if (kind == SamplerKind::independent) {
+        const vuint h = hash_combine(key, vuint(index));
+        fu = u32_to_unit(h);
+        fv = u32_to_unit(hash_u32(h ^ vuint(0x68e31da4u)));
+      } else {
+        const vuint s = nested_uniform_scramble(vuint(index), key);
+        fu = u32_to_unit(nested_uniform_scramble(sobol_dim0(s), hash_u32(key ^ vuint(0x1b873593u))));
+        fv = u32_to_unit(nested_uniform_scramble(sobol_dim1(s), hash_u32(key ^ vuint(0xcc9e2d51u))));
+      }
+      fu.store_unaligned(u + i);
+      fv.store_unaligned(v + i);
+    }
+  }
+  for (; i < count; ++i) sample_pair_scalar(kind, seed, pixel[i], index, spp, pair, u[i], v[i]);
+}
+
+}  // namespace tuile

@@ -1,0 +1,49 @@
+// Stage 4, sample cosine: one cosine-weighted direction per shading point (p = cos/pi,
+// the exact importance sampling of a Lambertian BSDF), written as bounce rays.
+// Reads the shading points and one dimension pair; writes the bounce packets
+// (Embree's RTCRayHit16 layout) and the lanes' validity.
+#pragma once
+#include "tile.h"
+
+namespace tuile {
+
+template <class T> inline void sample_cosine_lanes(const Estimator& est, TileBuffers& tb, int k) {
+  auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.shade_count));
+  if (est.one_sample()) active = active && (load<T>(tb.choose_light + k) < T(0.5f));
+  const Vec3<T> x = load3<T>(tb.px + k, tb.py + k, tb.pz + k);
+  const Vec3<T> n = load3<T>(tb.nx + k, tb.ny + k, tb.nz + k);
+  const T eps = load<T>(tb.eps + k);
+  const Vec3<T> local = sample_cosine_hemisphere(load<T>(tb.u0 + k), load<T>(tb.u1 + k));
+  Vec3<T> t, b;
+  make_basis(n, t, b);
+  const Vec3<T> d = normalize(t * local.x + b * local.y + n * local.z);
+  const auto ok = active && local.z > T(0.f);
+  RayHit16& r = tb.bounce[k / packet_width];
+  const int l = k % packet_width;
+  store3(r.ray.org_x + l, r.ray.org_y + l, r.ray.org_z + l, x + n * eps);
+  store3(r.ray.dir_x + l, r.ray.dir_y + l, r.ray.dir_z + l, d);
+  store(r.ray.tnear + l, T(0.f));
+  store(r.ray.tfar + l, T(3.0e38f));
+  store(r.ray.time + l, T(0.f));
+  if constexpr (std::is_same_v<T, float>) tb.valid[k] = ok ? -1 : 0;
+  else xsimd::select(i_mask_from_f(ok), vint(-1), vint(0)).store_unaligned(tb.valid + k);
+}
+
+inline void sample_cosine(const Estimator& est, uint32_t sample, uint32_t pair, TileBuffers& tb) {
+  const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
+  sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair, padded, tb.u0, tb.u1);
+  int k = 0;
+  for (; k + simd_width <= padded; k += simd_width) sample_cosine_lanes<vfloat>(est, tb, k);
+  for (; k < padded; ++k) sample_cosine_lanes<float>(est, tb, k);
+  for (int p = 0; p < padded / packet_width; ++p)
+    for (int l = 0; l < packet_width; ++l) {
+      RayHit16& r = tb.bounce[p];
+      r.ray.mask[l] = 0xffffffffu;
+      r.ray.id[l] = 0;
+      r.ray.flags[l] = 0;
+      r.geomID[l] = invalid_id;
+      r.instID[0][l] = invalid_id;
+    }
+}
+
+}  // namespace tuile

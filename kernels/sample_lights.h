@@ -1,0 +1,117 @@
+// Stage 3, sample lights: one light sample per shading point for pass j.
+// Reads the shading points, the light table and two dimension pairs of the sampler;
+// writes the shadow packets (Embree's RTCRay16 layout) and each lane's contribution if
+// the shadow ray turns out unoccluded. Lanes are independent; masks, not branches.
+// Estimator (Veach's thesis eq. 9.13 with MIS; the course's light sampling):
+//   f_r L_e cos(theta_x) w_light / (n_light p_light),  p_light = P(source) p_point(solid angle)
+// with w_light from the heuristic on q = n p of both techniques (multi-sample) or
+// q = c p (one-sample, c = choice probability, then n_light = c). Delta lights: w = 1.
+#pragma once
+#include "tile.h"
+
+namespace tuile {
+
+struct LightPass {
+  int32_t fixed_light = -1;  // >= 0 with --light-pick all: every lane samples this source
+  float n_light = 1.f;       // n (multi-sample) or c (one-sample) of the light technique
+  float n_bsdf = 1.f;        // same for the BSDF technique (for q_bsdf)
+};
+
+template <class T>
+inline void sample_lights_lanes(const LightView& L, const Estimator& est, const LightPass& pass, TileBuffers& tb,
+                                int k) {
+  constexpr float inv_pi = 0.318309886f;
+  auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.shade_count));
+  if (est.one_sample()) active = active && (load<T>(tb.choose_light + k) > T(0.5f));
+  const Vec3<T> x = load3<T>(tb.px + k, tb.py + k, tb.pz + k);
+  const Vec3<T> n = load3<T>(tb.nx + k, tb.ny + k, tb.nz + k);
+  const T eps = load<T>(tb.eps + k);
+
+  i32_t<T> idx;
+  if (pass.fixed_light >= 0) idx = i32_t<T>(pass.fixed_light);
+  else idx = pick_light(L, load<T>(tb.u0 + k));
+  const LightGeom<T> g = gather_light(L, idx);
+  const T pick = gather(L.pick_pdf, idx);
+  const LightPointSample<T> s = sample_light_point(est.point, g, x, load<T>(tb.u2 + k), load<T>(tb.u3 + k));
+
+  const T cos_x = dot(n, s.wi);
+  const auto planar = type_is<T>(g.type, lt_triangle) || type_is<T>(g.type, lt_parallelogram);
+  const auto front = !planar || g.two_sided > T(0.f) || dot(x - g.p0, g.n) > T(0.f);
+  const T pdf_l = pick * s.pdf_sa;
+  T w(1.f);
+  if (est.strategy == Strategy::mis) {
+    const T q_l = T(pass.n_light) * pdf_l;
+    const T q_b = T(pass.n_bsdf) * cos_x * T(inv_pi);
+    w = sel(s.is_delta, T(1.f), mis_weight(est.heuristic, q_l, q_b, est.mis));
+  } else if (est.strategy == Strategy::bsdf) {
+    w = sel(s.is_delta, T(1.f), T(0.f));  // area lights are left to the BSDF technique
+  }
+  const T denom = T(pass.n_light) * sel(s.is_delta, pick, pdf_l);
+  const auto ok = active && s.valid && front && cos_x > T(0.f) && denom > T(0.f) && w > T(0.f);
+  const T factor = sel(ok, w * cos_x * T(inv_pi) / sel(ok, denom, T(1.f)) * s.scale, T(0.f));
+  const T c_r = load<T>(tb.ar + k) * gather(L.Lr, idx) * factor;
+  const T c_g = load<T>(tb.ag + k) * gather(L.Lg, idx) * factor;
+  const T c_b = load<T>(tb.ab + k) * gather(L.Lb, idx) * factor;
+  const auto fin = is_finite(c_r) && is_finite(c_g) && is_finite(c_b);
+  const auto live = ok && fin && (c_r + c_g + c_b > T(0.f));
+  store(tb.cr + k, sel(live, c_r, T(0.f)));
+  store(tb.cg + k, sel(live, c_g, T(0.f)));
+  store(tb.cb + k, sel(live, c_b, T(0.f)));
+  // count contributions dropped as non-finite where the sample itself was fine
+  if (any(ok && !fin)) {
+    if constexpr (std::is_same_v<T, float>) tb.rejected_light += 1;
+    else tb.rejected_light += static_cast<uint64_t>(xsimd::hadd(xsimd::select(ok && !fin, vfloat(1.f), vfloat(0.f))));
+  }
+
+  // shadow ray from just above the surface to just short of the light point
+  const Vec3<T> org = x + n * eps;
+  const auto is_dist = type_is<T>(g.type, lt_distant);
+  const Vec3<T> y = x + s.wi * sel(is_dist, T(0.f), s.dist);
+  // Embree's packet intersector is only good to ~1e-5 relative in t here (measured), so
+  // the shadow ray stops 2^-12 of its length short of the light, plus the offsets.
+  const T tfar = sel(is_dist, T(3.0e38f), max(T(0.f), s.dist * T(1.f - 1.f / 4096.f) - eps - offset_scale(y, T(0.f))));
+  Ray16& r = tb.shadow[k / packet_width];
+  const int l = k % packet_width;
+  store3(r.org_x + l, r.org_y + l, r.org_z + l, org);
+  store3(r.dir_x + l, r.dir_y + l, r.dir_z + l, s.wi);
+  store(r.tnear + l, T(0.f));
+  store(r.tfar + l, tfar);
+  store(r.time + l, T(0.f));
+  if constexpr (std::is_same_v<T, float>) tb.valid[k] = live ? -1 : 0;
+  else {
+    const vint v = xsimd::select(i_mask_from_f(live), vint(-1), vint(0));
+    v.store_unaligned(tb.valid + k);
+  }
+}
+
+// Draws the pass's random numbers and runs the lanes of every shading point.
+inline void sample_lights(const LightView& L, const Estimator& est, const LightPass& pass, uint32_t sample,
+                          uint32_t pair, TileBuffers& tb) {
+  const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
+  if (pass.fixed_light < 0) sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair, padded, tb.u0, tb.u1);
+  sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair + 1, padded, tb.u2, tb.u3);
+  int k = 0;
+  for (; k + simd_width <= padded; k += simd_width) sample_lights_lanes<vfloat>(L, est, pass, tb, k);
+  for (; k < padded; ++k) sample_lights_lanes<float>(L, est, pass, tb, k);
+  for (int p = 0; p < padded / packet_width; ++p)
+    for (int l = 0; l < packet_width; ++l) {
+      tb.shadow[p].mask[l] = 0xffffffffu;
+      tb.shadow[p].id[l] = 0;
+      tb.shadow[p].flags[l] = 0;
+    }
+}
+
+// After the shadow query: unoccluded lanes add their contribution to their pixel.
+inline void accumulate_shadow(TileBuffers& tb) {
+  for (int k = 0; k < tb.shade_count; ++k) {
+    if (!tb.valid[k]) continue;
+    const Ray16& r = tb.shadow[k / packet_width];
+    if (r.tfar[k % packet_width] < 0.f && std::isinf(r.tfar[k % packet_width])) continue;  // occluded: tfar = -inf
+    const int i = tb.slane[k];
+    tb.Lr[i] += tb.cr[k];
+    tb.Lg[i] += tb.cg[k];
+    tb.Lb[i] += tb.cb[k];
+  }
+}
+
+}  // namespace tuile

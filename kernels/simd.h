@@ -1,0 +1,148 @@
+// Lane types: every kernel is written once, templated on T = float (the scalar
+// reference) or T = vfloat (one xsimd batch, the width of the build machine).
+// The helpers below give both the same spelling: sel, any, all, gathers, casts.
+#pragma once
+#include <cmath>
+#include <cstdint>
+#include <xsimd/xsimd.hpp>
+
+namespace tuile {
+
+using vfloat = xsimd::batch<float>;
+using vint = xsimd::batch<int32_t>;
+using vuint = xsimd::batch<uint32_t>;
+using vmask = xsimd::batch_bool<float>;
+inline constexpr int simd_width = static_cast<int>(vfloat::size);
+
+using std::abs;
+using std::sqrt;
+using std::min;
+using std::max;
+using std::fma;
+using std::sin;
+using std::cos;
+using std::acos;
+using std::asin;
+using std::atan2;
+using std::log;
+using std::exp;
+using std::floor;
+using xsimd::abs;
+using xsimd::sqrt;
+using xsimd::min;
+using xsimd::max;
+using xsimd::fma;
+using xsimd::sin;
+using xsimd::cos;
+using xsimd::acos;
+using xsimd::asin;
+using xsimd::atan2;
+using xsimd::log;
+using xsimd::exp;
+using xsimd::floor;
+
+template <class T> struct lane_traits;
+template <> struct lane_traits<float> {
+  using mask = bool;
+  using i32 = int32_t;
+  using u32 = uint32_t;
+  static constexpr int width = 1;
+};
+template <> struct lane_traits<vfloat> {
+  using mask = vmask;
+  using i32 = vint;
+  using u32 = vuint;
+  static constexpr int width = simd_width;
+};
+template <class T> using mask_t = typename lane_traits<T>::mask;
+template <class T> using i32_t = typename lane_traits<T>::i32;
+template <class T> using u32_t = typename lane_traits<T>::u32;
+
+// select
+inline float sel(bool m, float a, float b) noexcept { return m ? a : b; }
+inline int32_t sel(bool m, int32_t a, int32_t b) noexcept { return m ? a : b; }
+inline uint32_t sel(bool m, uint32_t a, uint32_t b) noexcept { return m ? a : b; }
+inline vfloat sel(const vmask& m, const vfloat& a, const vfloat& b) noexcept { return xsimd::select(m, a, b); }
+inline vint sel(const xsimd::batch_bool<int32_t>& m, const vint& a, const vint& b) noexcept {
+  return xsimd::select(m, a, b);
+}
+inline vuint sel(const xsimd::batch_bool<uint32_t>& m, const vuint& a, const vuint& b) noexcept {
+  return xsimd::select(m, a, b);
+}
+
+inline bool sel_mask(bool m, bool a, bool b) noexcept { return m ? a : b; }
+inline vmask sel_mask(const vmask& m, const vmask& a, const vmask& b) noexcept { return (m && a) || (!m && b); }
+
+inline bool any(bool m) noexcept { return m; }
+inline bool all(bool m) noexcept { return m; }
+inline bool none(bool m) noexcept { return !m; }
+inline bool any(const vmask& m) noexcept { return xsimd::any(m); }
+inline bool all(const vmask& m) noexcept { return xsimd::all(m); }
+inline bool none(const vmask& m) noexcept { return !xsimd::any(m); }
+
+// conversions between float lanes and integer lanes of the same width
+inline int32_t to_i32(float x) noexcept { return static_cast<int32_t>(x); }
+inline vint to_i32(const vfloat& x) noexcept { return xsimd::batch_cast<int32_t>(x); }
+inline float to_f32(int32_t x) noexcept { return static_cast<float>(x); }
+inline vfloat to_f32(const vint& x) noexcept { return xsimd::batch_cast<float>(x); }
+inline float u32_to_f32(uint32_t x) noexcept { return static_cast<float>(x); }
+inline vfloat u32_to_f32(const vuint& x) noexcept {
+  // exact for values below 2^24, which is all the samplers produce
+  return xsimd::batch_cast<float>(xsimd::bitwise_cast<vint>(x));
+}
+inline bool f_mask_from_i(bool m) noexcept { return m; }
+inline vmask f_mask_from_i(const xsimd::batch_bool<int32_t>& m) noexcept {
+  return xsimd::bitwise_cast<vfloat>(xsimd::select(m, vint(0x3f800000), vint(0))) != vfloat(0.f);
+}
+inline bool i_mask_from_f(bool m) noexcept { return m; }
+inline xsimd::batch_bool<int32_t> i_mask_from_f(const vmask& m) noexcept {
+  return xsimd::bitwise_cast<vint>(xsimd::select(m, vfloat(1.f), vfloat(0.f))) != vint(0);
+}
+inline bool f_mask_from_u(bool m) noexcept { return m; }
+inline vmask f_mask_from_u(const xsimd::batch_bool<uint32_t>& m) noexcept {
+  return xsimd::bitwise_cast<vfloat>(xsimd::select(m, vuint(0x3f800000u), vuint(0u))) != vfloat(0.f);
+}
+
+// loads and stores of the lane type from/to plain arrays
+template <class T> inline T load(const float* p) noexcept {
+  if constexpr (std::is_same_v<T, float>) return *p;
+  else return vfloat::load_unaligned(p);
+}
+inline void store(float* p, float v) noexcept { *p = v; }
+inline void store(float* p, const vfloat& v) noexcept { v.store_unaligned(p); }
+template <class T> inline i32_t<T> load_i32(const int32_t* p) noexcept {
+  if constexpr (std::is_same_v<T, float>) return *p;
+  else return vint::load_unaligned(p);
+}
+template <class T> inline u32_t<T> load_u32(const uint32_t* p) noexcept {
+  if constexpr (std::is_same_v<T, float>) return *p;
+  else return vuint::load_unaligned(p);
+}
+inline void store(int32_t* p, int32_t v) noexcept { *p = v; }
+inline void store(int32_t* p, const vint& v) noexcept { v.store_unaligned(p); }
+inline void store(uint32_t* p, uint32_t v) noexcept { *p = v; }
+inline void store(uint32_t* p, const vuint& v) noexcept { v.store_unaligned(p); }
+// gather: v[i] = base[index[i]]
+inline float gather(const float* base, int32_t i) noexcept { return base[i]; }
+inline vfloat gather(const float* base, const vint& i) noexcept { return vfloat::gather(base, i); }
+inline int32_t gather(const int32_t* base, int32_t i) noexcept { return base[i]; }
+inline vint gather(const int32_t* base, const vint& i) noexcept { return vint::gather(base, i); }
+
+// lane index and per-lane construction helpers
+template <class T> inline T lane_iota() noexcept {
+  if constexpr (std::is_same_v<T, float>) return 0.f;
+  else {
+    alignas(64) float v[simd_width];
+    for (int i = 0; i < simd_width; ++i) v[i] = static_cast<float>(i);
+    return vfloat::load_aligned(v);
+  }
+}
+
+inline float finite_or_zero(float x) noexcept { return std::isfinite(x) ? x : 0.f; }
+inline vfloat finite_or_zero(const vfloat& x) noexcept {
+  return xsimd::select(xsimd::abs(x) <= vfloat(3.4028234e38f), x, vfloat(0.f));
+}
+inline bool is_finite(float x) noexcept { return std::isfinite(x); }
+inline vmask is_finite(const vfloat& x) noexcept { return xsimd::abs(x) <= vfloat(3.4028234e38f); }
+
+} // namespace tuile

@@ -1,0 +1,104 @@
+// Tile state: everything one tile's stages read and write, in SoA arrays sized for the
+// largest tile, allocated once per worker (tbb::enumerable_thread_specific in
+// src/render.cpp) and reused for every tile and sample. Also the estimator settings the
+// stages share.
+#pragma once
+#include <cstdint>
+
+#include "lights.h"
+#include "mis.h"
+#include "packet.h"
+#include "rng.h"
+
+namespace tuile {
+
+inline constexpr int max_tile_side = 32;
+inline constexpr int max_tile_lanes = max_tile_side * max_tile_side;
+inline constexpr int max_packets = max_tile_lanes / packet_width;
+
+enum class Strategy : int { light = 0, bsdf = 1, mis = 2 };
+enum class LightPick : int { all = 0, uniform = 1, area = 2, power = 3 };
+enum class MisMode : int { multi = 0, one = 1 };
+
+struct Estimator {
+  Strategy strategy = Strategy::mis;
+  LightPick pick = LightPick::power;
+  LightPoint point = LightPoint::solid_angle;
+  Heuristic heuristic = Heuristic::power;
+  MisParams mis;
+  MisMode mode = MisMode::multi;
+  int light_samples = 1;
+  int bsdf_samples = 1;
+  SamplerKind sampler = SamplerKind::sobol;
+  uint32_t seed = 0;
+  uint32_t spp = 16;
+
+  // probability of choosing the light technique in one-sample MIS
+  float one_sample_light_prob() const {
+    return static_cast<float>(light_samples) / static_cast<float>(light_samples + bsdf_samples);
+  }
+  bool one_sample() const { return strategy == Strategy::mis && mode == MisMode::one; }
+};
+
+// Per-geometry data the hit stages look up by Embree's geomID / primID.
+struct GeomView {
+  int32_t mesh_count = 0;
+  const int32_t* geom_material = nullptr;      // per geomID (meshes then spheres), -1 = default
+  const int32_t* const* prim_light = nullptr;  // per mesh: light of each triangle or nullptr
+  const int32_t* sphere_light = nullptr;       // per sphere: light or -1
+  const float *mat_r = nullptr, *mat_g = nullptr, *mat_b = nullptr;
+  const int32_t* mat_texture = nullptr;
+  const uint32_t* const* indices = nullptr;    // per mesh
+  const float* const* uvs = nullptr;           // per mesh, nullptr without uv
+  const float* const* tex_rgb = nullptr;       // per texture
+  const int32_t *tex_w = nullptr, *tex_h = nullptr;
+};
+
+struct CameraView {
+  float m[3][4];          // world_from_camera
+  float sx0, sx1, sy0, sy1;  // screen window
+  float tan_half;         // tan(fov / 2)
+  float inv_w, inv_h;
+};
+
+struct alignas(64) TileBuffers {
+  RayHit16 cam[max_packets];
+  Ray16 shadow[max_packets];
+  RayHit16 bounce[max_packets];
+
+  // per tile pixel (lane = row-major index inside the tile)
+  alignas(64) float fx[max_tile_lanes], fy[max_tile_lanes];  // pixel corner
+  alignas(64) uint32_t pixel[max_tile_lanes];                 // global pixel id (rng key)
+  alignas(64) int32_t cam_valid[max_tile_lanes];
+  alignas(64) float Lr[max_tile_lanes], Lg[max_tile_lanes], Lb[max_tile_lanes];
+  alignas(64) float wsum[max_tile_lanes], wcnt[max_tile_lanes];  // MIS weight of the BSDF technique (AOV)
+
+  // compacted shading points: the camera hits
+  int shade_count = 0;
+  alignas(64) float px[max_tile_lanes], py[max_tile_lanes], pz[max_tile_lanes];
+  alignas(64) float nx[max_tile_lanes], ny[max_tile_lanes], nz[max_tile_lanes];
+  alignas(64) float eps[max_tile_lanes];                 // ray offset scaled to the coordinates
+  alignas(64) float ar[max_tile_lanes], ag[max_tile_lanes], ab[max_tile_lanes];  // albedo
+  alignas(64) uint32_t spix[max_tile_lanes];              // global pixel id
+  alignas(64) int32_t slane[max_tile_lanes];              // tile lane
+  alignas(64) float choose_light[max_tile_lanes];         // one-sample MIS: 1 = light technique
+
+  // per technique sample (over shading points)
+  alignas(64) float u0[max_tile_lanes], u1[max_tile_lanes], u2[max_tile_lanes], u3[max_tile_lanes];
+  alignas(64) float cr[max_tile_lanes], cg[max_tile_lanes], cb[max_tile_lanes];
+  alignas(64) int32_t valid[max_tile_lanes];
+  alignas(64) int32_t hit_light[max_tile_lanes];
+  alignas(64) float wb[max_tile_lanes];
+
+  // statistics
+  uint64_t rejected_light = 0, rejected_bsdf = 0, rejected_camera = 0;
+  uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0;
+};
+
+// Offset of a ray origin off a surface, scaled to the magnitude of its coordinates
+// (float spacing near |p| is |p| 2^-23; 2^-19 leaves 16 ulps for the hit point's error).
+template <class T> inline T offset_scale(const Vec3<T>& p, T t_hit) {
+  return (max_abs(p) + t_hit) * T(1.0f / 524288.f) + T(1e-30f);
+}
+
+}  // namespace tuile

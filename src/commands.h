@@ -1,0 +1,35 @@
+// The subcommands, callable from main and from tests.
+#pragma once
+#include <string>
+
+#include "cli.h"
+
+namespace tuile {
+
+struct BenchFlags {
+  RenderFlags render;
+  int repeat = 5, warmup = 1;
+  std::string json;
+};
+struct ProfileFlags {
+  RenderFlags render;
+  std::string trace;
+  bool roofline = false;
+};
+struct ConvergeFlags {
+  RenderFlags render;
+  std::string reference, strategies, csv, plot;
+  double budget = 10;
+};
+
+void add_bench_flags(CLI::App& app, BenchFlags& f);
+void add_profile_flags(CLI::App& app, ProfileFlags& f);
+void add_converge_flags(CLI::App& app, ConvergeFlags& f);
+
+int run_render(const RenderFlags& f);
+int run_info(const RenderFlags& f);
+int run_bench(const BenchFlags& f);
+int run_profile(const ProfileFlags& f);
+int run_converge(const ConvergeFlags& f);
+
+}  // namespace tuile

@@ -1,0 +1,116 @@
+#include "embree.h"
+
+#include <embree3/rtcore.h>
+
+#include <chrono>
+#include <cstddef>
+#include <cstring>
+
+namespace tuile {
+
+static_assert(sizeof(Ray16) == sizeof(RTCRay16));
+static_assert(sizeof(RayHit16) == sizeof(RTCRayHit16));
+static_assert(offsetof(RayHit16, Ng_x) == offsetof(RTCRayHit16, hit.Ng_x));
+static_assert(offsetof(RayHit16, geomID) == offsetof(RTCRayHit16, hit.geomID));
+static_assert(offsetof(Ray16, tfar) == offsetof(RTCRay16, tfar));
+static_assert(offsetof(Ray16, flags) == offsetof(RTCRay16, flags));
+
+struct Accel::Impl {
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  std::string error;
+};
+
+static void error_callback(void* user, RTCError code, const char* str) {
+  auto* impl = static_cast<Accel::Impl*>(user);
+  if (impl->error.empty()) impl->error = "Embree error " + std::to_string(static_cast<int>(code)) + ": " + (str ? str : "");
+}
+
+Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make_unique<Impl>()) {
+  const auto t0 = std::chrono::steady_clock::now();
+  impl_->device = rtcNewDevice(options.device_config.empty() ? nullptr : options.device_config.c_str());
+  if (!impl_->device) throw SceneError("Embree: cannot create a device (config '" + options.device_config + "')");
+  rtcSetDeviceErrorFunction(impl_->device, error_callback, impl_.get());
+  impl_->scene = rtcNewScene(impl_->device);
+  rtcSetSceneFlags(impl_->scene, options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
+  rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_MEDIUM);
+
+  unsigned id = 0;
+  for (const Mesh& m : scene.meshes) {
+    RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    const size_t nv = m.positions.size() / 3, nt = m.triangle_count();
+    // Shared buffers: Embree reads the scene's own arrays (it may read 4 bytes past the
+    // last vertex; finalize_scene pads positions for that), no copy.
+    rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, m.positions.data(), 0,
+                               3 * sizeof(float), nv);
+    rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.indices.data(), 0,
+                               3 * sizeof(uint32_t), nt);
+    rtcCommitGeometry(g);
+    rtcAttachGeometryByID(impl_->scene, g, id++);
+    rtcReleaseGeometry(g);
+  }
+  for (const Sphere& s : scene.spheres) {
+    RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+    auto* v = static_cast<float*>(
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
+    v[0] = s.center.x;
+    v[1] = s.center.y;
+    v[2] = s.center.z;
+    v[3] = s.radius;
+    rtcCommitGeometry(g);
+    rtcAttachGeometryByID(impl_->scene, g, id++);
+    rtcReleaseGeometry(g);
+  }
+  rtcCommitScene(impl_->scene);
+  if (!impl_->error.empty()) throw SceneError(impl_->error);
+  build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+Accel::~Accel() {
+  if (impl_->scene) rtcReleaseScene(impl_->scene);
+  if (impl_->device) rtcReleaseDevice(impl_->device);
+}
+
+void Accel::intersect16(const int32_t* valid, RayHit16& packet, bool coherent) const noexcept {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  rtcIntersect16(valid, impl_->scene, &ctx, reinterpret_cast<RTCRayHit16*>(&packet));
+}
+
+void Accel::occluded16(const int32_t* valid, Ray16& packet, bool coherent) const noexcept {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  rtcOccluded16(valid, impl_->scene, &ctx, reinterpret_cast<RTCRay16*>(&packet));
+}
+
+void Accel::intersect1(RayHit16& p, int i) const noexcept {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh;
+  rh.ray.org_x = p.ray.org_x[i];
+  rh.ray.org_y = p.ray.org_y[i];
+  rh.ray.org_z = p.ray.org_z[i];
+  rh.ray.tnear = p.ray.tnear[i];
+  rh.ray.dir_x = p.ray.dir_x[i];
+  rh.ray.dir_y = p.ray.dir_y[i];
+  rh.ray.dir_z = p.ray.dir_z[i];
+  rh.ray.time = 0;
+  rh.ray.tfar = p.ray.tfar[i];
+  rh.ray.mask = p.ray.mask[i];
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(impl_->scene, &ctx, &rh);
+  p.ray.tfar[i] = rh.ray.tfar;
+  p.geomID[i] = rh.hit.geomID;
+  p.primID[i] = rh.hit.primID;
+  p.Ng_x[i] = rh.hit.Ng_x;
+  p.Ng_y[i] = rh.hit.Ng_y;
+  p.Ng_z[i] = rh.hit.Ng_z;
+  p.u[i] = rh.hit.u;
+  p.v[i] = rh.hit.v;
+}
+
+}  // namespace tuile

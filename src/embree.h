@@ -1,0 +1,41 @@
+// The only door to Embree: device, scene build, and the packet queries.
+// Nothing else in tuile includes an Embree header.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "../kernels/packet.h"
+#include "scene.h"
+
+namespace tuile {
+
+struct EmbreeOptions {
+  bool robust = false;        // RTC_SCENE_FLAG_ROBUST: watertight, slower (FIELD-NOTES)
+  std::string device_config;  // e.g. "max_isa=avx2"
+};
+
+class Accel {
+ public:
+  // Builds the BVH over every mesh and sphere of the scene. geomID == mesh index for
+  // meshes, meshes.size() + i for sphere i. Throws SceneError if Embree fails.
+  Accel(const Scene& scene, const EmbreeOptions& options = {});
+  ~Accel();
+  Accel(const Accel&) = delete;
+  Accel& operator=(const Accel&) = delete;
+
+  // valid[i] = -1 for active lanes, 0 for inactive (Embree's convention).
+  void intersect16(const int32_t* valid, RayHit16& packet, bool coherent) const noexcept;
+  void occluded16(const int32_t* valid, Ray16& packet, bool coherent) const noexcept;
+  void intersect1(RayHit16& packet, int lane) const noexcept;  // reference path for tests
+  double build_seconds() const { return build_seconds_; }
+
+ public:
+  struct Impl;  // opaque (public so Embree's C callbacks can name it)
+
+ private:
+  std::unique_ptr<Impl> impl_;
+  double build_seconds_ = 0;
+};
+
+}  // namespace tuile

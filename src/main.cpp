@@ -1,0 +1,71 @@
+// tuile: one binary, subcommands render | bench | profile | converge | info.
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include "cli.h"
+#include "commands.h"
+#include "embree.h"
+#include "image_io.h"
+#include "render.h"
+#include "scene.h"
+
+using namespace tuile;
+
+int main(int argc, char** argv) {
+  CLI::App app{"tuile: a SIMD tile renderer for Monte Carlo direct lighting with variance reduction"};
+  app.set_version_flag("--version", std::string("tuile ") + TUILE_VERSION);
+  app.require_subcommand(1);
+
+  RenderFlags rf;
+  CLI::App* render = app.add_subcommand("render", "render a scene to OpenEXR (+ PNG preview)");
+  add_render_flags(*render, rf);
+  render->add_option("-o,--output", rf.output, "output .exr (a .png preview is written beside it); default tuile.exr");
+
+  RenderFlags inf;
+  CLI::App* info = app.add_subcommand("info", "scene statistics, detected features and the pipeline that will run");
+  add_render_flags(*info, inf);
+
+  BenchFlags bf;
+  CLI::App* bench = app.add_subcommand("bench", "samples per second over repeated renders");
+  add_render_flags(*bench, bf.render);
+  add_bench_flags(*bench, bf);
+
+  ProfileFlags pf;
+  CLI::App* profile = app.add_subcommand("profile", "time per kernel stage");
+  add_render_flags(*profile, pf.render);
+  add_profile_flags(*profile, pf);
+
+  ConvergeFlags cf;
+  CLI::App* converge = app.add_subcommand("converge", "error against run time per strategy");
+  add_render_flags(*converge, cf.render);
+  add_converge_flags(*converge, cf);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  try {
+    if (*render) return run_render(rf);
+    if (*info) return run_info(inf);
+    if (*bench) return run_bench(bf);
+    if (*profile) return run_profile(pf);
+    if (*converge) return run_converge(cf);
+  } catch (const SceneError& e) {
+    std::cerr << "tuile: " << e.what() << "\n";
+    return 1;
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "tuile: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "tuile: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

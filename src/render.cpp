@@ -1,0 +1,397 @@
+#include "render.h"
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+#include "../kernels/generate.h"
+#include "../kernels/hit.h"
+#include "../kernels/sample_cosine.h"
+#include "../kernels/sample_lights.h"
+#include "../kernels/weight.h"
+
+namespace tuile {
+
+void Film::reset(int w, int h) {
+  width = w;
+  height = h;
+  samples = 0;
+  const size_t n = static_cast<size_t>(w) * h;
+  sum.assign(3 * n, 0.0);
+  sum_sq.assign(3 * n, 0.0);
+  w_sum.assign(n, 0.0);
+  w_cnt.assign(n, 0.0);
+  max_sample.assign(n, 0.f);
+}
+
+std::vector<float> Film::mean() const {
+  std::vector<float> out(sum.size(), 0.f);
+  if (samples == 0) return out;
+  for (size_t i = 0; i < sum.size(); ++i) out[i] = static_cast<float>(sum[i] / static_cast<double>(samples));
+  return out;
+}
+
+std::vector<float> Film::variance_of_mean() const {
+  std::vector<float> out(sum.size(), 0.f);
+  if (samples < 2) return out;
+  const double n = static_cast<double>(samples);
+  for (size_t i = 0; i < sum.size(); ++i) {
+    const double m = sum[i] / n;
+    const double var = std::max(0.0, (sum_sq[i] / n - m * m)) * n / (n - 1);
+    out[i] = static_cast<float>(var / n);
+  }
+  return out;
+}
+
+std::vector<float> Film::mis_weight() const {
+  std::vector<float> out(w_sum.size(), 0.f);
+  for (size_t i = 0; i < w_sum.size(); ++i) out[i] = w_cnt[i] > 0 ? static_cast<float>(w_sum[i] / w_cnt[i]) : 0.f;
+  return out;
+}
+
+struct Renderer::Views {
+  // light table, SoA
+  std::vector<int32_t> type;
+  std::vector<float> p0x, p0y, p0z, e1x, e1y, e1z, e2x, e2y, e2z, nx, ny, nz, Lr, Lg, Lb, area, two_sided;
+  std::vector<float> pick_pdf, alias_prob;
+  std::vector<int32_t> alias_idx;
+  LightView lights;
+  // geometry
+  std::vector<int32_t> geom_material, sphere_light, mat_texture, tex_w, tex_h;
+  std::vector<const int32_t*> prim_light;
+  std::vector<const uint32_t*> indices;
+  std::vector<const float*> uvs, tex_rgb;
+  std::vector<float> mat_r, mat_g, mat_b;
+  GeomView geom;
+  CameraView camera;
+  bool has_area = false, has_delta = false;
+};
+
+// Vose's alias method: O(1) sampling of a discrete distribution.
+static void build_alias(const std::vector<float>& p, std::vector<float>& prob, std::vector<int32_t>& alias) {
+  const size_t n = p.size();
+  prob.assign(n, 1.f);
+  alias.resize(n);
+  std::iota(alias.begin(), alias.end(), 0);
+  std::vector<double> scaled(n);
+  std::vector<int32_t> small, large;
+  for (size_t i = 0; i < n; ++i) {
+    scaled[i] = static_cast<double>(p[i]) * static_cast<double>(n);
+    (scaled[i] < 1.0 ? small : large).push_back(static_cast<int32_t>(i));
+  }
+  while (!small.empty() && !large.empty()) {
+    const int32_t s = small.back(), l = large.back();
+    small.pop_back();
+    prob[s] = static_cast<float>(scaled[s]);
+    alias[s] = l;
+    scaled[l] = (scaled[l] + scaled[s]) - 1.0;
+    if (scaled[l] < 1.0) {
+      large.pop_back();
+      small.push_back(l);
+    }
+  }
+  for (int32_t i : large) prob[i] = 1.f;
+  for (int32_t i : small) prob[i] = 1.f;  // numerical leftovers
+}
+
+static float lum(const Rgb& c) { return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b; }
+
+Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options)
+    : scene_(scene), accel_(accel), opt_(options), views_(std::make_unique<Views>()) {
+  if (opt_.tile < 1 || opt_.tile > max_tile_side) throw std::invalid_argument("tile size must be in 1..32");
+  if (opt_.est.light_samples < 1 || opt_.est.bsdf_samples < 1)
+    throw std::invalid_argument("--light-samples and --bsdf-samples must be >= 1");
+  if (!(opt_.est.mis.beta > 0) || !std::isfinite(opt_.est.mis.beta)) throw std::invalid_argument("--beta must be > 0");
+  if (!(opt_.est.mis.alpha >= 0 && opt_.est.mis.alpha <= 1)) throw std::invalid_argument("--alpha must be in [0, 1]");
+  Views& v = *views_;
+  const auto& lights = scene.lights;
+  const size_t n = lights.size();
+  for (const Light& l : lights) {
+    v.type.push_back(static_cast<int32_t>(l.type));
+    v.p0x.push_back(l.p0.x); v.p0y.push_back(l.p0.y); v.p0z.push_back(l.p0.z);
+    v.e1x.push_back(l.e1.x); v.e1y.push_back(l.e1.y); v.e1z.push_back(l.e1.z);
+    v.e2x.push_back(l.e2.x); v.e2y.push_back(l.e2.y); v.e2z.push_back(l.e2.z);
+    vec3f nn{0, 0, 0};
+    if (l.type == LightType::triangle || l.type == LightType::parallelogram) nn = normalize(cross(l.e1, l.e2));
+    v.nx.push_back(nn.x); v.ny.push_back(nn.y); v.nz.push_back(nn.z);
+    v.Lr.push_back(l.radiance.r); v.Lg.push_back(l.radiance.g); v.Lb.push_back(l.radiance.b);
+    v.area.push_back(l.area);
+    v.two_sided.push_back(l.two_sided ? 1.f : 0.f);
+    (is_delta(l.type) ? v.has_delta : v.has_area) = true;
+  }
+  // pick distribution
+  v.pick_pdf.assign(n, 0.f);
+  if (n > 0) {
+    std::vector<double> weight(n, 1.0);
+    const LightPick pick = opt_.est.pick;
+    if (pick == LightPick::area) {
+      double mean_area = 0;
+      int na = 0;
+      for (const Light& l : lights)
+        if (!is_delta(l.type)) mean_area += l.area, ++na;
+      mean_area = na ? mean_area / na : 1.0;
+      for (size_t i = 0; i < n; ++i) weight[i] = is_delta(lights[i].type) ? mean_area : lights[i].area;
+    } else if (pick == LightPick::power) {
+      for (size_t i = 0; i < n; ++i) weight[i] = std::max(0.f, lights[i].power);
+    }
+    double total = 0;
+    for (double w : weight) total += w;
+    if (!(total > 0) || !std::isfinite(total)) {
+      std::fill(weight.begin(), weight.end(), 1.0);
+      total = static_cast<double>(n);
+    }
+    for (size_t i = 0; i < n; ++i)
+      v.pick_pdf[i] = pick == LightPick::all ? 1.f : static_cast<float>(weight[i] / total);
+    std::vector<float> p(n);
+    for (size_t i = 0; i < n; ++i) p[i] = static_cast<float>(weight[i] / total);
+    build_alias(p, v.alias_prob, v.alias_idx);
+  }
+  LightView& L = v.lights;
+  L.count = static_cast<int32_t>(n);
+  L.type = v.type.data();
+  L.p0x = v.p0x.data(); L.p0y = v.p0y.data(); L.p0z = v.p0z.data();
+  L.e1x = v.e1x.data(); L.e1y = v.e1y.data(); L.e1z = v.e1z.data();
+  L.e2x = v.e2x.data(); L.e2y = v.e2y.data(); L.e2z = v.e2z.data();
+  L.nx = v.nx.data(); L.ny = v.ny.data(); L.nz = v.nz.data();
+  L.Lr = v.Lr.data(); L.Lg = v.Lg.data(); L.Lb = v.Lb.data();
+  L.area = v.area.data();
+  L.two_sided = v.two_sided.data();
+  L.pick_pdf = v.pick_pdf.data();
+  L.alias_prob = v.alias_prob.data();
+  L.alias_idx = v.alias_idx.data();
+
+  for (const Mesh& m : scene.meshes) {
+    v.geom_material.push_back(m.material);
+    v.prim_light.push_back(m.prim_light.empty() ? nullptr : m.prim_light.data());
+    v.indices.push_back(m.indices.data());
+    v.uvs.push_back(m.uvs.empty() ? nullptr : m.uvs.data());
+  }
+  for (const Sphere& s : scene.spheres) {
+    v.geom_material.push_back(s.material);
+    v.sphere_light.push_back(s.light);
+  }
+  v.sphere_light.push_back(-1);  // never empty
+  for (const Material& m : scene.materials) {
+    v.mat_r.push_back(m.reflectance.r);
+    v.mat_g.push_back(m.reflectance.g);
+    v.mat_b.push_back(m.reflectance.b);
+    v.mat_texture.push_back(m.texture);
+  }
+  for (const Texture& t : scene.textures) {
+    v.tex_rgb.push_back(t.rgb.data());
+    v.tex_w.push_back(t.width);
+    v.tex_h.push_back(t.height);
+  }
+  GeomView& G = v.geom;
+  G.mesh_count = static_cast<int32_t>(scene.meshes.size());
+  G.geom_material = v.geom_material.data();
+  G.prim_light = v.prim_light.data();
+  G.sphere_light = v.sphere_light.data();
+  G.mat_r = v.mat_r.data();
+  G.mat_g = v.mat_g.data();
+  G.mat_b = v.mat_b.data();
+  G.mat_texture = v.mat_texture.data();
+  G.indices = v.indices.data();
+  G.uvs = v.uvs.data();
+  G.tex_rgb = v.tex_rgb.data();
+  G.tex_w = v.tex_w.data();
+  G.tex_h = v.tex_h.data();
+
+  const Camera& c = scene.camera;
+  CameraView& cv = v.camera;
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 4; ++k) cv.m[r][k] = c.world_from_camera[r][k];
+  const float aspect = static_cast<float>(c.width) / static_cast<float>(c.height);
+  if (c.screen[0] != 0 || c.screen[1] != 0 || c.screen[2] != 0 || c.screen[3] != 0) {
+    cv.sx0 = c.screen[0]; cv.sx1 = c.screen[1]; cv.sy0 = c.screen[2]; cv.sy1 = c.screen[3];
+  } else if (aspect > 1.f) {
+    cv.sx0 = -aspect; cv.sx1 = aspect; cv.sy0 = -1; cv.sy1 = 1;
+  } else {
+    cv.sx0 = -1; cv.sx1 = 1; cv.sy0 = -1 / aspect; cv.sy1 = 1 / aspect;
+  }
+  cv.tan_half = std::tan(0.5f * c.fov_deg * 3.14159265f / 180.f);
+  cv.inv_w = 1.f / static_cast<float>(c.width);
+  cv.inv_h = 1.f / static_cast<float>(c.height);
+}
+
+Renderer::~Renderer() = default;
+
+RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end) {
+  const Camera& cam = scene_.camera;
+  if (film.width != cam.width || film.height != cam.height) film.reset(cam.width, cam.height);
+  const int ts = opt_.tile;
+  const int tiles_x = (cam.width + ts - 1) / ts, tiles_y = (cam.height + ts - 1) / ts;
+  const Views& v = *views_;
+  const Estimator& est = opt_.est;
+  const bool do_light = v.lights.count > 0 && (est.strategy != Strategy::bsdf || v.has_delta);
+  const bool do_bsdf = v.has_area && est.strategy != Strategy::light;
+  const bool one = est.one_sample();
+  const int S = v.lights.count;
+  const float c_l = one ? est.one_sample_light_prob() : 0.f;
+  const float n_light = one ? c_l : static_cast<float>(est.light_samples);
+  const float n_bsdf = one ? 1.f - c_l : static_cast<float>(est.bsdf_samples);
+  const int light_passes = (est.pick == LightPick::all ? S : 1) * (one ? 1 : est.light_samples);
+  const int bsdf_passes = one ? 1 : est.bsdf_samples;
+
+  tbb::enumerable_thread_specific<std::unique_ptr<TileBuffers>> buffers([] { return std::make_unique<TileBuffers>(); });
+  const auto t0 = std::chrono::steady_clock::now();
+  auto render_tile = [&](int tile) {
+    TileBuffers& tb = *buffers.local();
+    const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
+    const int tw = std::min(ts, cam.width - x0), th = std::min(ts, cam.height - y0);
+    const int lanes = tw * th;
+    for (int i = 0; i < lanes; ++i) {
+      const int x = x0 + i % tw, y = y0 + i / tw;
+      tb.fx[i] = static_cast<float>(x);
+      tb.fy[i] = static_cast<float>(y);
+      tb.pixel[i] = static_cast<uint32_t>(y) * static_cast<uint32_t>(cam.width) + static_cast<uint32_t>(x);
+    }
+    const int cam_packets = (lanes + packet_width - 1) / packet_width;
+    for (uint32_t s = begin; s < end; ++s) {
+      generate(v.camera, est, s, lanes, tb);
+      for (int p = 0; p < cam_packets; ++p) accel_.intersect16(tb.cam_valid + p * packet_width, tb.cam[p], true);
+      tb.rays_camera += static_cast<uint64_t>(lanes);
+      camera_hits(v.geom, v.lights, est, s, lanes, tb);
+      const int packets = (tb.shade_count + packet_width - 1) / packet_width;
+      if (tb.shade_count > 0 && do_light) {
+        for (int j = 0; j < light_passes; ++j) {
+          LightPass pass;
+          pass.fixed_light = est.pick == LightPick::all ? j % S : -1;
+          pass.n_light = n_light;
+          pass.n_bsdf = n_bsdf;
+          sample_lights(v.lights, est, pass, s, static_cast<uint32_t>(2 + est.bsdf_samples + 2 * j), tb);
+          for (int p = 0; p < packets; ++p) {
+            const int32_t* valid = tb.valid + p * packet_width;
+            int active = 0;
+            for (int l = 0; l < packet_width; ++l) active += valid[l] != 0;
+            if (!active) continue;
+            accel_.occluded16(valid, tb.shadow[p], false);
+            tb.rays_shadow += static_cast<uint64_t>(active);
+          }
+          accumulate_shadow(tb);
+        }
+      }
+      if (tb.shade_count > 0 && do_bsdf) {
+        for (int m = 0; m < bsdf_passes; ++m) {
+          sample_cosine(est, s, static_cast<uint32_t>(2 + m), tb);
+          for (int p = 0; p < packets; ++p) {
+            const int32_t* valid = tb.valid + p * packet_width;
+            int active = 0;
+            for (int l = 0; l < packet_width; ++l) active += valid[l] != 0;
+            if (!active) continue;
+            accel_.intersect16(valid, tb.bounce[p], false);
+            tb.rays_bounce += static_cast<uint64_t>(active);
+          }
+          weight_bounce(v.geom, v.lights, est, n_light, n_bsdf, tb);
+        }
+      }
+      // accumulate: one sample of every pixel of the tile into the film, in double
+      for (int i = 0; i < lanes; ++i) {
+        const size_t pix = tb.pixel[i];
+        double r = tb.Lr[i], g = tb.Lg[i], b = tb.Lb[i];
+        if (!(std::isfinite(r) && std::isfinite(g) && std::isfinite(b))) {
+          ++tb.rejected_camera;
+          r = g = b = 0;
+        }
+        double* sp = &film.sum[3 * pix];
+        double* sq = &film.sum_sq[3 * pix];
+        sp[0] += r; sp[1] += g; sp[2] += b;
+        sq[0] += r * r; sq[1] += g * g; sq[2] += b * b;
+        film.w_sum[pix] += tb.wsum[i];
+        film.w_cnt[pix] += tb.wcnt[i];
+        const float y = luminance(static_cast<float>(r), static_cast<float>(g), static_cast<float>(b));
+        if (y > film.max_sample[pix]) film.max_sample[pix] = y;
+      }
+    }
+  };
+
+  const int threads = opt_.threads > 0 ? opt_.threads : tbb::this_task_arena::max_concurrency();
+  tbb::task_arena arena(threads);
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<int>(0, tiles_x * tiles_y, 1),
+                      [&](const tbb::blocked_range<int>& r) {
+                        for (int t = r.begin(); t < r.end(); ++t) render_tile(t);
+                      },
+                      tbb::simple_partitioner());
+  });
+  RenderStats st;
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  film.samples += end - begin;
+  st.samples = static_cast<uint64_t>(end - begin) * static_cast<uint64_t>(cam.width) * cam.height;
+  for (auto& p : buffers) {
+    st.rays_camera += p->rays_camera;
+    st.rays_shadow += p->rays_shadow;
+    st.rays_bounce += p->rays_bounce;
+    st.rejected_camera += p->rejected_camera;
+    st.rejected_light += p->rejected_light;
+    st.rejected_bsdf += p->rejected_bsdf;
+  }
+  const std::vector<float> m = film.mean();
+  for (size_t i = 0; i < film.max_sample.size(); ++i) {
+    const float y = luminance(m[3 * i], m[3 * i + 1], m[3 * i + 2]);
+    if (y > 0) st.worst_ratio = std::max(st.worst_ratio, static_cast<double>(film.max_sample[i] / y));
+  }
+  return st;
+}
+
+Strategy parse_strategy(const std::string& s) {
+  if (s == "light") return Strategy::light;
+  if (s == "bsdf") return Strategy::bsdf;
+  if (s == "mis") return Strategy::mis;
+  throw std::invalid_argument("unknown strategy '" + s + "' (expected light, bsdf or mis)");
+}
+LightPick parse_light_pick(const std::string& s) {
+  if (s == "all") return LightPick::all;
+  if (s == "uniform") return LightPick::uniform;
+  if (s == "area") return LightPick::area;
+  if (s == "power") return LightPick::power;
+  throw std::invalid_argument("unknown light pick '" + s + "' (expected all, uniform, area or power)");
+}
+LightPoint parse_light_point(const std::string& s) {
+  if (s == "area") return LightPoint::area;
+  if (s == "solid-angle") return LightPoint::solid_angle;
+  throw std::invalid_argument("unknown light point '" + s + "' (expected area or solid-angle)");
+}
+Heuristic parse_heuristic(const std::string& s) {
+  if (s == "balance") return Heuristic::balance;
+  if (s == "power") return Heuristic::power;
+  if (s == "cutoff") return Heuristic::cutoff;
+  if (s == "maximum") return Heuristic::maximum;
+  throw std::invalid_argument("unknown heuristic '" + s + "' (expected balance, power, cutoff or maximum)");
+}
+MisMode parse_mis_mode(const std::string& s) {
+  if (s == "multi") return MisMode::multi;
+  if (s == "one") return MisMode::one;
+  throw std::invalid_argument("unknown MIS mode '" + s + "' (expected multi or one)");
+}
+SamplerKind parse_sampler(const std::string& s) {
+  if (s == "independent") return SamplerKind::independent;
+  if (s == "stratified") return SamplerKind::stratified;
+  if (s == "sobol") return SamplerKind::sobol;
+  throw std::invalid_argument("unknown sampler '" + s + "' (expected independent, stratified or sobol)");
+}
+
+std::string describe(const Estimator& e) {
+  static const char* strategies[] = {"light", "bsdf", "mis"};
+  static const char* picks[] = {"all", "uniform", "area", "power"};
+  static const char* points[] = {"area", "solid-angle"};
+  static const char* heuristics[] = {"balance", "power", "cutoff", "maximum"};
+  static const char* samplers[] = {"independent", "stratified", "sobol"};
+  std::string s = std::string("strategy=") + strategies[static_cast<int>(e.strategy)] +
+                  " light-pick=" + picks[static_cast<int>(e.pick)] + " light-point=" + points[static_cast<int>(e.point)];
+  if (e.strategy == Strategy::mis)
+    s += std::string(" heuristic=") + heuristics[static_cast<int>(e.heuristic)] +
+         (e.mode == MisMode::one ? " mis-mode=one" : " mis-mode=multi");
+  s += " light-samples=" + std::to_string(e.light_samples) + " bsdf-samples=" + std::to_string(e.bsdf_samples) +
+       " sampler=" + samplers[static_cast<int>(e.sampler)] + " spp=" + std::to_string(e.spp) +
+       " seed=" + std::to_string(e.seed);
+  return s;
+}
+
+}  // namespace tuile

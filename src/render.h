@@ -1,0 +1,72 @@
+// The tile renderer: owns the light/geometry views the kernels read, the film, and the
+// oneTBB scheduling of tiles. One render = [sample_begin, sample_end) samples per pixel.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "../kernels/tile.h"
+#include "embree.h"
+#include "scene.h"
+
+namespace tuile {
+
+struct RenderOptions {
+  Estimator est;
+  int threads = 0;    // 0 = all cores
+  int tile = 16;      // 16 or 32 (any 1..32 accepted)
+  bool aov_variance = false;
+  bool aov_mis_weight = false;
+};
+
+// Per-pixel sums in double: 10^7 samples in one pixel lose nothing.
+struct Film {
+  int width = 0, height = 0;
+  uint64_t samples = 0;  // per pixel
+  std::vector<double> sum;     // 3 per pixel
+  std::vector<double> sum_sq;  // 3 per pixel
+  std::vector<double> w_sum;   // BSDF-technique MIS weight, summed over emitter hits
+  std::vector<double> w_cnt;
+  std::vector<float> max_sample;  // largest single-sample luminance
+  void reset(int w, int h);
+  // mean radiance, variance of the mean (per channel), mean BSDF MIS weight
+  std::vector<float> mean() const;
+  std::vector<float> variance_of_mean() const;
+  std::vector<float> mis_weight() const;
+};
+
+struct RenderStats {
+  double seconds = 0;
+  uint64_t samples = 0;  // camera samples
+  uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0;
+  uint64_t rejected_camera = 0, rejected_light = 0, rejected_bsdf = 0, rejected_film = 0;
+  double worst_ratio = 0;  // largest single-sample luminance relative to its pixel mean
+};
+
+class Renderer {
+ public:
+  Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options);
+  ~Renderer();
+  // Adds samples [begin, end) of every pixel to the film.
+  RenderStats render(Film& film, uint32_t begin, uint32_t end);
+  const RenderOptions& options() const { return opt_; }
+
+ private:
+  struct Views;
+  const Scene& scene_;
+  const Accel& accel_;
+  RenderOptions opt_;
+  std::unique_ptr<Views> views_;
+};
+
+// Parses the names used on the command line and in scene files; throw std::invalid_argument.
+Strategy parse_strategy(const std::string& s);
+LightPick parse_light_pick(const std::string& s);
+LightPoint parse_light_point(const std::string& s);
+Heuristic parse_heuristic(const std::string& s);
+MisMode parse_mis_mode(const std::string& s);
+SamplerKind parse_sampler(const std::string& s);
+std::string describe(const Estimator& e);
+
+}  // namespace tuile
