@@ -67,7 +67,20 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
     const float t = p.ray.tfar[l];
     const vec3f o{p.ray.org_x[l], p.ray.org_y[l], p.ray.org_z[l]};
     const vec3f d{p.ray.dir_x[l], p.ray.dir_y[l], p.ray.dir_z[l]};
-    const vec3f x = o + d * t;
+    // the hit point: from the triangle's barycentrics (error bounded by the vertices'
+    // magnitude, not by the ray length), from the ray for spheres
+    vec3f x = o + d * t;
+    float extent = t;
+    if (static_cast<int32_t>(geom) < G.mesh_count) {
+      const uint32_t* tri = G.indices[geom] + 3 * p.primID[l];
+      const float* P = G.positions[geom];
+      const vec3f v0{P[3 * tri[0]], P[3 * tri[0] + 1], P[3 * tri[0] + 2]};
+      const vec3f v1{P[3 * tri[1]], P[3 * tri[1] + 1], P[3 * tri[1] + 2]};
+      const vec3f v2{P[3 * tri[2]], P[3 * tri[2] + 1], P[3 * tri[2] + 2]};
+      const float bu = p.u[l], bv = p.v[l];
+      x = v0 * (1.f - bu - bv) + v1 * bu + v2 * bv;
+      extent = std::max(max_abs(v0), std::max(max_abs(v1), max_abs(v2)));
+    }
     vec3f ng{p.Ng_x[l], p.Ng_y[l], p.Ng_z[l]};
     const float len = length(ng);
     if (!(len > 0.f) || !std::isfinite(len) || !std::isfinite(t)) {
@@ -90,7 +103,7 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
     tb.nx[n] = ng.x;
     tb.ny[n] = ng.y;
     tb.nz[n] = ng.z;
-    tb.eps[n] = offset_scale(x, t);
+    tb.eps[n] = offset_scale(x, extent);
     tb.ar[n] = r;
     tb.ag[n] = g;
     tb.ab[n] = b;

@@ -63,17 +63,27 @@ inline void sample_lights_lanes(const LightView& L, const Estimator& est, const 
     else tb.rejected_light += static_cast<uint64_t>(xsimd::hadd(xsimd::select(ok && !fin, vfloat(1.f), vfloat(0.f))));
   }
 
-  // shadow ray from just above the surface to just short of the light point
+  // Shadow ray from the offset origin to the light point, itself offset off the source
+  // towards x (pbrt's "spawn ray to"): at grazing angles the ray along wi from a lifted
+  // origin would meet the source's plane early. Embree's packet t is good to ~1e-5
+  // relative (measured), so the ray stops 2^-12 of its length short.
   const Vec3<T> org = x + n * eps;
   const auto is_dist = type_is<T>(g.type, lt_distant);
+  const auto is_sph = type_is<T>(g.type, lt_sphere);
   const Vec3<T> y = x + s.wi * sel(is_dist, T(0.f), s.dist);
-  // Embree's packet intersector is only good to ~1e-5 relative in t here (measured), so
-  // the shadow ray stops 2^-12 of its length short of the light, plus the offsets.
-  const T tfar = sel(is_dist, T(3.0e38f), max(T(0.f), s.dist * T(1.f - 1.f / 4096.f) - eps - offset_scale(y, T(0.f))));
+  const T light_extent = max_abs(g.p0) + max_abs(g.e1) + max_abs(g.e2);
+  Vec3<T> ny = sel(dot(g.n, s.wi) > T(0.f), -g.n, g.n);  // planar normal facing x
+  if (any(is_sph)) ny = sel(is_sph, normalize(y - g.p0), ny);
+  ny = sel(planar || is_sph, ny, Vec3<T>(T(0.f), T(0.f), T(0.f)));
+  const Vec3<T> target = y + ny * offset_scale(y, light_extent);
+  const Vec3<T> to = target - org;
+  const T len = length(to);
+  const Vec3<T> dir = sel(is_dist || !(len > T(0.f)), s.wi, to * (T(1.f) / sel(len > T(0.f), len, T(1.f))));
+  const T tfar = sel(is_dist, T(3.0e38f), len * T(1.f - 1.f / 4096.f));
   Ray16& r = tb.shadow[k / packet_width];
   const int l = k % packet_width;
   store3(r.org_x + l, r.org_y + l, r.org_z + l, org);
-  store3(r.dir_x + l, r.dir_y + l, r.dir_z + l, s.wi);
+  store3(r.dir_x + l, r.dir_y + l, r.dir_z + l, dir);
   store(r.tnear + l, T(0.f));
   store(r.tfar + l, tfar);
   store(r.time + l, T(0.f));

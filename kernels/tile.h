@@ -49,6 +49,7 @@ struct GeomView {
   const float *mat_r = nullptr, *mat_g = nullptr, *mat_b = nullptr;
   const int32_t* mat_texture = nullptr;
   const uint32_t* const* indices = nullptr;    // per mesh
+  const float* const* positions = nullptr;     // per mesh, xyz per vertex
   const float* const* uvs = nullptr;           // per mesh, nullptr without uv
   const float* const* tex_rgb = nullptr;       // per texture
   const int32_t *tex_w = nullptr, *tex_h = nullptr;
@@ -95,10 +96,12 @@ struct alignas(64) TileBuffers {
   uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0;
 };
 
-// Offset of a ray origin off a surface, scaled to the magnitude of its coordinates
-// (float spacing near |p| is |p| 2^-23; 2^-19 leaves 16 ulps for the hit point's error).
-template <class T> inline T offset_scale(const Vec3<T>& p, T t_hit) {
-  return (max_abs(p) + t_hit) * T(1.0f / 524288.f) + T(1e-30f);
+// Offset of a ray origin off a surface, scaled to the magnitude of the coordinates that
+// produced the point (float spacing near |p| is |p| 2^-23; 2^-19 leaves 16 ulps). For a
+// triangle hit, pass the largest vertex coordinate as `extent`: Embree works with vertices
+// relative to the ray origin, so a plane with far vertices is only known to that precision.
+template <class T> inline T offset_scale(const Vec3<T>& p, T extent) {
+  return (max_abs(p) + extent) * T(1.0f / 524288.f) + T(1e-30f);
 }
 
 }  // namespace tuile

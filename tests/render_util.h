@@ -1,0 +1,106 @@
+// Helpers for tests that render scenes built in code and compare with exact answers.
+#pragma once
+#include <memory>
+#include <vector>
+
+#include "embree.h"
+#include "polygon_irradiance.h"
+#include "render.h"
+#include "scene.h"
+
+namespace tuile::test {
+
+inline void add_quad(Mesh& m, vec3f p0, vec3f e1, vec3f e2) {
+  const uint32_t base = static_cast<uint32_t>(m.positions.size() / 3);
+  for (vec3f p : {p0, p0 + e1, p0 + e1 + e2, p0 + e2}) m.positions.insert(m.positions.end(), {p.x, p.y, p.z});
+  for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) m.indices.push_back(base + i);
+}
+inline void add_triangle(Mesh& m, vec3f a, vec3f b, vec3f c) {
+  const uint32_t base = static_cast<uint32_t>(m.positions.size() / 3);
+  for (vec3f p : {a, b, c}) m.positions.insert(m.positions.end(), {p.x, p.y, p.z});
+  for (uint32_t i : {0u, 1u, 2u}) m.indices.push_back(base + i);
+}
+
+// A polygonal source for the exact answer: vertices in order, radiance (grey).
+struct Polygon {
+  std::vector<vec3f> v;
+  float L = 1;
+};
+
+// A diffuse floor (y = 0, albedo rho) seen from straight above, lit by polygons facing
+// down that nothing occludes.
+struct PlaneScene {
+  Scene scene;
+  std::vector<Polygon> sources;
+  float rho = 0.5f;
+};
+
+inline PlaneScene plane_scene(vec3f eye, float fov, int res, float rho = 0.5f) {
+  PlaneScene p;
+  p.rho = rho;
+  Scene& s = p.scene;
+  s.source = "test:plane";
+  s.materials.push_back({Rgb{rho, rho, rho}, -1, ""});
+  Mesh floor;
+  floor.name = "floor";
+  floor.material = 0;
+  add_quad(floor, {-100, 0, -100}, {0, 0, 200}, {200, 0, 0});
+  s.meshes.push_back(floor);
+  s.camera.width = s.camera.height = res;
+  s.camera.fov_deg = fov;
+  camera_look_at(s.camera, eye, {eye.x, 0, eye.z}, {0, 0, 1});
+  return p;
+}
+
+// A downward-facing parallelogram source p0 + u e1 + v e2 (cross(e1, e2) must point down).
+inline void add_source_quad(PlaneScene& p, vec3f p0, vec3f e1, vec3f e2, float L) {
+  Mesh m;
+  m.name = "source";
+  m.material = 0;
+  m.emission = {L, L, L};
+  add_quad(m, p0, e1, e2);
+  p.scene.meshes.push_back(m);
+  p.sources.push_back({{p0, p0 + e1, p0 + e1 + e2, p0 + e2}, L});
+}
+inline void add_source_triangle(PlaneScene& p, vec3f a, vec3f b, vec3f c, float L) {
+  Mesh m;
+  m.name = "source";
+  m.material = 0;
+  m.emission = {L, L, L};
+  add_triangle(m, a, b, c);
+  p.scene.meshes.push_back(m);
+  p.sources.push_back({{a, b, c}, L});
+}
+
+// Exact outgoing radiance of the floor at (x, 0, z).
+inline double exact_floor_radiance(const PlaneScene& p, double x, double z) {
+  const double px[3] = {x, 0, z}, n[3] = {0, 1, 0};
+  double e = 0;
+  for (const Polygon& poly : p.sources) {
+    std::vector<double> v;
+    for (vec3f q : poly.v) v.insert(v.end(), {q.x, q.y, q.z});
+    e += poly.L * polygon_irradiance_clipped(px, n, v.data(), static_cast<int>(poly.v.size()));
+  }
+  return p.rho / 3.14159265358979 * e;
+}
+
+// Exact pixel values (the box-filtered radiance: the mean over the pixel's raster square),
+// by q x q Gauss-Legendre quadrature in raster space of the smooth floor radiance.
+std::vector<double> exact_image(const PlaneScene& p, int q = 4);
+
+struct RenderResult {
+  Film film;
+  RenderStats stats;
+  std::vector<float> mean;
+};
+inline RenderResult render_scene(const Scene& s, const RenderOptions& o) {
+  Accel accel(s);
+  Renderer r(s, accel, o);
+  RenderResult out;
+  out.film.reset(s.camera.width, s.camera.height);
+  out.stats = r.render(out.film, 0, o.est.spp);
+  out.mean = out.film.mean();
+  return out;
+}
+
+}  // namespace tuile::test
