@@ -158,7 +158,6 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
     auto use_sa = (solid_angle_sampling_safe(omega) && (is_tri || is_par)) || (is_sph && omega > T(0.f));
     if (any(use_sa)) {
       Vec3<T> dir = wi;
-      T pdf(0.f);
       auto ok = use_sa;
       if (any(is_tri && use_sa)) {
         Vec3<T> dt;

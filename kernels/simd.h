@@ -4,7 +4,18 @@
 #pragma once
 #include <cmath>
 #include <cstdint>
+// GCC 12's AVX-512 intrinsic headers warn about their own _mm512_undefined_* values once
+// inlined (GCC bug 105593, fixed in GCC 13); silence that inside these headers only.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#include <immintrin.h>
 #include <xsimd/xsimd.hpp>
+#pragma GCC diagnostic pop
+#else
+#include <xsimd/xsimd.hpp>
+#endif
 
 namespace tuile {
 

@@ -55,24 +55,6 @@ std::vector<float> Film::mis_weight() const {
   return out;
 }
 
-struct Renderer::Views {
-  // light table, SoA
-  std::vector<int32_t> type;
-  std::vector<float> p0x, p0y, p0z, e1x, e1y, e1z, e2x, e2y, e2z, nx, ny, nz, Lr, Lg, Lb, area, two_sided;
-  std::vector<float> pick_pdf, alias_prob;
-  std::vector<int32_t> alias_idx;
-  LightView lights;
-  // geometry
-  std::vector<int32_t> geom_material, sphere_light, mat_texture, tex_w, tex_h;
-  std::vector<const int32_t*> prim_light;
-  std::vector<const uint32_t*> indices;
-  std::vector<const float*> uvs, tex_rgb;
-  std::vector<float> mat_r, mat_g, mat_b;
-  GeomView geom;
-  CameraView camera;
-  bool has_area = false, has_delta = false;
-};
-
 // Vose's alias method: O(1) sampling of a discrete distribution.
 static void build_alias(const std::vector<float>& p, std::vector<float>& prob, std::vector<int32_t>& alias) {
   const size_t n = p.size();
@@ -100,16 +82,10 @@ static void build_alias(const std::vector<float>& p, std::vector<float>& prob, s
   for (int32_t i : small) prob[i] = 1.f;  // numerical leftovers
 }
 
-static float lum(const Rgb& c) { return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b; }
 
-Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options)
-    : scene_(scene), accel_(accel), opt_(options), views_(std::make_unique<Views>()) {
-  if (opt_.tile < 1 || opt_.tile > max_tile_side) throw std::invalid_argument("tile size must be in 1..32");
-  if (opt_.est.light_samples < 1 || opt_.est.bsdf_samples < 1)
-    throw std::invalid_argument("--light-samples and --bsdf-samples must be >= 1");
-  if (!(opt_.est.mis.beta > 0) || !std::isfinite(opt_.est.mis.beta)) throw std::invalid_argument("--beta must be > 0");
-  if (!(opt_.est.mis.alpha >= 0 && opt_.est.mis.alpha <= 1)) throw std::invalid_argument("--alpha must be in [0, 1]");
-  Views& v = *views_;
+SceneViews build_views(const Scene& scene, LightPick pick) {
+  SceneViews out;
+  SceneViews& v = out;
   const auto& lights = scene.lights;
   const size_t n = lights.size();
   for (const Light& l : lights) {
@@ -129,7 +105,6 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   v.pick_pdf.assign(n, 0.f);
   if (n > 0) {
     std::vector<double> weight(n, 1.0);
-    const LightPick pick = opt_.est.pick;
     if (pick == LightPick::area) {
       double mean_area = 0;
       int na = 0;
@@ -170,6 +145,7 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
     v.geom_material.push_back(m.material);
     v.prim_light.push_back(m.prim_light.empty() ? nullptr : m.prim_light.data());
     v.indices.push_back(m.indices.data());
+    v.positions.push_back(m.positions.data());
     v.uvs.push_back(m.uvs.empty() ? nullptr : m.uvs.data());
   }
   for (const Sphere& s : scene.spheres) {
@@ -198,6 +174,7 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   G.mat_b = v.mat_b.data();
   G.mat_texture = v.mat_texture.data();
   G.indices = v.indices.data();
+  G.positions = v.positions.data();
   G.uvs = v.uvs.data();
   G.tex_rgb = v.tex_rgb.data();
   G.tex_w = v.tex_w.data();
@@ -218,6 +195,17 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   cv.tan_half = std::tan(0.5f * c.fov_deg * 3.14159265f / 180.f);
   cv.inv_w = 1.f / static_cast<float>(c.width);
   cv.inv_h = 1.f / static_cast<float>(c.height);
+  return out;
+}
+
+Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options)
+    : scene_(scene), accel_(accel), opt_(options), views_(std::make_unique<SceneViews>()) {
+  if (opt_.tile < 1 || opt_.tile > max_tile_side) throw std::invalid_argument("tile size must be in 1..32");
+  if (opt_.est.light_samples < 1 || opt_.est.bsdf_samples < 1)
+    throw std::invalid_argument("--light-samples and --bsdf-samples must be >= 1");
+  if (!(opt_.est.mis.beta > 0) || !std::isfinite(opt_.est.mis.beta)) throw std::invalid_argument("--beta must be > 0");
+  if (!(opt_.est.mis.alpha >= 0 && opt_.est.mis.alpha <= 1)) throw std::invalid_argument("--alpha must be in [0, 1]");
+  *views_ = build_views(scene, opt_.est.pick);
 }
 
 Renderer::~Renderer() = default;
@@ -227,7 +215,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end) {
   if (film.width != cam.width || film.height != cam.height) film.reset(cam.width, cam.height);
   const int ts = opt_.tile;
   const int tiles_x = (cam.width + ts - 1) / ts, tiles_y = (cam.height + ts - 1) / ts;
-  const Views& v = *views_;
+  const SceneViews& v = *views_;
   const Estimator& est = opt_.est;
   const bool do_light = v.lights.count > 0 && (est.strategy != Strategy::bsdf || v.has_delta);
   const bool do_bsdf = v.has_area && est.strategy != Strategy::light;

@@ -44,6 +44,36 @@ struct RenderStats {
   double worst_ratio = 0;  // largest single-sample luminance relative to its pixel mean
 };
 
+// The scene as the kernels read it: SoA light table (with the pick distribution and its
+// alias table), per-geometry lookups, camera. The views point into the vectors here and
+// into the Scene, which must outlive them.
+struct SceneViews {
+  // light table, SoA
+  std::vector<int32_t> type;
+  SceneViews() = default;
+  SceneViews(const SceneViews&) = delete;
+  SceneViews& operator=(const SceneViews&) = delete;
+  SceneViews(SceneViews&&) = default;
+  SceneViews& operator=(SceneViews&&) = default;
+  std::vector<float> p0x, p0y, p0z, e1x, e1y, e1z, e2x, e2y, e2z, nx, ny, nz, Lr, Lg, Lb, area, two_sided;
+  std::vector<float> pick_pdf, alias_prob;
+  std::vector<int32_t> alias_idx;
+  LightView lights;
+  // geometry
+  std::vector<int32_t> geom_material, sphere_light, mat_texture, tex_w, tex_h;
+  std::vector<const int32_t*> prim_light;
+  std::vector<const uint32_t*> indices;
+  std::vector<const float*> positions;
+  std::vector<const float*> uvs, tex_rgb;
+  std::vector<float> mat_r, mat_g, mat_b;
+  GeomView geom;
+  CameraView camera;
+  bool has_area = false, has_delta = false;
+};
+
+
+SceneViews build_views(const Scene& scene, LightPick pick);
+
 class Renderer {
  public:
   Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options);
@@ -53,11 +83,10 @@ class Renderer {
   const RenderOptions& options() const { return opt_; }
 
  private:
-  struct Views;
   const Scene& scene_;
   const Accel& accel_;
   RenderOptions opt_;
-  std::unique_ptr<Views> views_;
+  std::unique_ptr<SceneViews> views_;
 };
 
 // Parses the names used on the command line and in scene files; throw std::invalid_argument.

@@ -1,0 +1,204 @@
+// Every SIMD lane equals the scalar reference, for every stage kernel: the samplers,
+// camera rays, light point sampling and its pdf, the light-sampling stage, the cosine
+// stage and the MIS weight stage (the whole per-lane state they write is compared).
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <memory>
+#include <random>
+
+#include "../kernels/generate.h"
+#include "../kernels/sample_cosine.h"
+#include "../kernels/sample_lights.h"
+#include "../kernels/weight.h"
+#include "render.h"
+#include "render_util.h"
+
+using namespace tuile;
+
+namespace {
+
+// A scene with every light type: triangles, parallelograms (rectangle and sheared),
+// a sphere, point, spot and distant lights.
+Scene all_lights_scene() {
+  Scene s;
+  s.source = "test:all-lights";
+  s.materials.push_back({Rgb{0.7f, 0.5f, 0.3f}, -1, ""});
+  Mesh floor;
+  floor.name = "floor";
+  floor.material = 0;
+  test::add_quad(floor, {-5, 0, -5}, {0, 0, 10}, {10, 0, 0});
+  s.meshes.push_back(floor);
+  Mesh lights;
+  lights.name = "emitters";
+  lights.material = 0;
+  lights.emission = {3, 2, 1};
+  test::add_quad(lights, {-1, 1, -1}, {1, 0, 0}, {0, 0, 1});
+  test::add_quad(lights, {0.5f, 1.2f, 0}, {0.4f, 0, 0}, {0.2f, 0.1f, 0.5f});
+  test::add_triangle(lights, {0, 2, 0}, {0.5f, 2, 0.5f}, {0.2f, 2.5f, 0});
+  s.meshes.push_back(lights);
+  Sphere sp;
+  sp.center = {1, 1.5f, 1};
+  sp.radius = 0.3f;
+  sp.material = 0;
+  sp.emission = {5, 5, 5};
+  s.spheres.push_back(sp);
+  Light pt;
+  pt.type = LightType::point;
+  pt.p0 = {0, 3, 0};
+  pt.radiance = {2, 2, 2};
+  s.lights.push_back(pt);
+  Light spot;
+  spot.type = LightType::spot;
+  spot.p0 = {1, 3, 1};
+  spot.e1 = normalize(vec3f{0, -1, 0.2f});
+  spot.e2 = {0.95f, 0.85f, 0};
+  spot.radiance = {4, 4, 4};
+  s.lights.push_back(spot);
+  Light dist;
+  dist.type = LightType::distant;
+  dist.e1 = normalize(vec3f{0.3f, 1, 0.2f});
+  dist.radiance = {1, 1, 1};
+  s.lights.push_back(dist);
+  s.camera.width = s.camera.height = 16;
+  camera_look_at(s.camera, {0, 2, 4}, {0, 0, 0}, {0, 1, 0});
+  finalize_scene(s);
+  return s;
+}
+
+void fill_shading_points(TileBuffers& tb, std::mt19937& rng, int n) {
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  tb.shade_count = n;
+  for (int k = 0; k < max_tile_lanes; ++k) {
+    tb.px[k] = -2 + 4 * U(rng);
+    tb.py[k] = U(rng) < 0.2f ? 1.0f : 0.f;  // some points in the plane of a source
+    tb.pz[k] = -2 + 4 * U(rng);
+    vec3f nn = normalize(vec3f{0.2f * (U(rng) - 0.5f), 1.f, 0.2f * (U(rng) - 0.5f)});
+    if (U(rng) < 0.1f) nn = -nn;
+    tb.nx[k] = nn.x;
+    tb.ny[k] = nn.y;
+    tb.nz[k] = nn.z;
+    tb.eps[k] = 1e-5f;
+    tb.ar[k] = U(rng);
+    tb.ag[k] = U(rng);
+    tb.ab[k] = U(rng);
+    tb.spix[k] = static_cast<uint32_t>(k * 7);
+    tb.slane[k] = k;
+    tb.choose_light[k] = U(rng) < 0.5f ? 1.f : 0.f;
+    tb.u0[k] = U(rng);
+    tb.u1[k] = U(rng);
+    tb.u2[k] = U(rng);
+    tb.u3[k] = U(rng);
+  }
+}
+
+template <class F> void expect_same_floats(const float* a, const float* b, int n, F name) {
+  for (int i = 0; i < n; ++i)
+    ASSERT_TRUE(std::memcmp(a + i, b + i, sizeof(float)) == 0) << name() << " lane " << i << ": " << a[i] << " vs " << b[i];
+}
+
+}  // namespace
+
+TEST(Lanes, Samplers) {
+  uint32_t pix[64];
+  for (int i = 0; i < 64; ++i) pix[i] = static_cast<uint32_t>(i * 131 + 5);
+  for (int kind = 0; kind < 3; ++kind)
+    for (uint32_t pair : {0u, 3u, 17u})
+      for (uint32_t idx : {0u, 1u, 15u, 1000u}) {
+        float u[64], v[64];
+        sample_pairs(static_cast<SamplerKind>(kind), 9, pix, idx, 16, pair, 64, u, v);
+        for (int i = 0; i < 64; ++i) {
+          float su, sv;
+          sample_pair_scalar(static_cast<SamplerKind>(kind), 9, pix[i], idx, 16, pair, su, sv);
+          ASSERT_EQ(u[i], su);
+          ASSERT_EQ(v[i], sv);
+          ASSERT_GE(u[i], 0.f);
+          ASSERT_LT(u[i], 1.f);
+        }
+      }
+}
+
+TEST(Lanes, StagesEqualScalar) {
+  Scene s = all_lights_scene();
+  ASSERT_EQ(s.lights.size(), 7u);
+  std::mt19937 rng(3);
+  for (LightPick pick : {LightPick::all, LightPick::uniform, LightPick::area, LightPick::power}) {
+    SceneViews views = build_views(s, pick);
+    for (LightPoint point : {LightPoint::area, LightPoint::solid_angle})
+      for (Strategy strategy : {Strategy::light, Strategy::bsdf, Strategy::mis})
+        for (MisMode mode : {MisMode::multi, MisMode::one}) {
+          Estimator est;
+          est.pick = pick;
+          est.point = point;
+          est.strategy = strategy;
+          est.mode = mode;
+          auto a = std::make_unique<TileBuffers>();
+          fill_shading_points(*a, rng, 200);
+          auto b = std::make_unique<TileBuffers>(*a);
+          const int n = 208;  // whole packets
+          auto name = [&] { return describe(est); };
+          // light sampling stage
+          LightPass pass;
+          pass.fixed_light = pick == LightPick::all ? 2 : -1;
+          for (int k = 0; k < n; k += simd_width) sample_lights_lanes<vfloat>(views.lights, est, pass, *a, k);
+          for (int k = 0; k < n; ++k) sample_lights_lanes<float>(views.lights, est, pass, *b, k);
+          expect_same_floats(a->cr, b->cr, n, name);
+          expect_same_floats(a->cg, b->cg, n, name);
+          expect_same_floats(a->cb, b->cb, n, name);
+          for (int k = 0; k < n; ++k) ASSERT_EQ(a->valid[k], b->valid[k]) << name() << " lane " << k;
+          for (int p = 0; p < n / packet_width; ++p) {
+            const Ray16 &ra = a->shadow[p], &rb = b->shadow[p];
+            for (int l = 0; l < packet_width; ++l) {
+              if (!a->valid[p * packet_width + l]) continue;
+              ASSERT_EQ(ra.dir_x[l], rb.dir_x[l]);
+              ASSERT_EQ(ra.dir_y[l], rb.dir_y[l]);
+              ASSERT_EQ(ra.org_z[l], rb.org_z[l]);
+              ASSERT_EQ(ra.tfar[l], rb.tfar[l]);
+            }
+          }
+          // cosine stage
+          for (int k = 0; k < n; k += simd_width) sample_cosine_lanes<vfloat>(est, *a, k);
+          for (int k = 0; k < n; ++k) sample_cosine_lanes<float>(est, *b, k);
+          for (int p = 0; p < n / packet_width; ++p)
+            for (int l = 0; l < packet_width; ++l) {
+              ASSERT_EQ(a->bounce[p].ray.dir_x[l], b->bounce[p].ray.dir_x[l]);
+              ASSERT_EQ(a->bounce[p].ray.dir_z[l], b->bounce[p].ray.dir_z[l]);
+              ASSERT_EQ(a->bounce[p].ray.org_y[l], b->bounce[p].ray.org_y[l]);
+            }
+          // MIS weight stage on synthetic hits of every light
+          for (int k = 0; k < n; ++k) {
+            const int32_t li = static_cast<int32_t>(rng() % 5) - 1;  // -1 or an area light
+            a->hit_light[k] = b->hit_light[k] = li < 0 ? -1 : li;
+            const float t = 0.1f + static_cast<float>(rng() % 1000) * 0.003f;
+            a->bounce[k / packet_width].ray.tfar[k % packet_width] = t;
+            b->bounce[k / packet_width].ray.tfar[k % packet_width] = t;
+          }
+          for (int k = 0; k < n; k += simd_width) weight_lanes<vfloat>(views.lights, est, 1.f, 1.f, *a, k);
+          for (int k = 0; k < n; ++k) weight_lanes<float>(views.lights, est, 1.f, 1.f, *b, k);
+          expect_same_floats(a->cr, b->cr, n, name);
+          expect_same_floats(a->cb, b->cb, n, name);
+          expect_same_floats(a->wb, b->wb, n, name);
+        }
+  }
+}
+
+TEST(Lanes, CameraRays) {
+  Scene s = all_lights_scene();
+  SceneViews views = build_views(s, LightPick::power);
+  auto a = std::make_unique<TileBuffers>();
+  auto b = std::make_unique<TileBuffers>();
+  for (int i = 0; i < 256; ++i) {
+    a->fx[i] = b->fx[i] = static_cast<float>(i % 16);
+    a->fy[i] = b->fy[i] = static_cast<float>(i / 16);
+    a->u0[i] = b->u0[i] = static_cast<float>((i * 37) % 101) / 101.f;
+    a->u1[i] = b->u1[i] = static_cast<float>((i * 53) % 97) / 97.f;
+  }
+  for (int i = 0; i < 256; i += simd_width) generate_lanes<vfloat>(views.camera, *a, i);
+  for (int i = 0; i < 256; ++i) generate_lanes<float>(views.camera, *b, i);
+  for (int p = 0; p < 16; ++p)
+    for (int l = 0; l < 16; ++l) {
+      ASSERT_EQ(a->cam[p].ray.dir_x[l], b->cam[p].ray.dir_x[l]);
+      ASSERT_EQ(a->cam[p].ray.dir_y[l], b->cam[p].ray.dir_y[l]);
+      ASSERT_EQ(a->cam[p].ray.dir_z[l], b->cam[p].ray.dir_z[l]);
+    }
+}
