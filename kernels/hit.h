@@ -56,6 +56,8 @@ inline bool light_front(const LightView& L, int32_t l, float dx, float dy, float
   return dx * L.nx[l] + dy * L.ny[l] + dz * L.nz[l] < 0.f;
 }
 
+// Emitters: false when the scene has no area light (no emitter lookups at all).
+template <bool Emitters = true>
 inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& est, uint32_t sample, int lanes,
                         TileBuffers& tb) {
   int n = 0;
@@ -89,7 +91,7 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
     }
     ng = ng * (1.f / len);
     if (dot(ng, d) > 0.f) ng = -ng;  // face the viewer: diffuse reflection on both sides
-    const int32_t light = light_of_hit(G, geom, p.primID[l]);
+    const int32_t light = Emitters ? light_of_hit(G, geom, p.primID[l]) : -1;
     if (light >= 0 && light_front(L, light, d.x, d.y, d.z)) {
       tb.Lr[i] += L.Lr[light];
       tb.Lg[i] += L.Lg[light];

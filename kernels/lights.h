@@ -95,8 +95,11 @@ template <class T> inline T light_solid_angle(const LightGeom<T>& g, const Vec3<
 
 // Density in solid angle of a direction from x reaching the source at point y (distance
 // d, unit direction wi) under the chosen point strategy, not including the pick pdf.
+// omega: the solid angle of the source from x (light_solid_angle), needed only in
+// solid-angle mode.
 template <class T>
-inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist) {
+inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist,
+                            T omega) {
   const T cos_y_signed = -dot(wi, g.n);
   const T cos_y = sel(g.two_sided > T(0.f), abs(cos_y_signed), cos_y_signed);
   const auto is_sph = type_is<T>(g.type, lt_sphere);
@@ -109,11 +112,19 @@ inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T
   const T cos_eff = sel(is_sph, cos_sph, cos_y);
   const T pdf_area = sel(cos_eff > T(0.f), dist * dist / (cos_eff * g.area), T(0.f));
   if (mode == LightPoint::area) return finite_or_zero(pdf_area);
-  const T omega = light_solid_angle(g, x);
   const auto safe = solid_angle_sampling_safe(omega) || (is_sph && omega > T(0.f));
   const T pdf_sa = sel(omega > T(0.f), T(1.f) / omega, T(0.f));
   return finite_or_zero(sel(safe, pdf_sa, pdf_area));
 }
+
+template <class T>
+inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist) {
+  return pdf_light_point_sa(mode, g, x, wi, dist, mode == LightPoint::area ? T(0.f) : light_solid_angle(g, x));
+}
+
+// Which kinds of source a pipeline can meet (DESIGN.md: leave out what a scene does not
+// need): the code for the other kind is removed at compile time.
+inline constexpr unsigned kind_area = 1, kind_delta = 2, kind_all = 3;
 
 // A sampled point on a source. wi is the unit direction from x, dist the distance
 // (infinite for distant lights), pdf_sa its density (0 for delta lights, which are
@@ -125,10 +136,13 @@ template <class T> struct LightPointSample {
   mask_t<T> valid, is_delta;
 };
 
-template <class T>
+template <unsigned Kinds = kind_all, class T>
 inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, T u1,
                                               T u2) {
   LightPointSample<T> s;
+  s.wi = Vec3<T>(T(0.f), T(0.f), T(1.f));
+  s.dist = T(0.f);
+  s.valid = T(0.f) > T(1.f);
   const auto is_tri = type_is<T>(g.type, lt_triangle);
   const auto is_par = type_is<T>(g.type, lt_parallelogram);
   const auto is_sph = type_is<T>(g.type, lt_sphere);
@@ -138,6 +152,10 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
   s.is_delta = is_pt || is_spot || is_dist;
   s.scale = T(1.f);
 
+  Vec3<T> wi = s.wi;
+  T dist = s.dist;
+  T omega(0.f);
+  if constexpr ((Kinds & kind_area) != 0) {
   // area sampling: a point y on the surface
   Vec3<T> y = g.p0;
   if (any(is_tri)) {
@@ -148,13 +166,12 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
   if (any(is_par)) y = sel(is_par, g.p0 + g.e1 * u1 + g.e2 * u2, y);
   if (any(is_sph)) y = sel(is_sph, sample_sphere_area(g.p0, g.e1.x, u1, u2), y);
   Vec3<T> d = y - x;
-  T dist2 = length_sq(d);
-  T dist = sqrt(dist2);
-  Vec3<T> wi = d * (T(1.f) / sel(dist > T(0.f), dist, T(1.f)));
+  dist = sqrt(length_sq(d));
+  wi = d * (T(1.f) / sel(dist > T(0.f), dist, T(1.f)));
   s.valid = dist > T(0.f);
 
   if (mode == LightPoint::solid_angle) {
-    const T omega = light_solid_angle(g, x);
+    omega = light_solid_angle(g, x);
     auto use_sa = (solid_angle_sampling_safe(omega) && (is_tri || is_par)) || (is_sph && omega > T(0.f));
     if (any(use_sa)) {
       Vec3<T> dir = wi;
@@ -195,8 +212,9 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
       s.valid = sel_mask(use_sa, ok && t_sa > T(0.f), s.valid);
     }
   }
+  }
 
-  // delta lights
+  if constexpr ((Kinds & kind_delta) != 0) {
   if (any(is_pt || is_spot)) {
     const Vec3<T> dp = g.p0 - x;
     const T d2 = length_sq(dp);
@@ -222,10 +240,15 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
     dist = sel(is_dist, T(3.0e38f), dist);
     s.valid = sel_mask(is_dist, mask_t<T>(true), s.valid);
   }
+  }
   s.wi = wi;
   s.dist = dist;
-  const T pdf = pdf_light_point_sa(mode, g, x, wi, dist);
-  s.pdf_sa = sel(s.is_delta, T(0.f), pdf);
+  if constexpr ((Kinds & kind_area) != 0) {
+    const T pdf = pdf_light_point_sa(mode, g, x, wi, dist, omega);
+    s.pdf_sa = sel(s.is_delta, T(0.f), pdf);
+  } else {
+    s.pdf_sa = T(0.f);
+  }
   s.valid = s.valid && (s.is_delta || s.pdf_sa > T(0.f)) && is_finite(dist);
   return s;
 }

@@ -17,7 +17,9 @@ struct LightPass {
   float n_bsdf = 1.f;        // same for the BSDF technique (for q_bsdf)
 };
 
-template <class T>
+// Kinds: which kinds of source can occur (kind_area, kind_delta); Pick: whether lanes pick
+// a source (false: every lane samples pass.fixed_light, as with one light or "all").
+template <class T, unsigned Kinds = kind_all, bool Pick = true>
 inline void sample_lights_lanes(const LightView& L, const Estimator& est, const LightPass& pass, TileBuffers& tb,
                                 int k) {
   constexpr float inv_pi = 0.318309886f;
@@ -28,11 +30,16 @@ inline void sample_lights_lanes(const LightView& L, const Estimator& est, const 
   const T eps = load<T>(tb.eps + k);
 
   i32_t<T> idx;
-  if (pass.fixed_light >= 0) idx = i32_t<T>(pass.fixed_light);
-  else idx = pick_light(L, load<T>(tb.u0 + k));
+  if constexpr (Pick) {
+    if (pass.fixed_light >= 0) idx = i32_t<T>(pass.fixed_light);
+    else idx = pick_light(L, load<T>(tb.u0 + k));
+  } else {
+    idx = i32_t<T>(pass.fixed_light);
+  }
   const LightGeom<T> g = gather_light(L, idx);
   const T pick = gather(L.pick_pdf, idx);
-  const LightPointSample<T> s = sample_light_point(est.point, g, x, load<T>(tb.u2 + k), load<T>(tb.u3 + k));
+  const LightPointSample<T> s =
+      sample_light_point<Kinds>(est.point, g, x, load<T>(tb.u2 + k), load<T>(tb.u3 + k));
 
   const T cos_x = dot(n, s.wi);
   const auto planar = type_is<T>(g.type, lt_triangle) || type_is<T>(g.type, lt_parallelogram);
@@ -95,14 +102,16 @@ inline void sample_lights_lanes(const LightView& L, const Estimator& est, const 
 }
 
 // Draws the pass's random numbers and runs the lanes of every shading point.
+template <unsigned Kinds = kind_all, bool Pick = true>
 inline void sample_lights(const LightView& L, const Estimator& est, const LightPass& pass, uint32_t sample,
                           uint32_t pair, TileBuffers& tb) {
   const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
-  if (pass.fixed_light < 0) sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair, padded, tb.u0, tb.u1);
+  if (Pick && pass.fixed_light < 0)
+    sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair, padded, tb.u0, tb.u1);
   sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair + 1, padded, tb.u2, tb.u3);
   int k = 0;
-  for (; k + simd_width <= padded; k += simd_width) sample_lights_lanes<vfloat>(L, est, pass, tb, k);
-  for (; k < padded; ++k) sample_lights_lanes<float>(L, est, pass, tb, k);
+  for (; k + simd_width <= padded; k += simd_width) sample_lights_lanes<vfloat, Kinds, Pick>(L, est, pass, tb, k);
+  for (; k < padded; ++k) sample_lights_lanes<float, Kinds, Pick>(L, est, pass, tb, k);
   for (int p = 0; p < padded / packet_width; ++p)
     for (int l = 0; l < packet_width; ++l) {
       tb.shadow[p].mask[l] = 0xffffffffu;

@@ -30,6 +30,8 @@ inline void weight_lanes(const LightView& L, const Estimator& est, float n_light
   if (est.strategy == Strategy::mis) {
     const T q_b = T(n_bsdf) * dot(n, wi) * T(inv_pi);
     w = mis_weight(est.heuristic, q_b, T(n_light) * pdf_l, est.mis);
+  } else if (est.strategy == Strategy::light) {
+    w = T(0.f);  // the general pipeline traces BSDF rays even when they must not count
   }
   const T factor = sel(hit, w / T(n_bsdf), T(0.f));
   store(tb.cr + k, load<T>(tb.ar + k) * gather(L.Lr, idx) * factor);
@@ -55,7 +57,7 @@ inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator
   for (; k + simd_width <= padded; k += simd_width) weight_lanes<vfloat>(L, est, n_light, n_bsdf, tb, k);
   for (; k < padded; ++k) weight_lanes<float>(L, est, n_light, n_bsdf, tb, k);
   for (k = 0; k < tb.shade_count; ++k) {
-    if (tb.hit_light[k] < 0) continue;
+    if (tb.hit_light[k] < 0 || est.strategy == Strategy::light) continue;
     const float r = tb.cr[k], g = tb.cg[k], b = tb.cb[k];
     if (!(std::isfinite(r) && std::isfinite(g) && std::isfinite(b))) {
       ++tb.rejected_bsdf;

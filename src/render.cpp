@@ -210,106 +210,263 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
 
 Renderer::~Renderer() = default;
 
-RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end) {
-  const Camera& cam = scene_.camera;
-  if (film.width != cam.width || film.height != cam.height) film.reset(cam.width, cam.height);
-  const int ts = opt_.tile;
-  const int tiles_x = (cam.width + ts - 1) / ts, tiles_y = (cam.height + ts - 1) / ts;
-  const SceneViews& v = *views_;
-  const Estimator& est = opt_.est;
-  const bool do_light = v.lights.count > 0 && (est.strategy != Strategy::bsdf || v.has_delta);
-  const bool do_bsdf = v.has_area && est.strategy != Strategy::light;
-  const bool one = est.one_sample();
-  const int S = v.lights.count;
-  const float c_l = one ? est.one_sample_light_prob() : 0.f;
-  const float n_light = one ? c_l : static_cast<float>(est.light_samples);
-  const float n_bsdf = one ? 1.f - c_l : static_cast<float>(est.bsdf_samples);
-  const int light_passes = (est.pick == LightPick::all ? S : 1) * (one ? 1 : est.light_samples);
-  const int bsdf_passes = one ? 1 : est.bsdf_samples;
+const char* stage_name(Stage s) {
+  static const char* names[] = {"generate",       "intersect camera", "camera hits", "sample lights",
+                                "intersect shadow", "sample cosine",  "intersect bounce", "MIS weight",
+                                "accumulate"};
+  return names[static_cast<int>(s)];
+}
 
-  tbb::enumerable_thread_specific<std::unique_ptr<TileBuffers>> buffers([] { return std::make_unique<TileBuffers>(); });
-  const auto t0 = std::chrono::steady_clock::now();
-  auto render_tile = [&](int tile) {
-    TileBuffers& tb = *buffers.local();
-    const int x0 = (tile % tiles_x) * ts, y0 = (tile / tiles_x) * ts;
-    const int tw = std::min(ts, cam.width - x0), th = std::min(ts, cam.height - y0);
-    const int lanes = tw * th;
-    for (int i = 0; i < lanes; ++i) {
-      const int x = x0 + i % tw, y = y0 + i / tw;
-      tb.fx[i] = static_cast<float>(x);
-      tb.fy[i] = static_cast<float>(y);
-      tb.pixel[i] = static_cast<uint32_t>(y) * static_cast<uint32_t>(cam.width) + static_cast<uint32_t>(x);
-    }
-    const int cam_packets = (lanes + packet_width - 1) / packet_width;
-    for (uint32_t s = begin; s < end; ++s) {
-      generate(v.camera, est, s, lanes, tb);
-      for (int p = 0; p < cam_packets; ++p) accel_.intersect16(tb.cam_valid + p * packet_width, tb.cam[p], true);
-      tb.rays_camera += static_cast<uint64_t>(lanes);
-      camera_hits(v.geom, v.lights, est, s, lanes, tb);
-      const int packets = (tb.shade_count + packet_width - 1) / packet_width;
-      if (tb.shade_count > 0 && do_light) {
-        for (int j = 0; j < light_passes; ++j) {
+namespace {
+
+using clock_type = std::chrono::steady_clock;
+
+// What one render shares with its tile tasks.
+struct TileContext {
+  const SceneViews& v;
+  const Accel& accel;
+  const Estimator& est;
+  Film& film;
+  int tile_size, tiles_x, width, height;
+  int light_passes, bsdf_passes, S;
+  float n_light, n_bsdf;
+  Profile* profile;       // null when not profiling
+  clock_type::time_point origin;
+};
+
+// Per-thread profiling state.
+struct ThreadProfile {
+  double stage_ns[stage_count] = {};
+  std::vector<TraceEvent> events;
+};
+
+// Times one stage call when profiling; a single well-predicted branch otherwise.
+struct StageTimer {
+  ThreadProfile* tp;
+  const TileContext& c;
+  int tile;
+  clock_type::time_point t0;
+  StageTimer(ThreadProfile* p, const TileContext& ctx, int t) : tp(p), c(ctx), tile(t) {}
+  void start() {
+    if (tp) t0 = clock_type::now();
+  }
+  void stop(Stage s) {
+    if (!tp) return;
+    const auto t1 = clock_type::now();
+    const double ns = std::chrono::duration<double, std::nano>(t1 - t0).count();
+    tp->stage_ns[static_cast<int>(s)] += ns;
+    if (c.profile->trace && tp->events.size() < c.profile->max_events)
+      tp->events.push_back({s, tile, std::chrono::duration<double, std::micro>(t0 - c.origin).count(), ns * 1e-3});
+  }
+};
+
+inline int active_lanes(const int32_t* valid) {
+  int n = 0;
+  for (int l = 0; l < packet_width; ++l) n += valid[l] != 0;
+  return n;
+}
+
+// The tile pipeline, instantiated per scene shape (DESIGN.md: leave out what a scene does
+// not need). Kinds: kinds of source present; Light/Bsdf: whether the technique's stages
+// run; Pick: whether lanes pick a source; Emitters: whether hits look up emitters.
+template <unsigned Kinds, bool Light, bool Bsdf, bool Pick, bool Emitters>
+void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile, uint32_t begin, uint32_t end) {
+  const SceneViews& v = c.v;
+  const Estimator& est = c.est;
+  Film& film = c.film;
+  const int ts = c.tile_size;
+  const int x0 = (tile % c.tiles_x) * ts, y0 = (tile / c.tiles_x) * ts;
+  const int tw = std::min(ts, c.width - x0), th = std::min(ts, c.height - y0);
+  const int lanes = tw * th;
+  for (int i = 0; i < lanes; ++i) {
+    const int x = x0 + i % tw, y = y0 + i / tw;
+    tb.fx[i] = static_cast<float>(x);
+    tb.fy[i] = static_cast<float>(y);
+    tb.pixel[i] = static_cast<uint32_t>(y) * static_cast<uint32_t>(c.width) + static_cast<uint32_t>(x);
+  }
+  const int cam_packets = (lanes + packet_width - 1) / packet_width;
+  StageTimer timer(tp, c, tile);
+  for (uint32_t s = begin; s < end; ++s) {
+    timer.start();
+    generate(v.camera, est, s, lanes, tb);
+    timer.stop(Stage::generate);
+    timer.start();
+    for (int p = 0; p < cam_packets; ++p) c.accel.intersect16(tb.cam_valid + p * packet_width, tb.cam[p], true);
+    tb.rays_camera += static_cast<uint64_t>(lanes);
+    timer.stop(Stage::intersect_camera);
+    timer.start();
+    camera_hits<Emitters>(v.geom, v.lights, est, s, lanes, tb);
+    timer.stop(Stage::camera_hits);
+    const int packets = (tb.shade_count + packet_width - 1) / packet_width;
+    if constexpr (Light) {
+      if (tb.shade_count > 0) {
+        for (int j = 0; j < c.light_passes; ++j) {
           LightPass pass;
-          pass.fixed_light = est.pick == LightPick::all ? j % S : -1;
-          pass.n_light = n_light;
-          pass.n_bsdf = n_bsdf;
-          sample_lights(v.lights, est, pass, s, static_cast<uint32_t>(2 + est.bsdf_samples + 2 * j), tb);
+          pass.fixed_light = est.pick == LightPick::all ? j % c.S : (Pick ? -1 : 0);
+          pass.n_light = c.n_light;
+          pass.n_bsdf = c.n_bsdf;
+          timer.start();
+          sample_lights<Kinds, Pick>(v.lights, est, pass, s, static_cast<uint32_t>(2 + est.bsdf_samples + 2 * j), tb);
+          timer.stop(Stage::sample_lights);
+          timer.start();
           for (int p = 0; p < packets; ++p) {
             const int32_t* valid = tb.valid + p * packet_width;
-            int active = 0;
-            for (int l = 0; l < packet_width; ++l) active += valid[l] != 0;
+            const int active = active_lanes(valid);
             if (!active) continue;
-            accel_.occluded16(valid, tb.shadow[p], false);
+            c.accel.occluded16(valid, tb.shadow[p], false);
             tb.rays_shadow += static_cast<uint64_t>(active);
           }
+          timer.stop(Stage::intersect_shadow);
+          timer.start();
           accumulate_shadow(tb);
+          timer.stop(Stage::accumulate);
         }
-      }
-      if (tb.shade_count > 0 && do_bsdf) {
-        for (int m = 0; m < bsdf_passes; ++m) {
-          sample_cosine(est, s, static_cast<uint32_t>(2 + m), tb);
-          for (int p = 0; p < packets; ++p) {
-            const int32_t* valid = tb.valid + p * packet_width;
-            int active = 0;
-            for (int l = 0; l < packet_width; ++l) active += valid[l] != 0;
-            if (!active) continue;
-            accel_.intersect16(valid, tb.bounce[p], false);
-            tb.rays_bounce += static_cast<uint64_t>(active);
-          }
-          weight_bounce(v.geom, v.lights, est, n_light, n_bsdf, tb);
-        }
-      }
-      // accumulate: one sample of every pixel of the tile into the film, in double
-      for (int i = 0; i < lanes; ++i) {
-        const size_t pix = tb.pixel[i];
-        double r = tb.Lr[i], g = tb.Lg[i], b = tb.Lb[i];
-        if (!(std::isfinite(r) && std::isfinite(g) && std::isfinite(b))) {
-          ++tb.rejected_camera;
-          r = g = b = 0;
-        }
-        double* sp = &film.sum[3 * pix];
-        double* sq = &film.sum_sq[3 * pix];
-        sp[0] += r; sp[1] += g; sp[2] += b;
-        sq[0] += r * r; sq[1] += g * g; sq[2] += b * b;
-        film.w_sum[pix] += tb.wsum[i];
-        film.w_cnt[pix] += tb.wcnt[i];
-        const float y = luminance(static_cast<float>(r), static_cast<float>(g), static_cast<float>(b));
-        if (y > film.max_sample[pix]) film.max_sample[pix] = y;
       }
     }
-  };
+    if constexpr (Bsdf) {
+      if (tb.shade_count > 0) {
+        for (int m = 0; m < c.bsdf_passes; ++m) {
+          timer.start();
+          sample_cosine(est, s, static_cast<uint32_t>(2 + m), tb);
+          timer.stop(Stage::sample_cosine);
+          timer.start();
+          for (int p = 0; p < packets; ++p) {
+            const int32_t* valid = tb.valid + p * packet_width;
+            const int active = active_lanes(valid);
+            if (!active) continue;
+            c.accel.intersect16(valid, tb.bounce[p], false);
+            tb.rays_bounce += static_cast<uint64_t>(active);
+          }
+          timer.stop(Stage::intersect_bounce);
+          timer.start();
+          weight_bounce(v.geom, v.lights, est, c.n_light, c.n_bsdf, tb);
+          timer.stop(Stage::mis_weight);
+        }
+      }
+    }
+    // one sample of every pixel of the tile into the film, in double
+    timer.start();
+    for (int i = 0; i < lanes; ++i) {
+      const size_t pix = tb.pixel[i];
+      double r = tb.Lr[i], g = tb.Lg[i], b = tb.Lb[i];
+      if (!(std::isfinite(r) && std::isfinite(g) && std::isfinite(b))) {
+        ++tb.rejected_camera;
+        r = g = b = 0;
+      }
+      double* sp = &film.sum[3 * pix];
+      double* sq = &film.sum_sq[3 * pix];
+      sp[0] += r;
+      sp[1] += g;
+      sp[2] += b;
+      sq[0] += r * r;
+      sq[1] += g * g;
+      sq[2] += b * b;
+      film.w_sum[pix] += tb.wsum[i];
+      film.w_cnt[pix] += tb.wcnt[i];
+      const float y = luminance(static_cast<float>(r), static_cast<float>(g), static_cast<float>(b));
+      if (y > film.max_sample[pix]) film.max_sample[pix] = y;
+    }
+    timer.stop(Stage::accumulate);
+  }
+}
 
+using TileFn = void (*)(const TileContext&, TileBuffers&, ThreadProfile*, int, uint32_t, uint32_t);
+
+struct PipelineEntry {
+  const char* name;
+  TileFn fn;
+};
+
+// The instantiated pipelines. "general" runs every stage and every lookup whatever the
+// scene: it is the reference the specialised ones must match.
+template <unsigned K, bool L, bool B, bool P, bool E> constexpr TileFn tile_fn() { return &run_tile<K, L, B, P, E>; }
+
+PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool general, std::string& why) {
+  if (general) {
+    why = "forced with --pipeline general";
+    return {"general", tile_fn<kind_all, true, true, true, true>()};
+  }
+  const bool area = v.has_area, delta = v.has_delta;
+  const bool light = v.lights.count > 0 && (est.strategy != Strategy::bsdf || delta);
+  const bool bsdf = area && est.strategy != Strategy::light;
+  const bool pick = v.lights.count > 1 && est.pick != LightPick::all;
+  why = std::string(area ? "area lights" : "no area light") + ", " + (delta ? "delta lights" : "no delta light") + ", " +
+        std::to_string(v.lights.count) + " light(s), pick " + (pick ? "per lane" : "none") + ", strategy " +
+        (est.strategy == Strategy::mis ? "mis" : est.strategy == Strategy::light ? "light" : "bsdf");
+  if (!area && !delta) return {"no-lights", tile_fn<kind_all, false, false, false, false>()};
+  if (!area) {  // only delta lights: no BSDF rays, no MIS, no emitter lookups
+    return pick ? PipelineEntry{"delta/light/pick", tile_fn<kind_delta, true, false, true, false>()}
+                : PipelineEntry{"delta/light/single", tile_fn<kind_delta, true, false, false, false>()};
+  }
+  if (!delta) {
+    if (light && bsdf)
+      return pick ? PipelineEntry{"area/mis/pick", tile_fn<kind_area, true, true, true, true>()}
+                  : PipelineEntry{"area/mis/single", tile_fn<kind_area, true, true, false, true>()};
+    if (light)
+      return pick ? PipelineEntry{"area/light/pick", tile_fn<kind_area, true, false, true, true>()}
+                  : PipelineEntry{"area/light/single", tile_fn<kind_area, true, false, false, true>()};
+    return {"area/bsdf", tile_fn<kind_area, false, true, false, true>()};
+  }
+  if (bsdf)
+    return pick ? PipelineEntry{"mixed/mis/pick", tile_fn<kind_all, true, true, true, true>()}
+                : PipelineEntry{"mixed/mis/single", tile_fn<kind_all, true, true, false, true>()};
+  return pick ? PipelineEntry{"mixed/light/pick", tile_fn<kind_all, true, false, true, true>()}
+              : PipelineEntry{"mixed/light/single", tile_fn<kind_all, true, false, false, true>()};
+}
+
+}  // namespace
+
+std::string Renderer::pipeline_name(std::string* why) const {
+  std::string w;
+  const PipelineEntry e = pick_pipeline(*views_, opt_.est, opt_.general_pipeline, w);
+  if (why) *why = w;
+  return e.name;
+}
+
+RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* profile) {
+  const Camera& cam = scene_.camera;
+  if (film.width != cam.width || film.height != cam.height) film.reset(cam.width, cam.height);
+  const SceneViews& v = *views_;
+  const Estimator& est = opt_.est;
+  const bool one = est.one_sample();
+  const float c_l = one ? est.one_sample_light_prob() : 0.f;
+  const int ts = opt_.tile;
+  TileContext c{v,
+                accel_,
+                est,
+                film,
+                ts,
+                (cam.width + ts - 1) / ts,
+                cam.width,
+                cam.height,
+                (est.pick == LightPick::all ? v.lights.count : 1) * (one ? 1 : est.light_samples),
+                one ? 1 : est.bsdf_samples,
+                v.lights.count,
+                one ? c_l : static_cast<float>(est.light_samples),
+                one ? 1.f - c_l : static_cast<float>(est.bsdf_samples),
+                profile,
+                clock_type::now()};
+  std::string why;
+  const PipelineEntry pipe = pick_pipeline(v, est, opt_.general_pipeline, why);
+  const int tiles = c.tiles_x * ((cam.height + ts - 1) / ts);
+
+  tbb::enumerable_thread_specific<std::unique_ptr<TileBuffers>> buffers([] { return std::make_unique<TileBuffers>(); });
+  tbb::enumerable_thread_specific<ThreadProfile> profiles;
+  const auto t0 = clock_type::now();
   const int threads = opt_.threads > 0 ? opt_.threads : tbb::this_task_arena::max_concurrency();
   tbb::task_arena arena(threads);
   arena.execute([&] {
-    tbb::parallel_for(tbb::blocked_range<int>(0, tiles_x * tiles_y, 1),
+    tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
                       [&](const tbb::blocked_range<int>& r) {
-                        for (int t = r.begin(); t < r.end(); ++t) render_tile(t);
+                        TileBuffers& tb = *buffers.local();
+                        ThreadProfile* tp = profile ? &profiles.local() : nullptr;
+                        for (int t = r.begin(); t < r.end(); ++t) pipe.fn(c, tb, tp, t, begin, end);
                       },
                       tbb::simple_partitioner());
   });
   RenderStats st;
-  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  st.seconds = std::chrono::duration<double>(clock_type::now() - t0).count();
+  st.pipeline = pipe.name;
   film.samples += end - begin;
   st.samples = static_cast<uint64_t>(end - begin) * static_cast<uint64_t>(cam.width) * cam.height;
   for (auto& p : buffers) {
@@ -319,6 +476,19 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end) {
     st.rejected_camera += p->rejected_camera;
     st.rejected_light += p->rejected_light;
     st.rejected_bsdf += p->rejected_bsdf;
+  }
+  if (profile) {
+    profile->threads = threads;
+    profile->wall_seconds += st.seconds;
+    int tid = 0;
+    for (ThreadProfile& tp : profiles) {
+      for (int k = 0; k < stage_count; ++k) profile->stage_seconds[k] += tp.stage_ns[k] * 1e-9;
+      for (TraceEvent e : tp.events) {
+        e.thread = tid;
+        profile->events.push_back(e);
+      }
+      ++tid;
+    }
   }
   const std::vector<float> m = film.mean();
   for (size_t i = 0; i < film.max_sample.size(); ++i) {

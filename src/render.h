@@ -18,6 +18,40 @@ struct RenderOptions {
   int tile = 16;      // 16 or 32 (any 1..32 accepted)
   bool aov_variance = false;
   bool aov_mis_weight = false;
+  bool general_pipeline = false;  // --pipeline general: the unspecialised reference
+};
+
+// The stages of a tile, as profiled.
+enum class Stage : int {
+  generate = 0,
+  intersect_camera,
+  camera_hits,
+  sample_lights,
+  intersect_shadow,
+  sample_cosine,
+  intersect_bounce,
+  mis_weight,
+  accumulate,
+};
+inline constexpr int stage_count = 9;
+const char* stage_name(Stage s);
+
+struct TraceEvent {
+  Stage stage;
+  int tile;
+  double start_us, dur_us;
+  int thread = 0;
+};
+
+// Filled by Renderer::render when given: time per stage summed over threads, and
+// optionally one trace event per stage call.
+struct Profile {
+  bool trace = false;
+  size_t max_events = 2000000;  // per thread
+  int threads = 1;
+  double wall_seconds = 0;
+  double stage_seconds[stage_count] = {};
+  std::vector<TraceEvent> events;
 };
 
 // Per-pixel sums in double: 10^7 samples in one pixel lose nothing.
@@ -42,6 +76,7 @@ struct RenderStats {
   uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0;
   uint64_t rejected_camera = 0, rejected_light = 0, rejected_bsdf = 0, rejected_film = 0;
   double worst_ratio = 0;  // largest single-sample luminance relative to its pixel mean
+  std::string pipeline;
 };
 
 // The scene as the kernels read it: SoA light table (with the pick distribution and its
@@ -79,7 +114,9 @@ class Renderer {
   Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options);
   ~Renderer();
   // Adds samples [begin, end) of every pixel to the film.
-  RenderStats render(Film& film, uint32_t begin, uint32_t end);
+  RenderStats render(Film& film, uint32_t begin, uint32_t end, Profile* profile = nullptr);
+  // The pipeline this scene and estimator select, and why.
+  std::string pipeline_name(std::string* why = nullptr) const;
   const RenderOptions& options() const { return opt_; }
 
  private:

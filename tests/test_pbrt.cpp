@@ -1,0 +1,761 @@
+// The pbrt-v4 reader: directives, shapes, materials, lights, files and error messages.
+#include <gtest/gtest.h>
+#include <zlib.h>
+
+#include <ImfRgbaFile.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "pbrt.h"
+
+namespace fs = std::filesystem;
+using namespace tuile;
+
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+
+// A scratch directory per test binary run, removed at exit.
+const fs::path& tmp_dir() {
+  static const fs::path dir = [] {
+    fs::path d = fs::temp_directory_path() /
+                 ("tuile_test_pbrt_" + std::to_string(std::chrono::steady_clock::now().time_since_epoch().count()));
+    fs::create_directories(d);
+    return d;
+  }();
+  static const struct Cleanup {
+    ~Cleanup() {
+      std::error_code ec;
+      fs::remove_all(dir, ec);
+    }
+  } cleanup;
+  return dir;
+}
+
+void write_text(const fs::path& p, const std::string& s) {
+  std::ofstream f(p, std::ios::binary);
+  f << s;
+}
+
+void write_gz(const fs::path& p, const std::string& s) {
+  gzFile f = gzopen(p.string().c_str(), "wb");
+  ASSERT_NE(f, nullptr);
+  ASSERT_EQ(gzwrite(f, s.data(), unsigned(s.size())), int(s.size()));
+  gzclose(f);
+}
+
+Scene load(const std::string& text) { return load_pbrt_string(text, "t.pbrt", tmp_dir().string()); }
+Scene world(const std::string& body) { return load("WorldBegin\n" + body); }
+
+// "t.pbrt:LINE:COL" of the first occurrence of needle in text.
+std::string loc(const std::string& text, const std::string& needle, const std::string& file = "t.pbrt") {
+  const size_t pos = text.find(needle);
+  EXPECT_NE(pos, std::string::npos) << needle;
+  int line = 1;
+  size_t line_start = 0;
+  for (size_t i = 0; i < pos; ++i)
+    if (text[i] == '\n') ++line, line_start = i + 1;
+  return file + ":" + std::to_string(line) + ":" + std::to_string(pos - line_start + 1);
+}
+
+std::string error_of(const std::string& text, const std::string& name = "t.pbrt") {
+  try {
+    load_pbrt_string(text, name, tmp_dir().string());
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+// Checks "WHERE: error: ... (expected ...WANT...)".
+void expect_error(const std::string& text, const std::string& where, const std::string& want) {
+  const std::string e = error_of(text);
+  EXPECT_EQ(e.rfind(where + ": error: ", 0), 0u) << "message: " << e << "\nwanted at: " << where;
+  const size_t exp = e.find("(expected ");
+  EXPECT_NE(exp, std::string::npos) << e;
+  EXPECT_EQ(e.back(), ')') << e;
+  if (exp != std::string::npos) {
+    EXPECT_NE(e.find(want, exp), std::string::npos) << e << "\nwanted: " << want;
+  }
+}
+
+size_t triangles(const Scene& s) {
+  size_t n = 0;
+  for (const Mesh& m : s.meshes) n += m.triangle_count();
+  return n;
+}
+
+void expect_vertex(const Mesh& m, size_t v, float x, float y, float z, float tol = 1e-5f) {
+  ASSERT_LT(3 * v + 2, m.positions.size());
+  EXPECT_NEAR(m.positions[3 * v], x, tol);
+  EXPECT_NEAR(m.positions[3 * v + 1], y, tol);
+  EXPECT_NEAR(m.positions[3 * v + 2], z, tol);
+}
+
+const std::string tri = "Shape \"trianglemesh\" \"point3 P\" [ 1 0 0  0 1 0  0 0 1 ]\n";
+
+bool has_warning(const Scene& s, const std::string& what) {
+  for (const auto& w : s.warnings)
+    if (w.find(what) != std::string::npos) return true;
+  return false;
+}
+
+// --- PLY writers ----------------------------------------------------------------------
+
+template <class T> void put(std::string& s, T v, bool big) {
+  char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof(T));
+  if (big) std::reverse(b, b + sizeof(T));
+  s.append(b, sizeof(T));
+}
+
+// A unit square in z = 0 as one quad face plus one triangle with a repeated index.
+std::string ply_binary(bool big) {
+  std::string s = std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") +
+                  " 1.0\ncomment test\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                  "property float u\nproperty float v\nelement face 2\nproperty list uchar int vertex_indices\n"
+                  "end_header\n";
+  const float v[4][5] = {{0, 0, 0, 0, 0}, {1, 0, 0, 1, 0}, {1, 1, 0, 1, 1}, {0, 1, 0, 0, 1}};
+  for (const auto& r : v)
+    for (float x : r) put(s, x, big);
+  put(s, uint8_t(4), big);
+  for (int i : {0, 1, 2, 3}) put(s, int32_t(i), big);
+  put(s, uint8_t(3), big);
+  for (int i : {0, 0, 1}) put(s, int32_t(i), big);
+  return s;
+}
+
+const std::string ply_ascii =
+    "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+    "element face 2\nproperty list uchar uint vertex_index\nend_header\n"
+    "0 0 0\n2 0 0\n2 2 0\n0 2 0\n3 0 1 2\n3 0 2 3\n";
+
+void write_tga(const fs::path& p, int w, int h, const std::vector<uint8_t>& rgb) {
+  std::string s(18, '\0');
+  s[2] = 2;  // uncompressed true colour
+  s[12] = char(w & 255), s[13] = char(w >> 8), s[14] = char(h & 255), s[15] = char(h >> 8);
+  s[16] = 24;
+  s[17] = 0x20;  // top-left origin
+  for (int i = 0; i < w * h; ++i) {
+    s += char(rgb[3 * i + 2]);
+    s += char(rgb[3 * i + 1]);
+    s += char(rgb[3 * i]);
+  }
+  write_text(p, s);
+}
+
+}  // namespace
+
+// --- syntax -------------------------------------------------------------------------------
+
+TEST(Pbrt, CommentsStringsBoolsAndWorldEnd) {
+  const Scene s = load(
+      "# a comment\nFilm \"rgb\" # trailing\n  \"string filename\" \"out \\\"q\\\".exr\"\n"
+      "  \"integer xresolution\" 64 \"integer yresolution\" [ 32 ]\nWorldBegin\n"
+      "AttributeBegin AreaLightSource \"diffuse\" \"bool twosided\" true \"rgb L\" [1 2 3]\n" +
+      tri + "AttributeEnd\nAttributeBegin AreaLightSource \"diffuse\" \"bool twosided\" \"false\"\n" + tri +
+      "AttributeEnd\nWorldEnd\n");
+  EXPECT_EQ(s.file_output, "out \"q\".exr");
+  EXPECT_EQ(s.camera.width, 64);
+  EXPECT_EQ(s.camera.height, 32);
+  ASSERT_EQ(s.meshes.size(), 2u);
+  EXPECT_TRUE(s.meshes[0].two_sided);
+  EXPECT_FLOAT_EQ(s.meshes[0].emission.g, 2);
+  EXPECT_FALSE(s.meshes[1].two_sided);
+  EXPECT_EQ(s.meshes[0].name, "t.pbrt:7");
+}
+
+// --- transforms ---------------------------------------------------------------------------
+
+TEST(Pbrt, TranslateScaleRotate) {
+  const Scene s = world("Translate 1 2 3\nScale 2 2 2\nRotate 90 0 0 1\n" + tri);
+  ASSERT_EQ(s.meshes.size(), 1u);
+  // p' = T * S * R * p; R(90 about z): (1,0,0) -> (0,1,0), (0,1,0) -> (-1,0,0)
+  expect_vertex(s.meshes[0], 0, 1, 4, 3);
+  expect_vertex(s.meshes[0], 1, -1, 2, 3);
+  expect_vertex(s.meshes[0], 2, 1, 2, 5);
+}
+
+TEST(Pbrt, TransformIsColumnMajorAndConcatMultiplies) {
+  // column-major: the last four numbers are the translation
+  const Scene s = world("Transform [ 1 0 0 0  0 1 0 0  0 0 1 0  5 6 7 1 ]\nConcatTransform [ 2 0 0 0 0 3 0 0 0 0 4 0 0 0 0 1 ]\n" + tri);
+  expect_vertex(s.meshes[0], 0, 7, 6, 7);
+  expect_vertex(s.meshes[0], 1, 5, 9, 7);
+  expect_vertex(s.meshes[0], 2, 5, 6, 11);
+}
+
+TEST(Pbrt, IdentityAttributeAndTransformBlocks) {
+  const Scene s = world("Translate 10 0 0\nAttributeBegin\nTranslate 0 10 0\n" + tri +
+                        "AttributeEnd\nTransformBegin\nIdentity\n" + tri + "TransformEnd\n" + tri);
+  ASSERT_EQ(s.meshes.size(), 3u);
+  expect_vertex(s.meshes[0], 0, 11, 10, 0);
+  expect_vertex(s.meshes[1], 0, 1, 0, 0);
+  expect_vertex(s.meshes[2], 0, 11, 0, 0);
+}
+
+TEST(Pbrt, CoordinateSystems) {
+  const Scene s = load(
+      "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\"\nWorldBegin\nTranslate 3 0 0\nCoordinateSystem \"mine\"\n"
+      "Identity\nCoordSysTransform \"mine\"\n" + tri + "CoordSysTransform \"camera\"\n" + tri);
+  ASSERT_EQ(s.meshes.size(), 2u);
+  expect_vertex(s.meshes[0], 0, 4, 0, 0);
+  // camera space -> world: camera at (0,0,5) looking down -z; pbrt's LookAt has camera +x = up x dir = -x world
+  expect_vertex(s.meshes[1], 2, 0, 0, 4);   // camera (0,0,1): one unit in front
+  expect_vertex(s.meshes[1], 0, -1, 0, 5);  // camera (1,0,0)
+}
+
+TEST(Pbrt, CameraFromLookAtAndScale) {
+  const Scene s = load("Scale -1 1 1\nLookAt 1 2 3  1 2 0  0 1 0\nCamera \"perspective\" \"float fov\" 45\nWorldBegin\n");
+  const auto& m = s.camera.world_from_camera;
+  // position
+  EXPECT_NEAR(m[0][3], 1, 1e-6);
+  EXPECT_NEAR(m[1][3], 2, 1e-6);
+  EXPECT_NEAR(m[2][3], 3, 1e-6);
+  // camera +z looks down world -z, +y is up, and Scale -1 1 1 makes camera +x world +x
+  EXPECT_NEAR(m[2][2], -1, 1e-6);
+  EXPECT_NEAR(m[1][1], 1, 1e-6);
+  EXPECT_NEAR(m[0][0], 1, 1e-6);
+  EXPECT_FLOAT_EQ(s.camera.fov_deg, 45);
+  for (float v : s.camera.screen) EXPECT_EQ(v, 0);
+}
+
+TEST(Pbrt, CameraTransformDirective) {
+  // cornell-box style: camera-from-world given column-major
+  const Scene s = load("Transform [ 1 -0 -0 -0 -0 1 -0 -0 -0 -0 -1 -0 -0 -1 6.8 1 ]\nCamera \"perspective\"\nWorldBegin\n");
+  const auto& m = s.camera.world_from_camera;
+  const float want[3][4] = {{1, 0, 0, 0}, {0, 1, 0, 1}, {0, 0, -1, 6.8f}};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 4; ++j) EXPECT_NEAR(m[i][j], want[i][j], 1e-6) << i << "," << j;
+}
+
+TEST(Pbrt, ScreenWindowAndFrameAspect) {
+  Scene s = load("Camera \"perspective\" \"float frameaspectratio\" 2\nWorldBegin\n");
+  EXPECT_FLOAT_EQ(s.camera.screen[0], -2);
+  EXPECT_FLOAT_EQ(s.camera.screen[1], 2);
+  EXPECT_FLOAT_EQ(s.camera.screen[2], -1);
+  EXPECT_FLOAT_EQ(s.camera.screen[3], 1);
+  s = load("Camera \"perspective\" \"float frameaspectratio\" 0.5\nWorldBegin\n");
+  EXPECT_FLOAT_EQ(s.camera.screen[2], -2);
+  EXPECT_FLOAT_EQ(s.camera.screen[1], 1);
+  s = load("Camera \"perspective\" \"float screenwindow\" [ -1 0.5 -0.25 1 ]\nWorldBegin\n");
+  EXPECT_FLOAT_EQ(s.camera.screen[0], -1);
+  EXPECT_FLOAT_EQ(s.camera.screen[1], 0.5f);
+  EXPECT_FLOAT_EQ(s.camera.screen[2], -0.25f);
+  EXPECT_FLOAT_EQ(s.camera.screen[3], 1);
+}
+
+TEST(Pbrt, RenderOptions) {
+  Scene s = load(
+      "Sampler \"zsobol\" \"integer pixelsamples\" 32\nIntegrator \"path\" \"integer maxdepth\" 5 \"string lightsampler\" \"bvh\"\n"
+      "PixelFilter \"gaussian\" \"float xradius\" 2\nFilm \"rgb\" \"integer xresolution\" 100 \"integer yresolution\" 50 "
+      "\"float cropwindow\" [0 1 0 1]\nWorldBegin\n");
+  EXPECT_EQ(s.file_spp, 32);
+  EXPECT_EQ(s.file_sampler, "sobol");
+  EXPECT_EQ(s.file_light_pick, "power");
+  EXPECT_TRUE(has_warning(s, "bvh"));
+  EXPECT_TRUE(has_warning(s, "direct lighting"));
+  EXPECT_TRUE(has_warning(s, "gaussian"));
+  EXPECT_TRUE(has_warning(s, "cropwindow"));
+  s = load("Sampler \"stratified\"\nIntegrator \"path\" \"integer maxdepth\" 1 \"string lightsampler\" \"uniform\"\nPixelFilter \"box\"\nWorldBegin\n");
+  EXPECT_EQ(s.file_sampler, "stratified");
+  EXPECT_EQ(s.file_spp, 16);  // pbrt's default
+  EXPECT_EQ(s.file_light_pick, "uniform");
+  EXPECT_TRUE(s.warnings.empty()) << s.warnings[0];
+  s = load("Sampler \"independent\" \"integer pixelsamples\" 4\nWorldBegin\n");
+  EXPECT_EQ(s.file_sampler, "independent");
+  EXPECT_EQ(s.camera.width, 512);  // no Film: the Camera's defaults stay
+}
+
+// --- materials and textures ---------------------------------------------------------------
+
+TEST(Pbrt, Materials) {
+  const Scene s = world(
+      "Material \"diffuse\" \"rgb reflectance\" [ 0.1 0.2 0.3 ]\n" + tri +
+      "MakeNamedMaterial \"metal\" \"string type\" \"conductor\" \"rgb eta\" [1 1 1] \"rgb k\" [2 2 2]\n"
+      "MakeNamedMaterial \"metal2\" \"string type\" \"conductor\" \"float roughness\" 0.1\n"
+      "MakeNamedMaterial \"coat\" \"string type\" \"coateddiffuse\" \"rgb reflectance\" [ 0.7 0.6 0.5 ]\n"
+      "NamedMaterial \"metal\"\n" + tri + "NamedMaterial \"coat\"\n" + tri + "Material \"interface\"\n" + tri);
+  ASSERT_EQ(s.meshes.size(), 4u);
+  const Material& d = s.materials[size_t(s.meshes[0].material)];
+  EXPECT_FLOAT_EQ(d.reflectance.b, 0.3f);
+  EXPECT_TRUE(d.approximated_from.empty());
+  const Material& m = s.materials[size_t(s.meshes[1].material)];
+  EXPECT_EQ(m.approximated_from, "conductor");
+  EXPECT_FLOAT_EQ(m.reflectance.r, 0.5f);
+  const Material& c = s.materials[size_t(s.meshes[2].material)];
+  EXPECT_EQ(c.approximated_from, "coateddiffuse");
+  EXPECT_FLOAT_EQ(c.reflectance.g, 0.6f);
+  EXPECT_EQ(s.materials[size_t(s.meshes[3].material)].approximated_from, "interface");
+  int conductor_warnings = 0;
+  for (const auto& w : s.warnings) conductor_warnings += w.find("\"conductor\"") != std::string::npos;
+  EXPECT_EQ(conductor_warnings, 1);
+}
+
+TEST(Pbrt, DefaultMaterialIsMinusOne) {
+  const Scene s = world(tri);
+  EXPECT_EQ(s.meshes[0].material, -1);
+}
+
+TEST(Pbrt, ImageTextureSrgbToLinear) {
+  write_tga(tmp_dir() / "tex.tga", 2, 1, {255, 128, 0, 0, 0, 255});
+  const Scene s = world(
+      "Texture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"tex.tga\"\n"
+      "Texture \"t2\" \"spectrum\" \"scale\" \"texture tex\" \"t\" \"float scale\" 2\n"
+      "Material \"diffuse\" \"texture reflectance\" \"t\"\n" + tri + "Material \"coateddiffuse\" \"texture reflectance\" \"t\"\n" + tri +
+      "Material \"diffuse\" \"texture reflectance\" \"t2\"\n" + tri);
+  ASSERT_EQ(s.meshes.size(), 3u);
+  const Material& m = s.materials[size_t(s.meshes[0].material)];
+  ASSERT_GE(m.texture, 0);
+  const Texture& t = s.textures[size_t(m.texture)];
+  ASSERT_EQ(t.width, 2);
+  ASSERT_EQ(t.height, 1);
+  EXPECT_NEAR(t.rgb[0], 1.0f, 1e-6);
+  EXPECT_NEAR(t.rgb[1], 0.21586f, 1e-4);  // sRGB 128
+  EXPECT_NEAR(t.rgb[2], 0.0f, 1e-6);
+  EXPECT_NEAR(t.rgb[5], 1.0f, 1e-6);
+  // the same image is shared, the scaled one is a baked copy
+  EXPECT_EQ(s.materials[size_t(s.meshes[1].material)].texture, m.texture);
+  const int scaled = s.materials[size_t(s.meshes[2].material)].texture;
+  ASSERT_GE(scaled, 0);
+  EXPECT_NE(scaled, m.texture);
+  EXPECT_NEAR(s.textures[size_t(scaled)].rgb[0], 2.0f, 1e-6);
+}
+
+TEST(Pbrt, ExrTexture) {
+  Imf::Rgba px[2] = {Imf::Rgba(0.25f, 2.0f, 4.0f, 1), Imf::Rgba(1, 1, 1, 1)};
+  {
+    Imf::RgbaOutputFile f((tmp_dir() / "tex.exr").string().c_str(), 2, 1, Imf::WRITE_RGBA);
+    f.setFrameBuffer(px, 1, 2);
+    f.writePixels(1);
+  }
+  const Scene s = world("Texture \"e\" \"spectrum\" \"imagemap\" \"string filename\" \"tex.exr\"\nMaterial \"diffuse\" \"texture reflectance\" \"e\"\n" + tri);
+  const Material& m = s.materials[size_t(s.meshes[0].material)];
+  ASSERT_GE(m.texture, 0);
+  EXPECT_FLOAT_EQ(s.textures[size_t(m.texture)].rgb[0], 0.25f);
+  EXPECT_FLOAT_EQ(s.textures[size_t(m.texture)].rgb[2], 4.0f);
+}
+
+TEST(Pbrt, MissingImageFallsBackToGrey) {
+  const Scene s = world("Texture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"nope.png\"\nMaterial \"diffuse\" \"texture reflectance\" \"t\"\n" + tri);
+  const Material& m = s.materials[size_t(s.meshes[0].material)];
+  EXPECT_EQ(m.texture, -1);
+  EXPECT_FLOAT_EQ(m.reflectance.g, 0.5f);
+  EXPECT_TRUE(has_warning(s, "nope.png"));
+}
+
+TEST(Pbrt, CheckerboardAndMix) {
+  const Scene s = world(
+      "Texture \"c\" \"spectrum\" \"checkerboard\" \"float uscale\" 2 \"float vscale\" 2 \"rgb tex1\" [1 0 0] \"rgb tex2\" [0 0 1]\n"
+      "Texture \"m\" \"spectrum\" \"mix\" \"rgb tex1\" [1 1 1] \"rgb tex2\" [0 0 0] \"float amount\" 0.25\n"
+      "Material \"diffuse\" \"texture reflectance\" \"c\"\n" + tri + "Material \"diffuse\" \"texture reflectance\" \"m\"\n" + tri);
+  const Material& c = s.materials[size_t(s.meshes[0].material)];
+  ASSERT_GE(c.texture, 0);
+  const Texture& t = s.textures[size_t(c.texture)];
+  ASSERT_GT(t.width, 0);
+  // bottom-left texel (u, v near 0): floor(s)+floor(t) even -> tex1; one check to the right -> tex2
+  const size_t bl = size_t(t.height - 1) * size_t(t.width);
+  EXPECT_FLOAT_EQ(t.rgb[3 * bl], 1);
+  EXPECT_FLOAT_EQ(t.rgb[3 * (bl + size_t(t.width) - 1) + 2], 1);
+  const Material& m = s.materials[size_t(s.meshes[1].material)];
+  EXPECT_EQ(m.texture, -1);
+  EXPECT_FLOAT_EQ(m.reflectance.r, 0.75f);
+}
+
+// --- lights ---------------------------------------------------------------------------------
+
+TEST(Pbrt, AreaLightPowerAndScale) {
+  // a 2 x 1 quad: area 2, one-sided
+  const std::string quad = "Shape \"trianglemesh\" \"point3 P\" [0 0 0 2 0 0 2 1 0 0 1 0] \"integer indices\" [0 1 2 0 2 3]\n";
+  const Scene s = world("AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 2 3] \"float scale\" 2\n" + quad +
+                        "AttributeEnd\nAttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 1 1] \"float power\" 100\n" + quad +
+                        "AttributeEnd\n" + quad);
+  ASSERT_EQ(s.meshes.size(), 3u);
+  EXPECT_FLOAT_EQ(s.meshes[0].emission.r, 2);
+  EXPECT_FLOAT_EQ(s.meshes[0].emission.b, 6);
+  EXPECT_NEAR(s.meshes[1].emission.r * kPi * 2, 100, 1e-3);
+  EXPECT_FALSE(s.meshes[2].emissive());
+}
+
+TEST(Pbrt, BlackbodyHasUnitLuminance) {
+  const Scene s = world("AreaLightSource \"diffuse\" \"blackbody L\" 6500\n" + tri + "AreaLightSource \"diffuse\" \"blackbody L\" 2700\n" + tri);
+  for (const Mesh& m : s.meshes) {
+    const Rgb& c = m.emission;
+    EXPECT_NEAR(0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b, 1, 1e-3);
+  }
+  const Rgb& d65ish = s.meshes[0].emission;
+  EXPECT_NEAR(d65ish.r, 1, 0.1);
+  EXPECT_NEAR(d65ish.b, 1, 0.1);
+  EXPECT_GT(s.meshes[1].emission.r, s.meshes[1].emission.b * 2);  // warm
+}
+
+TEST(Pbrt, AreaLightScopeEndsWithAttribute) {
+  const Scene s = world("AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 1 1]\n" + tri + tri + "AttributeEnd\n" + tri);
+  ASSERT_EQ(s.meshes.size(), 3u);
+  EXPECT_TRUE(s.meshes[0].emissive());
+  EXPECT_TRUE(s.meshes[1].emissive());
+  EXPECT_FALSE(s.meshes[2].emissive());
+}
+
+TEST(Pbrt, OrientationFollowsReverseAndHandedness) {
+  const Scene s = world("AreaLightSource \"diffuse\"\n" + tri + "AttributeBegin\nReverseOrientation\n" + tri +
+                        "Scale -1 1 1\n" + tri + "AttributeEnd\nAttributeBegin\nScale 1 1 -1\n" + tri + "AttributeEnd\n");
+  ASSERT_EQ(s.meshes.size(), 4u);
+  EXPECT_FALSE(s.meshes[0].reverse_orientation);
+  EXPECT_TRUE(s.meshes[1].reverse_orientation);
+  EXPECT_FALSE(s.meshes[2].reverse_orientation);
+  EXPECT_TRUE(s.meshes[3].reverse_orientation);
+}
+
+TEST(Pbrt, NormalsDecideEmittingSide) {
+  // winding normal +z, N says -z: pbrt emits towards N
+  const Scene s = world(
+      "AreaLightSource \"diffuse\"\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"normal N\" [0 0 -1 0 0 -1 0 0 -1]\n"
+      "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"normal N\" [0 0 1 0 0 1 0 0 1]\n"
+      "ReverseOrientation\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"normal N\" [0 0 1 0 0 1 0 0 1]\n");
+  ASSERT_EQ(s.meshes.size(), 3u);
+  EXPECT_TRUE(s.meshes[0].reverse_orientation);
+  EXPECT_FALSE(s.meshes[1].reverse_orientation);
+  EXPECT_TRUE(s.meshes[2].reverse_orientation);
+}
+
+TEST(Pbrt, PointSpotDistantLights) {
+  const Scene s = world(
+      "Translate 1 0 0\nLightSource \"point\" \"rgb I\" [1 2 3] \"float scale\" 2 \"point3 from\" [0 5 0]\n"
+      "LightSource \"point\" \"rgb I\" [1 1 1] \"float power\" 100\n"
+      "LightSource \"spot\" \"point3 from\" [0 0 0] \"point3 to\" [0 -2 0] \"float coneangle\" 40 \"float conedeltaangle\" 10\n"
+      "LightSource \"distant\" \"point3 from\" [0 0 0] \"point3 to\" [0 0 1] \"rgb L\" [3 3 3]\n");
+  ASSERT_EQ(s.lights.size(), 4u);
+  const Light& p = s.lights[0];
+  EXPECT_EQ(p.type, LightType::point);
+  EXPECT_FLOAT_EQ(p.p0.x, 1);
+  EXPECT_FLOAT_EQ(p.p0.y, 5);
+  EXPECT_FLOAT_EQ(p.radiance.b, 6);
+  EXPECT_NEAR(s.lights[1].radiance.g * 4 * kPi, 100, 1e-3);
+  const Light& sp = s.lights[2];
+  EXPECT_EQ(sp.type, LightType::spot);
+  EXPECT_FLOAT_EQ(sp.p0.x, 1);
+  EXPECT_NEAR(sp.e1.y, -1, 1e-6);
+  EXPECT_NEAR(sp.e2.x, std::cos(30 * kPi / 180), 1e-6);
+  EXPECT_NEAR(sp.e2.y, std::cos(40 * kPi / 180), 1e-6);
+  const Light& d = s.lights[3];
+  EXPECT_EQ(d.type, LightType::distant);
+  EXPECT_NEAR(d.e1.z, -1, 1e-6);  // towards the light = from - to
+  EXPECT_FLOAT_EQ(d.radiance.r, 3);
+}
+
+// --- shapes -------------------------------------------------------------------------------
+
+TEST(Pbrt, TriangleMeshUvAndIndices) {
+  const Scene s = world("Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 1 1 0 0 1 0] \"integer indices\" [0 1 2 0 2 3] \"point2 uv\" [0 0 1 0 1 1 0 1]\n");
+  const Mesh& m = s.meshes[0];
+  EXPECT_EQ(m.indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+  EXPECT_EQ(m.uvs.size(), 8u);
+  EXPECT_FLOAT_EQ(m.uvs[5], 1);
+}
+
+TEST(Pbrt, BilinearMeshIsTwoTriangles) {
+  const Scene s = world("Shape \"bilinearmesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0 1 1 0]\n");
+  EXPECT_EQ(s.meshes[0].indices, (std::vector<uint32_t>{0, 1, 3, 0, 3, 2}));
+}
+
+TEST(Pbrt, SphereAndDisk) {
+  const Scene s = world(
+      "AttributeBegin\nTranslate 1 2 3\nScale 2 2 2\nAreaLightSource \"diffuse\" \"rgb L\" [4 4 4]\nShape \"sphere\" \"float radius\" 0.5\nAttributeEnd\n"
+      "AttributeBegin\nTranslate 0 1 0\nRotate 90 1 0 0\nShape \"disk\" \"float radius\" 2\nShape \"disk\" \"float radius\" 2 \"float innerradius\" 1\nAttributeEnd\n");
+  ASSERT_EQ(s.spheres.size(), 1u);
+  EXPECT_FLOAT_EQ(s.spheres[0].center.z, 3);
+  EXPECT_NEAR(s.spheres[0].radius, 1, 1e-6);
+  EXPECT_FLOAT_EQ(s.spheres[0].emission.g, 4);
+  ASSERT_EQ(s.meshes.size(), 2u);
+  EXPECT_EQ(s.meshes[0].triangle_count(), 64u);
+  EXPECT_EQ(s.meshes[1].triangle_count(), 128u);
+  // area is preserved and the disk lies in the plane y = 1 (z rotated onto -y)
+  for (int k = 0; k < 2; ++k) {
+    const Mesh& m = s.meshes[size_t(k)];
+    double area = 0;
+    for (size_t t = 0; t < m.indices.size(); t += 3) {
+      const float* a = &m.positions[3 * m.indices[t]];
+      const float* b = &m.positions[3 * m.indices[t + 1]];
+      const float* c = &m.positions[3 * m.indices[t + 2]];
+      const double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+      const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+      area += 0.5 * std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      EXPECT_LT(n[1], 0);  // +z of the disk turned to -y by Rotate 90 about x
+    }
+    EXPECT_NEAR(area, k == 0 ? 4 * M_PI : 3 * M_PI, 1e-3);
+    for (size_t v = 1; v < m.positions.size(); v += 3) EXPECT_NEAR(m.positions[v], 1, 1e-5);
+  }
+}
+
+TEST(Pbrt, PlyBinaryBothEndiansAndGzip) {
+  write_text(tmp_dir() / "le.ply", ply_binary(false));
+  write_text(tmp_dir() / "be.ply", ply_binary(true));
+  write_gz(tmp_dir() / "le.ply.gz", ply_binary(false));
+  for (const char* f : {"le.ply", "be.ply", "le.ply.gz"}) {
+    const Scene s = world(std::string("Translate 0 0 1\nShape \"plymesh\" \"string filename\" \"") + f + "\"\n");
+    ASSERT_EQ(s.meshes.size(), 1u) << f;
+    const Mesh& m = s.meshes[0];
+    EXPECT_EQ(m.indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3})) << f;
+    expect_vertex(m, 2, 1, 1, 1);
+    ASSERT_EQ(m.uvs.size(), 8u);
+    EXPECT_FLOAT_EQ(m.uvs[4], 1);
+    EXPECT_TRUE(has_warning(s, "1 degenerate PLY faces")) << f;
+    EXPECT_EQ(m.name, "t.pbrt:3");
+  }
+}
+
+TEST(Pbrt, PlyAscii) {
+  write_text(tmp_dir() / "a.ply", ply_ascii);
+  const Scene s = world("Shape \"plymesh\" \"string filename\" \"a.ply\"\n");
+  ASSERT_EQ(s.meshes.size(), 1u);
+  EXPECT_EQ(s.meshes[0].triangle_count(), 2u);
+  expect_vertex(s.meshes[0], 2, 2, 2, 0);
+}
+
+TEST(Pbrt, ObjectInstancesAreFlattened) {
+  const Scene s = world("ObjectBegin \"o\"\n" + tri + "Shape \"sphere\"\nObjectEnd\nTranslate 10 0 0\nObjectInstance \"o\"\nTranslate 0 10 0\nObjectInstance \"o\"\n");
+  ASSERT_EQ(s.meshes.size(), 2u);
+  expect_vertex(s.meshes[0], 0, 11, 0, 0);
+  expect_vertex(s.meshes[1], 0, 11, 10, 0);
+  ASSERT_EQ(s.spheres.size(), 2u);
+  EXPECT_FLOAT_EQ(s.spheres[1].center.y, 10);
+}
+
+TEST(Pbrt, IncludeImportAndGzipScenes) {
+  fs::create_directories(tmp_dir() / "sub");
+  write_text(tmp_dir() / "sub" / "inner.pbrt", tri);
+  write_text(tmp_dir() / "sub" / "outer.pbrt", "Include \"inner.pbrt\"\nImport \"inner.pbrt\"\n");  // relative to sub/
+  const Scene s = world("Include \"sub/outer.pbrt\"\n");
+  EXPECT_EQ(s.meshes.size(), 2u);
+  EXPECT_EQ(s.meshes[0].name, (tmp_dir() / "sub" / "inner.pbrt").string() + ":1");
+  write_gz(tmp_dir() / "scene.pbrt.gz", "WorldBegin\nInclude \"sub/inner.pbrt\"\n");
+  const Scene g = load_pbrt((tmp_dir() / "scene.pbrt.gz").string());
+  EXPECT_EQ(g.meshes.size(), 1u);
+}
+
+TEST(Pbrt, IgnoredDirectivesWarnOnce) {
+  const Scene s = world(
+      "MakeNamedMedium \"m\" \"string type\" \"homogeneous\"\nMakeNamedMedium \"n\" \"string type\" \"homogeneous\"\n"
+      "MediumInterface \"m\" \"\"\nMediumInterface \"m\"\nAttribute \"shape\" \"float radius\" 2\nColorSpace \"srgb\"\n"
+      "Option \"bool disablepixeljitter\" true\n" + tri);
+  int media = 0;
+  for (const auto& w : s.warnings) media += w.find("MakeNamedMedium") != std::string::npos;
+  EXPECT_EQ(media, 1);
+  EXPECT_TRUE(has_warning(s, "media"));
+  EXPECT_TRUE(has_warning(s, "ColorSpace"));
+  EXPECT_EQ(s.meshes.size(), 1u);
+}
+
+// --- errors -----------------------------------------------------------------------------
+
+TEST(PbrtErrors, Syntax) {
+  std::string t = "WorldBegin\nShape \"trianglemesh \"point3 P\" [0 0 0]\n";
+  expect_error("WorldBegin\nShape \"sphere\n", "t.pbrt:2:7", "closing");
+  t = "WorldBegin\nShape \"sphere\" \"float radius\" [ 1\n";
+  expect_error(t, "t.pbrt:3:1", "]");
+  t = "WorldBegin\nShape \"sphere\" \"float\" 1\n";
+  expect_error(t, loc(t, "\"float\""), "TYPE NAME");
+  t = "WorldBegin\n[ 1 2 ]\n";
+  expect_error(t, "t.pbrt:2:1", "directive");
+  t = "WorldBegin\nShape \"sphere\" \"float radius\" [ 1 [ 2 ] ]\n";
+  expect_error(t, "t.pbrt:2:35", "values");
+  t = "Translate 1 2\nWorldBegin\n";
+  expect_error(t, "t.pbrt:2:1", "number");
+  t = "WorldBegin\nShape \"sphere\" \"float radius\" [ 1.5.2 ]\n";
+  expect_error(t, loc(t, "1.5.2"), "number");
+}
+
+TEST(PbrtErrors, UnknownDirectiveAndType) {
+  std::string t = "WorldBegin\n  Shapes \"sphere\"\n";
+  expect_error(t, "t.pbrt:2:3", "directive");
+  t = "WorldBegin\nShape \"sphere\" \"flaot radius\" 1\n";
+  expect_error(t, loc(t, "\"flaot"), "float");
+  t = "WorldBegin\nShape \"teapot\"\n";
+  expect_error(t, "t.pbrt:2:1", "trianglemesh");
+}
+
+TEST(PbrtErrors, WrongParameterTypeOrCount) {
+  std::string t = "Camera \"perspective\" \"integer fov\" 45\nWorldBegin\n";
+  expect_error(t, loc(t, "\"integer fov\""), "float");
+  t = "Camera \"perspective\" \"float fov\" [ 45 50 ]\nWorldBegin\n";
+  expect_error(t, loc(t, "\"float fov\""), "1 value");
+  t = "WorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 ]\n";
+  expect_error(t, loc(t, "\"point3 P\""), "multiple of 3");
+  t = "Film \"rgb\" \"integer xresolution\" 64.5\nWorldBegin\n";
+  expect_error(t, loc(t, "\"integer xres"), "integer");
+  t = "WorldBegin\nMaterial \"diffuse\" \"rgb reflectance\" [ 1 1 ]\n";
+  expect_error(t, loc(t, "\"rgb refl"), "3 values");
+  t = "WorldBegin\nShape \"sphere\" \"float radius\" \"big\"\n";
+  expect_error(t, loc(t, "\"float radius\""), "numbers");
+  t = "WorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ] \"integer indices\" [ 0 1 ]\n";
+  expect_error(t, loc(t, "\"integer indices\""), "multiple of 3");
+}
+
+TEST(PbrtErrors, NanInfAndOverflow) {
+  std::string t = "WorldBegin\nShape \"sphere\" \"float radius\" [ nan ]\n";
+  expect_error(t, loc(t, "nan"), "number");
+  t = "WorldBegin\nShape \"sphere\" \"float radius\" [ -inf ]\n";
+  expect_error(t, loc(t, "-inf"), "finite");
+  t = "WorldBegin\nTranslate 1e39 0 0\n";
+  expect_error(t, loc(t, "1e39"), "fits in a float");
+  t = "WorldBegin\nTranslate 1e400 0 0\n";
+  expect_error(t, loc(t, "1e400"), "fits in a float");
+  t = "WorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ] \"integer indices\" [ 0 1 99999999999 ]\n";
+  expect_error(t, loc(t, "\"integer indices\""), "32-bit");
+}
+
+TEST(PbrtErrors, IndexOutOfRange) {
+  std::string t = "WorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ] \"integer indices\" [ 0 1 3 ]\n";
+  expect_error(t, loc(t, "\"integer indices\""), "below the vertex count 3");
+  t = "WorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ] \"integer indices\" [ 0 -1 2 ]\n";
+  expect_error(t, loc(t, "\"integer indices\""), "below the vertex count");
+  std::string ply = ply_ascii;
+  ply.replace(ply.find("3 0 2 3"), 7, "3 0 2 4");
+  write_text(tmp_dir() / "bad.ply", ply);
+  t = "WorldBegin\n  Shape \"plymesh\" \"string filename\" \"bad.ply\"\n";
+  expect_error(t, "t.pbrt:2:3", "below the vertex count 4");
+  EXPECT_NE(error_of(t).find("bad.ply"), std::string::npos);
+  write_text(tmp_dir() / "trunc.ply", ply_binary(false).substr(0, 200));
+  t = "WorldBegin\nShape \"plymesh\" \"string filename\" \"trunc.ply\"\n";
+  expect_error(t, "t.pbrt:2:1", "PLY");
+}
+
+TEST(PbrtErrors, MissingFiles) {
+  std::string t = "WorldBegin\nInclude \"no/such.pbrt\"\n";
+  expect_error(t, loc(t, "\"no/such"), "existing");
+  t = "WorldBegin\nShape \"plymesh\" \"string filename\" \"missing.ply\"\n";
+  expect_error(t, "t.pbrt:2:1", "existing");
+  const std::string e = error_of(t);
+  EXPECT_NE(e.find("missing.ply"), std::string::npos) << e;
+  try {
+    load_pbrt((tmp_dir() / "nothing.pbrt").string());
+    FAIL();
+  } catch (const SceneError& x) {
+    EXPECT_NE(std::string(x.what()).find("nothing.pbrt:1:1: error:"), std::string::npos) << x.what();
+  }
+  // errors inside an included file name that file
+  write_text(tmp_dir() / "broken.pbrt", "\n  Bogus\n");
+  const std::string inc = error_of("WorldBegin\nInclude \"broken.pbrt\"\n");
+  EXPECT_EQ(inc.rfind((tmp_dir() / "broken.pbrt").string() + ":2:3: error:", 0), 0u) << inc;
+}
+
+TEST(PbrtErrors, UnbalancedAttributes) {
+  std::string t = "WorldBegin\nAttributeBegin\nAttributeEnd\nAttributeEnd\n";
+  expect_error(t, "t.pbrt:4:1", "AttributeBegin");
+  t = "WorldBegin\nAttributeBegin\n" + tri;
+  expect_error(t, "t.pbrt:4:1", "AttributeEnd");
+  EXPECT_NE(error_of(t).find("t.pbrt:2:1"), std::string::npos);  // names the open block
+  t = "WorldBegin\nTransformBegin\nAttributeEnd\n";
+  expect_error(t, "t.pbrt:3:1", "t.pbrt:2:1");
+  t = "WorldBegin\nObjectBegin \"x\"\n";
+  expect_error(t, "t.pbrt:3:1", "ObjectEnd");
+  t = "WorldBegin\nObjectEnd\n";
+  expect_error(t, "t.pbrt:2:1", "ObjectBegin");
+}
+
+TEST(PbrtErrors, AbsurdResolution) {
+  std::string t = "Film \"rgb\" \"integer xresolution\" 0\nWorldBegin\n";
+  expect_error(t, loc(t, "\"integer x"), "1 to 32768");
+  t = "Film \"rgb\" \"integer yresolution\" 40000\nWorldBegin\n";
+  expect_error(t, loc(t, "\"integer y"), "1 to 32768");
+  t = "Film \"rgb\" \"integer xresolution\" 32768 \"integer yresolution\" 32768\nWorldBegin\n";
+  expect_error(t, "t.pbrt:1:1", "2^28");
+}
+
+TEST(PbrtErrors, OrderAndNames) {
+  std::string t = "Shape \"sphere\"\n";
+  expect_error(t, "t.pbrt:1:1", "WorldBegin");
+  t = "WorldBegin\nCamera \"perspective\"\n";
+  expect_error(t, "t.pbrt:2:1", "before WorldBegin");
+  t = "WorldBegin\nNamedMaterial \"nope\"\n";
+  expect_error(t, loc(t, "\"nope\""), "MakeNamedMaterial");
+  t = "WorldBegin\nMaterial \"diffuse\" \"texture reflectance\" \"nope\"\n";
+  expect_error(t, loc(t, "\"texture"), "Texture");
+  t = "WorldBegin\nObjectInstance \"nope\"\n";
+  expect_error(t, loc(t, "\"nope\""), "ObjectBegin");
+  t = "Camera \"orthographic\"\nWorldBegin\n";
+  expect_error(t, "t.pbrt:1:1", "perspective");
+  t = "WorldBegin\nShape \"trianglemesh\"\n";
+  expect_error(t, "t.pbrt:2:1", "point3 P");
+  t = "LookAt 0 0 0  0 0 0  0 1 0\nWorldBegin\n";
+  expect_error(t, "t.pbrt:1:1", "distinct");
+  t = "Scale 0 1 1\nCamera \"perspective\"\nWorldBegin\n";
+  expect_error(t, "t.pbrt:2:1", "invertible");
+}
+
+// --- real scenes ----------------------------------------------------------------------------
+
+#ifdef TUILE_SHARED_SCENES
+TEST(PbrtScenes, SharedScenes) {
+  const fs::path dir = TUILE_SHARED_SCENES;
+  if (!fs::is_directory(dir)) GTEST_SKIP() << "shared scenes not found at " << dir;
+  struct Want {
+    const char* name;
+    size_t min_tris, max_tris, emissive_meshes, emissive_spheres;
+  };
+  const Want wants[] = {{"cornell-box", 30, 40, 1, 0},
+                        {"veach-mis", 40, 60, 0, 3},
+                        {"staircase2", 25000, 35000, 13, 0},
+                        {"kitchen", 1400000, 1500000, 4, 0}};
+  for (const Want& w : wants) {
+    const fs::path f = dir / w.name / "scene-v4.pbrt";
+    if (!fs::exists(f)) {
+      ADD_FAILURE() << "missing " << f;
+      continue;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const Scene s = load_pbrt(f.string());
+    const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    size_t em = 0, es = 0;
+    for (const Mesh& m : s.meshes) em += m.emissive();
+    for (const Sphere& sp : s.spheres) es += sp.emission.r > 0 || sp.emission.g > 0 || sp.emission.b > 0;
+    EXPECT_GE(triangles(s), w.min_tris) << w.name;
+    EXPECT_LE(triangles(s), w.max_tris) << w.name;
+    EXPECT_EQ(em, w.emissive_meshes) << w.name;
+    EXPECT_EQ(es, w.emissive_spheres) << w.name;
+    EXPECT_TRUE(s.lights.empty()) << w.name;
+    std::printf("  %-12s %8zu triangles, %zu warnings, loaded in %.3f s\n", w.name, triangles(s), s.warnings.size(), dt);
+  }
+}
+#endif
+
+TEST(PbrtScenes, ProjectScenesLoad) {
+  const fs::path dir = fs::path(TUILE_SOURCE_DIR) / "scenes";
+  size_t n = 0;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    const std::string p = e.path().string();
+    if (!e.is_regular_file() || !(p.ends_with(".pbrt") || p.ends_with(".pbrt.gz"))) continue;
+    ++n;
+    Scene s;
+    EXPECT_NO_THROW(s = load_pbrt(p)) << p;
+    EXPECT_GT(triangles(s) + s.spheres.size(), 0u) << p;
+    size_t em = 0;
+    for (const Mesh& m : s.meshes) em += m.emissive();
+    EXPECT_GT(em + s.lights.size(), 0u) << p << ": no light";
+  }
+  EXPECT_GE(n, 11u);
+}
+
+TEST(PbrtScenes, TwoPanelsHasOneAndHundredSources) {
+  const Scene s = load_pbrt(std::string(TUILE_SOURCE_DIR) + "/scenes/course/two-panels.pbrt");
+  std::vector<size_t> emitters;
+  for (const Mesh& m : s.meshes)
+    if (m.emissive()) emitters.push_back(m.triangle_count());
+  EXPECT_EQ(emitters, (std::vector<size_t>{2, 200}));
+}
+
+TEST(PbrtErrors, PlyHeaderWithoutTrailingNewline) {
+  // regression (found by the fuzz test): the data must not start past the end of the file
+  write_text(tmp_dir() / "nonl.ply",
+             "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header");
+  const std::string t = "WorldBegin\nShape \"plymesh\" \"string filename\" \"nonl.ply\"\n";
+  expect_error(t, "t.pbrt:2:1", "PLY");
+  EXPECT_NE(error_of(t).find("truncated"), std::string::npos) << error_of(t);
+}
