@@ -21,14 +21,6 @@ void add_profile_flags(CLI::App& app, ProfileFlags& f) {
   app.add_option("--trace", f.trace, "Chrome trace-event JSON");
   app.add_flag("--roofline", f.roofline, "compare with Embree alone on the same rays");
 }
-void add_converge_flags(CLI::App& app, ConvergeFlags& f) {
-  app.add_option("--reference", f.reference, "reference EXR");
-  app.add_option("--strategies", f.strategies, "comma-separated strategies");
-  app.add_option("--budget", f.budget, "seconds per strategy");
-  app.add_option("--csv", f.csv, "CSV output");
-  app.add_option("--plot", f.plot, "plot output");
-}
-
 static double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -113,9 +105,4 @@ int run_profile(const ProfileFlags&) {
   std::cerr << "tuile profile: not implemented yet\n";
   return 2;
 }
-int run_converge(const ConvergeFlags&) {
-  std::cerr << "tuile converge: not implemented yet\n";
-  return 2;
-}
-
 }  // namespace tuile

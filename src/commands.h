@@ -22,6 +22,13 @@ struct ConvergeFlags {
   double budget = 10;
 };
 
+struct FiguresFlags {
+  std::string out = "figures";
+  int threads = 0;
+  bool quick = false;  // smaller images and sample counts (tests)
+};
+
+void add_figures_flags(CLI::App& app, FiguresFlags& f);
 void add_bench_flags(CLI::App& app, BenchFlags& f);
 void add_profile_flags(CLI::App& app, ProfileFlags& f);
 void add_converge_flags(CLI::App& app, ConvergeFlags& f);
@@ -30,6 +37,7 @@ int run_render(const RenderFlags& f);
 int run_info(const RenderFlags& f);
 int run_bench(const BenchFlags& f);
 int run_profile(const ProfileFlags& f);
-int run_converge(const ConvergeFlags& f);
+int run_converge(const ConvergeFlags& f);  // src/converge.cpp
+int run_figures(const FiguresFlags& f);    // src/figures.cpp
 
 }  // namespace tuile

@@ -46,6 +46,10 @@ int main(int argc, char** argv) {
   add_render_flags(*converge, cf.render);
   add_converge_flags(*converge, cf);
 
+  FiguresFlags ff;
+  CLI::App* figures = app.add_subcommand("figures", "the course's figures as labelled PNG contact sheets");
+  add_figures_flags(*figures, ff);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -57,6 +61,7 @@ int main(int argc, char** argv) {
     if (*bench) return run_bench(bf);
     if (*profile) return run_profile(pf);
     if (*converge) return run_converge(cf);
+    if (*figures) return run_figures(ff);
   } catch (const SceneError& e) {
     std::cerr << "tuile: " << e.what() << "\n";
     return 1;
