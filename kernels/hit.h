@@ -56,56 +56,70 @@ inline bool light_front(const LightView& L, int32_t l, float dx, float dy, float
   return dx * L.nx[l] + dy * L.ny[l] + dz * L.nz[l] < 0.f;
 }
 
+// SIMD half of the camera-hit stage, lanes [i, i + width): hit point, facing normal,
+// material reflectance and ray offset for every lane, written in lane order to the queue
+// arrays (scratch here). Point x = o + t d; the offset scales with the hit mesh's extent
+// and the ray length, which bound the error of x along the normal.
+template <class T> inline void camera_hit_lanes(const GeomView& G, TileBuffers& tb, int i) {
+  const RayHit16& p = tb.cam[i / packet_width];
+  const int l = i % packet_width;
+  const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(p.geomID + l));
+  const auto hit = f_mask_from_i(geom >= i32_t<T>(0));  // invalid_id reads as -1
+  const i32_t<T> gi = max(geom, i32_t<T>(0));
+  const T t = load<T>(p.ray.tfar + l);
+  const Vec3<T> o = load3<T>(p.ray.org_x + l, p.ray.org_y + l, p.ray.org_z + l);
+  const Vec3<T> d = load3<T>(p.ray.dir_x + l, p.ray.dir_y + l, p.ray.dir_z + l);
+  const Vec3<T> x = o + d * t;
+  Vec3<T> ng = load3<T>(p.Ng_x + l, p.Ng_y + l, p.Ng_z + l);
+  const T len = length(ng);
+  const auto ok = hit && len > T(0.f) && is_finite(len) && is_finite(t);
+  ng = ng * (T(1.f) / sel(ok, len, T(1.f)));
+  ng = sel(dot(ng, d) > T(0.f), -ng, ng);  // face the viewer: diffuse reflection on both sides
+  const i32_t<T> mat = gather(G.geom_material, gi);
+  store3(tb.qx + i, tb.qy + i, tb.qz + i, x);
+  store3(tb.qnx + i, tb.qny + i, tb.qnz + i, ng);
+  store(tb.qar + i, gather(G.mat_r, mat));
+  store(tb.qag + i, gather(G.mat_g, mat));
+  store(tb.qab + i, gather(G.mat_b, mat));
+  store(tb.qdist + i, offset_scale(x, gather(G.geom_extent, gi) + t));
+  store(tb.qdx + i, sel(ok, T(1.f), T(0.f)));
+}
+
 // Emitters: false when the scene has no area light (no emitter lookups at all).
 template <bool Emitters = true>
 inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& est, uint32_t sample, int lanes,
                         TileBuffers& tb) {
+  const int padded_lanes = (lanes + packet_width - 1) / packet_width * packet_width;
+  int i = 0;
+  for (; i + simd_width <= padded_lanes; i += simd_width) camera_hit_lanes<vfloat>(G, tb, i);
+  for (; i < padded_lanes; ++i) camera_hit_lanes<float>(G, tb, i);
   int n = 0;
-  for (int i = 0; i < lanes; ++i) {
+  for (i = 0; i < lanes; ++i) {
     const RayHit16& p = tb.cam[i / packet_width];
     const int l = i % packet_width;
     const uint32_t geom = p.geomID[l];
     if (geom == invalid_id) continue;
-    const float t = p.ray.tfar[l];
-    const vec3f o{p.ray.org_x[l], p.ray.org_y[l], p.ray.org_z[l]};
-    const vec3f d{p.ray.dir_x[l], p.ray.dir_y[l], p.ray.dir_z[l]};
-    // the hit point: from the triangle's barycentrics (error bounded by the vertices'
-    // magnitude, not by the ray length), from the ray for spheres
-    vec3f x = o + d * t;
-    float extent = t;
-    if (static_cast<int32_t>(geom) < G.mesh_count) {
-      const uint32_t* tri = G.indices[geom] + 3 * p.primID[l];
-      const float* P = G.positions[geom];
-      const vec3f v0{P[3 * tri[0]], P[3 * tri[0] + 1], P[3 * tri[0] + 2]};
-      const vec3f v1{P[3 * tri[1]], P[3 * tri[1] + 1], P[3 * tri[1] + 2]};
-      const vec3f v2{P[3 * tri[2]], P[3 * tri[2] + 1], P[3 * tri[2] + 2]};
-      const float bu = p.u[l], bv = p.v[l];
-      x = v0 * (1.f - bu - bv) + v1 * bu + v2 * bv;
-      extent = std::max(max_abs(v0), std::max(max_abs(v1), max_abs(v2)));
-    }
-    vec3f ng{p.Ng_x[l], p.Ng_y[l], p.Ng_z[l]};
-    const float len = length(ng);
-    if (!(len > 0.f) || !std::isfinite(len) || !std::isfinite(t)) {
+    if (!(tb.qdx[i] > 0.f)) {
       ++tb.rejected_camera;
       continue;
     }
-    ng = ng * (1.f / len);
-    if (dot(ng, d) > 0.f) ng = -ng;  // face the viewer: diffuse reflection on both sides
-    const int32_t light = Emitters ? light_of_hit(G, geom, p.primID[l]) : -1;
-    if (light >= 0 && light_front(L, light, d.x, d.y, d.z)) {
-      tb.Lr[i] += L.Lr[light];
-      tb.Lg[i] += L.Lg[light];
-      tb.Lb[i] += L.Lb[light];
+    if constexpr (Emitters) {
+      const int32_t light = light_of_hit(G, geom, p.primID[l]);
+      if (light >= 0 && light_front(L, light, p.ray.dir_x[l], p.ray.dir_y[l], p.ray.dir_z[l])) {
+        tb.Lr[i] += L.Lr[light];
+        tb.Lg[i] += L.Lg[light];
+        tb.Lb[i] += L.Lb[light];
+      }
     }
-    float r, g, b;
-    hit_albedo(G, geom, p.primID[l], p.u[l], p.v[l], r, g, b);
-    tb.px[n] = x.x;
-    tb.py[n] = x.y;
-    tb.pz[n] = x.z;
-    tb.nx[n] = ng.x;
-    tb.ny[n] = ng.y;
-    tb.nz[n] = ng.z;
-    tb.eps[n] = offset_scale(x, extent);
+    float r = tb.qar[i], g = tb.qag[i], b = tb.qab[i];
+    if (G.has_textures) hit_albedo(G, geom, p.primID[l], p.u[l], p.v[l], r, g, b);
+    tb.px[n] = tb.qx[i];
+    tb.py[n] = tb.qy[i];
+    tb.pz[n] = tb.qz[i];
+    tb.nx[n] = tb.qnx[i];
+    tb.ny[n] = tb.qny[i];
+    tb.nz[n] = tb.qnz[i];
+    tb.eps[n] = tb.qdist[i];
     tb.ar[n] = r;
     tb.ag[n] = g;
     tb.ab[n] = b;

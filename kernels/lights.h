@@ -68,6 +68,18 @@ template <class I> inline auto gather_light(const LightView& L, const I& idx) {
   return g;
 }
 
+template <class T> inline LightGeom<T> broadcast_light(const LightView& L, int32_t i) {
+  LightGeom<T> g;
+  g.type = i32_t<T>(L.type[i]);
+  g.p0 = {T(L.p0x[i]), T(L.p0y[i]), T(L.p0z[i])};
+  g.e1 = {T(L.e1x[i]), T(L.e1y[i]), T(L.e1z[i])};
+  g.e2 = {T(L.e2x[i]), T(L.e2y[i]), T(L.e2z[i])};
+  g.n = {T(L.nx[i]), T(L.ny[i]), T(L.nz[i])};
+  g.area = T(L.area[i]);
+  g.two_sided = T(L.two_sided[i]);
+  return g;
+}
+
 template <class T> inline mask_t<T> type_is(const i32_t<T>& type, int32_t t) {
   if constexpr (std::is_same_v<T, float>) return type == t;
   else return f_mask_from_i(type == vint(t));
@@ -82,14 +94,7 @@ template <class T> inline T light_solid_angle(const LightGeom<T>& g, const Vec3<
   T omega(0.f);
   if (any(is_tri)) omega = sel(is_tri, spherical_triangle_solid_angle(x, g.p0, g.p0 + g.e1, g.p0 + g.e2), omega);
   if (any(is_par)) omega = sel(is_par, parallelogram_solid_angle(x, g.p0, g.e1, g.e2), omega);
-  if (any(is_sph)) {
-    const T r = g.e1.x;
-    const T d2 = length_sq(g.p0 - x);
-    const T sin2 = min(T(1.f), r * r / max(d2, T(1e-30f)));
-    const T cos_max = sqrt(max(T(0.f), T(1.f) - sin2));
-    // 2 pi (1 - cos) computed as 2 pi sin^2 / (1 + cos) to keep precision for tiny cones
-    omega = sel(is_sph, sel(d2 > r * r, T(6.2831853f) * sin2 / (T(1.f) + cos_max), T(0.f)), omega);
-  }
+  if (any(is_sph)) omega = sel(is_sph, sphere_cone_solid_angle(x, g.p0, g.e1.x), omega);
   return omega;
 }
 
@@ -171,32 +176,36 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
   s.valid = dist > T(0.f);
 
   if (mode == LightPoint::solid_angle) {
-    omega = light_solid_angle(g, x);
-    auto use_sa = (solid_angle_sampling_safe(omega) && (is_tri || is_par)) || (is_sph && omega > T(0.f));
+    // Solid-angle samples first: their pdf is 1 / Omega, so Omega is not computed twice.
+    // Where Omega is outside the safe range the area sample above stands.
+    Vec3<T> dir = wi;
+    auto ok = s.valid && !s.valid;
+    if (any(is_tri)) {
+      Vec3<T> dt;
+      T pt;
+      const auto m = sample_spherical_triangle(x, g.p0, g.p0 + g.e1, g.p0 + g.e2, u1, u2, dt, pt);
+      dir = sel(is_tri, dt, dir);
+      omega = sel(is_tri, sel(pt > T(0.f), T(1.f) / sel(pt > T(0.f), pt, T(1.f)), T(0.f)), omega);
+      ok = sel_mask(is_tri, m, ok);
+    }
+    if (any(is_par)) {
+      Vec3<T> dp;
+      T pp;
+      const auto m = sample_parallelogram_sa(x, g.p0, g.e1, g.e2, u1, u2, dp, pp);
+      dir = sel(is_par, dp, dir);
+      omega = sel(is_par, sel(pp > T(0.f), T(1.f) / sel(pp > T(0.f), pp, T(1.f)), T(0.f)), omega);
+      ok = sel_mask(is_par, m, ok);
+    }
+    if (any(is_sph)) {
+      Vec3<T> ds;
+      T ps;
+      const auto m = sample_sphere_cone(x, g.p0, g.e1.x, u1, u2, ds, ps);
+      dir = sel(is_sph, ds, dir);
+      omega = sel(is_sph, sphere_cone_solid_angle(x, g.p0, g.e1.x), omega);
+      ok = sel_mask(is_sph, m, ok);
+    }
+    const auto use_sa = (solid_angle_sampling_safe(omega) && (is_tri || is_par)) || (is_sph && omega > T(0.f));
     if (any(use_sa)) {
-      Vec3<T> dir = wi;
-      auto ok = use_sa;
-      if (any(is_tri && use_sa)) {
-        Vec3<T> dt;
-        T pt;
-        const auto m = sample_spherical_triangle(x, g.p0, g.p0 + g.e1, g.p0 + g.e2, u1, u2, dt, pt);
-        dir = sel(is_tri, dt, dir);
-        ok = sel_mask(is_tri, ok && m, ok);
-      }
-      if (any(is_par && use_sa)) {
-        Vec3<T> dp;
-        T pp;
-        const auto m = sample_parallelogram_sa(x, g.p0, g.e1, g.e2, u1, u2, dp, pp);
-        dir = sel(is_par, dp, dir);
-        ok = sel_mask(is_par, ok && m, ok);
-      }
-      if (any(is_sph && use_sa)) {
-        Vec3<T> ds;
-        T ps;
-        const auto m = sample_sphere_cone(x, g.p0, g.e1.x, u1, u2, ds, ps);
-        dir = sel(is_sph, ds, dir);
-        ok = sel_mask(is_sph, ok && m, ok);
-      }
       // distance along dir to the source's plane (triangle/parallelogram) or sphere
       const T denom = dot(dir, g.n);
       const T t_plane = dot(g.p0 - x, g.n) / sel(abs(denom) > T(0.f), denom, T(1.f));

@@ -62,11 +62,23 @@ template <class U> inline U nested_uniform_scramble(U x, U seed) noexcept {
 // Sobol' dimension 0 (van der Corput) and 1 (generator matrix of the polynomial x + 1),
 // as 32-bit fixed point.
 template <class U> inline U sobol_dim0(U i) noexcept { return reverse_bits(i); }
+// Dimension 1's matrix is Pascal's triangle mod 2: by Lucas' theorem output bit j is the
+// XOR of the index bits k that contain j as a bit subset, a superset-sum computed in five
+// masked xor-shifts (equal to the column-by-column product, tested).
 template <class U> inline U sobol_dim1(U i) noexcept {
-  U r(0u), v(0x80000000u);
+  i ^= (i >> 1) & U(0x55555555u);
+  i ^= (i >> 2) & U(0x33333333u);
+  i ^= (i >> 4) & U(0x0f0f0f0fu);
+  i ^= (i >> 8) & U(0x00ff00ffu);
+  i ^= (i >> 16) & U(0x0000ffffu);
+  return reverse_bits(i);
+}
+
+// The textbook product with the generator matrix column by column (reference for tests).
+inline uint32_t sobol_dim1_reference(uint32_t i) noexcept {
+  uint32_t r = 0, v = 0x80000000u;
   for (int b = 0; b < 32; ++b) {
-    const U bit = (i >> b) & U(1u);
-    r ^= v & (U(0u) - bit);
+    if ((i >> b) & 1u) r ^= v;
     v ^= v >> 1;
   }
   return r;

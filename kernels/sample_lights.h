@@ -29,15 +29,25 @@ inline void sample_lights_lanes(const LightView& L, const Estimator& est, const 
   const Vec3<T> n = load3<T>(tb.nx + k, tb.ny + k, tb.nz + k);
   const T eps = load<T>(tb.eps + k);
 
-  i32_t<T> idx;
+  LightGeom<T> g;
+  T pick, Le_r, Le_g, Le_b;
   if constexpr (Pick) {
+    i32_t<T> idx;
     if (pass.fixed_light >= 0) idx = i32_t<T>(pass.fixed_light);
     else idx = pick_light(L, load<T>(tb.u0 + k));
-  } else {
-    idx = i32_t<T>(pass.fixed_light);
+    g = gather_light(L, idx);
+    pick = gather(L.pick_pdf, idx);
+    Le_r = gather(L.Lr, idx);
+    Le_g = gather(L.Lg, idx);
+    Le_b = gather(L.Lb, idx);
+  } else {  // every lane samples the same source: broadcasts, no gathers
+    const int32_t li = pass.fixed_light;
+    g = broadcast_light<T>(L, li);
+    pick = T(L.pick_pdf[li]);
+    Le_r = T(L.Lr[li]);
+    Le_g = T(L.Lg[li]);
+    Le_b = T(L.Lb[li]);
   }
-  const LightGeom<T> g = gather_light(L, idx);
-  const T pick = gather(L.pick_pdf, idx);
   const LightPointSample<T> s =
       sample_light_point<Kinds>(est.point, g, x, load<T>(tb.u2 + k), load<T>(tb.u3 + k));
 
@@ -56,9 +66,9 @@ inline void sample_lights_lanes(const LightView& L, const Estimator& est, const 
   const T denom = T(pass.n_light) * sel(s.is_delta, pick, pdf_l);
   const auto ok = active && s.valid && front && cos_x > T(0.f) && denom > T(0.f) && w > T(0.f);
   const T factor = sel(ok, w * cos_x * T(inv_pi) / sel(ok, denom, T(1.f)) * s.scale, T(0.f));
-  const T c_r = load<T>(tb.ar + k) * gather(L.Lr, idx) * factor;
-  const T c_g = load<T>(tb.ag + k) * gather(L.Lg, idx) * factor;
-  const T c_b = load<T>(tb.ab + k) * gather(L.Lb, idx) * factor;
+  const T c_r = load<T>(tb.ar + k) * Le_r * factor;
+  const T c_g = load<T>(tb.ag + k) * Le_g * factor;
+  const T c_b = load<T>(tb.ab + k) * Le_b * factor;
   const auto fin = is_finite(c_r) && is_finite(c_g) && is_finite(c_b);
   const auto live = ok && fin && (c_r + c_g + c_b > T(0.f));
   store(tb.cr + k, sel(live, c_r, T(0.f)));

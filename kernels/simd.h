@@ -135,9 +135,39 @@ inline void store(uint32_t* p, uint32_t v) noexcept { *p = v; }
 inline void store(uint32_t* p, const vuint& v) noexcept { v.store_unaligned(p); }
 // gather: v[i] = base[index[i]]
 inline float gather(const float* base, int32_t i) noexcept { return base[i]; }
-inline vfloat gather(const float* base, const vint& i) noexcept { return vfloat::gather(base, i); }
+// xsimd 8's gather is element by element through out-of-line templates: use the
+// hardware gather where the build has one.
+inline vfloat gather(const float* base, const vint& i) noexcept {
+#if defined(__AVX512F__)
+  static_assert(simd_width == 16);
+  return _mm512_i32gather_ps(static_cast<__m512i>(i), base, 4);
+#elif defined(__AVX2__)
+  static_assert(simd_width == 8);
+  return _mm256_i32gather_ps(base, static_cast<__m256i>(i), 4);
+#else
+  alignas(64) int32_t idx[simd_width];
+  alignas(64) float out[simd_width];
+  i.store_aligned(idx);
+  for (int l = 0; l < simd_width; ++l) out[l] = base[idx[l]];
+  return vfloat::load_aligned(out);
+#endif
+}
 inline int32_t gather(const int32_t* base, int32_t i) noexcept { return base[i]; }
-inline vint gather(const int32_t* base, const vint& i) noexcept { return vint::gather(base, i); }
+inline vint gather(const int32_t* base, const vint& i) noexcept {
+#if defined(__AVX512F__)
+  static_assert(simd_width == 16);
+  return _mm512_i32gather_epi32(static_cast<__m512i>(i), base, 4);
+#elif defined(__AVX2__)
+  static_assert(simd_width == 8);
+  return _mm256_i32gather_epi32(base, static_cast<__m256i>(i), 4);
+#else
+  alignas(64) int32_t idx[simd_width];
+  alignas(64) int32_t out[simd_width];
+  i.store_aligned(idx);
+  for (int l = 0; l < simd_width; ++l) out[l] = base[idx[l]];
+  return vint::load_aligned(out);
+#endif
+}
 
 // lane index and per-lane construction helpers
 template <class T> inline T lane_iota() noexcept {

@@ -43,7 +43,9 @@ struct Estimator {
 // Per-geometry data the hit stages look up by Embree's geomID / primID.
 struct GeomView {
   int32_t mesh_count = 0;
-  const int32_t* geom_material = nullptr;      // per geomID (meshes then spheres), -1 = default
+  const int32_t* geom_material = nullptr;      // per geomID (meshes then spheres), never -1
+  const float* geom_extent = nullptr;          // per geomID: largest |coordinate| of its vertices
+  bool has_textures = false;
   const int32_t* const* prim_light = nullptr;  // per mesh: light of each triangle or nullptr
   const int32_t* sphere_light = nullptr;       // per sphere: light or -1
   const float *mat_r = nullptr, *mat_g = nullptr, *mat_b = nullptr;
@@ -90,6 +92,15 @@ struct alignas(64) TileBuffers {
   alignas(64) int32_t valid[max_tile_lanes];
   alignas(64) int32_t hit_light[max_tile_lanes];
   alignas(64) float wb[max_tile_lanes];
+
+  // queue of bounce rays that hit an emitter (the MIS weight stage runs on it only)
+  int queue_count = 0;
+  alignas(64) float qx[max_tile_lanes], qy[max_tile_lanes], qz[max_tile_lanes];
+  alignas(64) float qnx[max_tile_lanes], qny[max_tile_lanes], qnz[max_tile_lanes];
+  alignas(64) float qdx[max_tile_lanes], qdy[max_tile_lanes], qdz[max_tile_lanes];
+  alignas(64) float qdist[max_tile_lanes];
+  alignas(64) float qar[max_tile_lanes], qag[max_tile_lanes], qab[max_tile_lanes];
+  alignas(64) int32_t qlight[max_tile_lanes], qlane[max_tile_lanes];
 
   // statistics
   uint64_t rejected_light = 0, rejected_bsdf = 0, rejected_camera = 0;

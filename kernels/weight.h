@@ -9,21 +9,17 @@
 
 namespace tuile {
 
+// Lanes [j, j + width) of the hit queue.
 template <class T>
 inline void weight_lanes(const LightView& L, const Estimator& est, float n_light, float n_bsdf, TileBuffers& tb,
-                         int k) {
+                         int j) {
   constexpr float inv_pi = 0.318309886f;
-  const i32_t<T> li = load_i32<T>(tb.hit_light + k);
-  const auto hit = f_mask_from_i(li >= i32_t<T>(0));
-  const i32_t<T> idx = max(li, i32_t<T>(0));
-  const RayHit16& r = tb.bounce[k / packet_width];
-  const int l = k % packet_width;
-  const Vec3<T> x = load3<T>(tb.px + k, tb.py + k, tb.pz + k);
-  const Vec3<T> n = load3<T>(tb.nx + k, tb.ny + k, tb.nz + k);
-  const Vec3<T> wi = load3<T>(r.ray.dir_x + l, r.ray.dir_y + l, r.ray.dir_z + l);
-  const T t = load<T>(r.ray.tfar + l);
-  // distance from x itself (the ray started eps above it)
-  const T dist = t + load<T>(tb.eps + k) * dot(n, wi);
+  const auto live = (T(static_cast<float>(j)) + lane_iota<T>()) < T(static_cast<float>(tb.queue_count));
+  const i32_t<T> idx = load_i32<T>(tb.qlight + j);
+  const Vec3<T> x = load3<T>(tb.qx + j, tb.qy + j, tb.qz + j);
+  const Vec3<T> n = load3<T>(tb.qnx + j, tb.qny + j, tb.qnz + j);
+  const Vec3<T> wi = load3<T>(tb.qdx + j, tb.qdy + j, tb.qdz + j);
+  const T dist = load<T>(tb.qdist + j);
   const LightGeom<T> g = gather_light(L, idx);
   const T pdf_l = gather(L.pick_pdf, idx) * pdf_light_point_sa(est.point, g, x, wi, dist);
   T w(1.f);
@@ -33,41 +29,68 @@ inline void weight_lanes(const LightView& L, const Estimator& est, float n_light
   } else if (est.strategy == Strategy::light) {
     w = T(0.f);  // the general pipeline traces BSDF rays even when they must not count
   }
-  const T factor = sel(hit, w / T(n_bsdf), T(0.f));
-  store(tb.cr + k, load<T>(tb.ar + k) * gather(L.Lr, idx) * factor);
-  store(tb.cg + k, load<T>(tb.ag + k) * gather(L.Lg, idx) * factor);
-  store(tb.cb + k, load<T>(tb.ab + k) * gather(L.Lb, idx) * factor);
-  store(tb.wb + k, w);
+  const T factor = sel(live, w / T(n_bsdf), T(0.f));
+  store(tb.cr + j, load<T>(tb.qar + j) * gather(L.Lr, idx) * factor);
+  store(tb.cg + j, load<T>(tb.qag + j) * gather(L.Lg, idx) * factor);
+  store(tb.cb + j, load<T>(tb.qab + j) * gather(L.Lb, idx) * factor);
+  store(tb.wb + j, w);
 }
 
+// Queues the bounce rays that hit the front of an emitter, weights them, adds them.
 inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator& est, float n_light, float n_bsdf,
                           TileBuffers& tb) {
-  const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
-  for (int k = 0; k < padded; ++k) {
-    int32_t light = -1;
-    if (tb.valid[k]) {
-      const RayHit16& r = tb.bounce[k / packet_width];
-      const int l = k % packet_width;
-      light = light_of_hit(G, r.geomID[l], r.primID[l]);
-      if (light >= 0 && !light_front(L, light, r.ray.dir_x[l], r.ray.dir_y[l], r.ray.dir_z[l])) light = -1;
-    }
-    tb.hit_light[k] = light;
+  int nq = 0;
+  for (int k = 0; k < tb.shade_count; ++k) {
+    if (!tb.valid[k]) continue;
+    const RayHit16& r = tb.bounce[k / packet_width];
+    const int l = k % packet_width;
+    const int32_t light = light_of_hit(G, r.geomID[l], r.primID[l]);
+    if (light < 0 || !light_front(L, light, r.ray.dir_x[l], r.ray.dir_y[l], r.ray.dir_z[l])) continue;
+    tb.qx[nq] = tb.px[k];
+    tb.qy[nq] = tb.py[k];
+    tb.qz[nq] = tb.pz[k];
+    tb.qnx[nq] = tb.nx[k];
+    tb.qny[nq] = tb.ny[k];
+    tb.qnz[nq] = tb.nz[k];
+    tb.qdx[nq] = r.ray.dir_x[l];
+    tb.qdy[nq] = r.ray.dir_y[l];
+    tb.qdz[nq] = r.ray.dir_z[l];
+    // distance from x itself (the ray started eps above it along n)
+    tb.qdist[nq] = r.ray.tfar[l] + tb.eps[k] * (tb.nx[k] * r.ray.dir_x[l] + tb.ny[k] * r.ray.dir_y[l] +
+                                               tb.nz[k] * r.ray.dir_z[l]);
+    tb.qar[nq] = tb.ar[k];
+    tb.qag[nq] = tb.ag[k];
+    tb.qab[nq] = tb.ab[k];
+    tb.qlight[nq] = light;
+    tb.qlane[nq] = tb.slane[k];
+    ++nq;
   }
-  int k = 0;
-  for (; k + simd_width <= padded; k += simd_width) weight_lanes<vfloat>(L, est, n_light, n_bsdf, tb, k);
-  for (; k < padded; ++k) weight_lanes<float>(L, est, n_light, n_bsdf, tb, k);
-  for (k = 0; k < tb.shade_count; ++k) {
-    if (tb.hit_light[k] < 0 || est.strategy == Strategy::light) continue;
-    const float r = tb.cr[k], g = tb.cg[k], b = tb.cb[k];
+  tb.queue_count = nq;
+  if (nq == 0) return;
+  const int padded = (nq + simd_width - 1) / simd_width * simd_width;
+  for (int j = nq; j < padded; ++j) {  // padding: a valid light index, no contribution
+    tb.qx[j] = tb.qy[j] = tb.qz[j] = 0.f;
+    tb.qnx[j] = tb.qny[j] = 0.f;
+    tb.qnz[j] = 1.f;
+    tb.qdx[j] = tb.qdy[j] = 0.f;
+    tb.qdz[j] = 1.f;
+    tb.qdist[j] = 1.f;
+    tb.qar[j] = tb.qag[j] = tb.qab[j] = 0.f;
+    tb.qlight[j] = tb.qlight[0];
+  }
+  for (int j = 0; j < padded; j += simd_width) weight_lanes<vfloat>(L, est, n_light, n_bsdf, tb, j);
+  if (est.strategy == Strategy::light) return;
+  for (int j = 0; j < nq; ++j) {
+    const float r = tb.cr[j], g = tb.cg[j], b = tb.cb[j];
     if (!(std::isfinite(r) && std::isfinite(g) && std::isfinite(b))) {
       ++tb.rejected_bsdf;
       continue;
     }
-    const int i = tb.slane[k];
+    const int i = tb.qlane[j];
     tb.Lr[i] += r;
     tb.Lg[i] += g;
     tb.Lb[i] += b;
-    tb.wsum[i] += tb.wb[k];
+    tb.wsum[i] += tb.wb[j];
     tb.wcnt[i] += 1.f;
   }
 }

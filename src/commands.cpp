@@ -1,6 +1,11 @@
 #include "commands.h"
 
+#include <sys/resource.h>
 #include <unistd.h>
+
+#include <algorithm>
+#include <fstream>
+#include <thread>
 
 #include <chrono>
 #include <cstdio>
@@ -97,12 +102,180 @@ int run_info(const RenderFlags& f) {
   return 0;
 }
 
-int run_bench(const BenchFlags&) {
-  std::cerr << "tuile bench: not implemented yet\n";
-  return 2;
+namespace {
+
+size_t peak_memory_bytes() {
+  struct rusage ru;
+  getrusage(RUSAGE_SELF, &ru);
+  return static_cast<size_t>(ru.ru_maxrss) * 1024;
 }
-int run_profile(const ProfileFlags&) {
-  std::cerr << "tuile profile: not implemented yet\n";
-  return 2;
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
+
+std::string json_escape(const std::string& s) {
+  std::string o;
+  for (char ch : s) {
+    if (ch == '"' || ch == '\\') o += '\\';
+    if (static_cast<unsigned char>(ch) < 0x20) continue;
+    o += ch;
+  }
+  return o;
+}
+
+// Scene + options + BVH with the time to first pixel measured from process start.
+struct Prepared {
+  Scene scene;
+  RenderOptions opt;
+  std::unique_ptr<Accel> accel;
+  double load_seconds = 0, bvh_seconds = 0;
+};
+
+Prepared prepare(const RenderFlags& f) {
+  Prepared p;
+  const auto t0 = std::chrono::steady_clock::now();
+  p.scene = load_scene(f.scene);
+  p.opt = resolve_options(f, p.scene);
+  p.load_seconds = seconds_since(t0);
+  const auto t1 = std::chrono::steady_clock::now();
+  p.accel = std::make_unique<Accel>(p.scene);
+  p.bvh_seconds = seconds_since(t1);
+  return p;
+}
+
+}  // namespace
+
+int run_bench(const BenchFlags& f) {
+  if (f.repeat < 1 || f.repeat > 1000) throw std::invalid_argument("--repeat must be in 1..1000");
+  if (f.warmup < 0 || f.warmup > 1000) throw std::invalid_argument("--warmup must be in 0..1000");
+  const auto start = std::chrono::steady_clock::now();
+  Prepared p = prepare(f.render);
+  Renderer renderer(p.scene, *p.accel, p.opt);
+  const double first_pixel = seconds_since(start);  // load + BVH + light tables
+  const uint32_t spp = p.opt.est.spp;
+  std::vector<double> sps, cam, sh, bo;
+  RenderStats last;
+  for (int r = 0; r < f.warmup + f.repeat; ++r) {
+    Film film;
+    film.reset(p.scene.camera.width, p.scene.camera.height);
+    const RenderStats st = renderer.render(film, 0, spp);
+    if (r < f.warmup) continue;
+    sps.push_back(static_cast<double>(st.samples) / st.seconds);
+    cam.push_back(static_cast<double>(st.rays_camera) / st.seconds);
+    sh.push_back(static_cast<double>(st.rays_shadow) / st.seconds);
+    bo.push_back(static_cast<double>(st.rays_bounce) / st.seconds);
+    last = st;
+  }
+  const double med = median(sps);
+  const double mn = *std::min_element(sps.begin(), sps.end()), mx = *std::max_element(sps.begin(), sps.end());
+  const int threads = p.opt.threads > 0 ? p.opt.threads : static_cast<int>(std::thread::hardware_concurrency());
+  std::printf("scene: %s (%zu triangles, %zu lights)\n", p.scene.source.c_str(), p.scene.triangle_count(),
+              p.scene.lights.size());
+  std::printf("pipeline: %s\nestimator: %s\n", last.pipeline.c_str(), describe(p.opt.est).c_str());
+  std::printf("resolution %dx%d, %u spp, %d thread(s), %d runs after %d warm-up\n", p.scene.camera.width,
+              p.scene.camera.height, spp, threads, f.repeat, f.warmup);
+  std::printf("samples/s: median %.4g  min %.4g  max %.4g\n", med, mn, mx);
+  std::printf("rays/s (median): camera %.4g  shadow %.4g  bounce %.4g\n", median(cam), median(sh), median(bo));
+  std::printf("time to first pixel: %.3f s (load %.3f s, BVH %.3f s)\n", first_pixel, p.load_seconds, p.bvh_seconds);
+  std::printf("peak memory: %.1f MiB\n", static_cast<double>(peak_memory_bytes()) / (1024.0 * 1024.0));
+  if (!f.json.empty()) {
+    std::ofstream js(f.json);
+    if (!js) throw std::runtime_error(f.json + ": cannot open for writing");
+    js << "{\n";
+    js << "  \"samples_per_second\": {\"median\": " << med << ", \"min\": " << mn << ", \"max\": " << mx << "},\n";
+    js << "  \"rays_per_second\": {\"camera\": " << median(cam) << ", \"shadow\": " << median(sh)
+       << ", \"bounce\": " << median(bo) << "},\n";
+    js << "  \"time_to_first_pixel\": " << first_pixel << ",\n";
+    js << "  \"load_seconds\": " << p.load_seconds << ",\n";
+    js << "  \"bvh_seconds\": " << p.bvh_seconds << ",\n";
+    js << "  \"peak_memory_bytes\": " << peak_memory_bytes() << ",\n";
+    js << "  \"scene\": \"" << json_escape(p.scene.source) << "\",\n";
+    js << "  \"triangles\": " << p.scene.triangle_count() << ",\n";
+    js << "  \"lights\": " << p.scene.lights.size() << ",\n";
+    js << "  \"width\": " << p.scene.camera.width << ", \"height\": " << p.scene.camera.height << ",\n";
+    js << "  \"spp\": " << spp << ", \"threads\": " << threads << ", \"repeat\": " << f.repeat
+       << ", \"warmup\": " << f.warmup << ",\n";
+    js << "  \"pipeline\": \"" << json_escape(last.pipeline) << "\",\n";
+    js << "  \"estimator\": \"" << json_escape(describe(p.opt.est)) << "\",\n";
+    js << "  \"runs_samples_per_second\": [";
+    for (size_t i = 0; i < sps.size(); ++i) js << (i ? ", " : "") << sps[i];
+    js << "]\n}\n";
+  }
+  return 0;
+}
+
+int run_profile(const ProfileFlags& f) {
+  Prepared p = prepare(f.render);
+  Renderer renderer(p.scene, *p.accel, p.opt);
+  const uint32_t spp = p.opt.est.spp;
+  // unprofiled run first: the speed profiling is compared with
+  Film film;
+  film.reset(p.scene.camera.width, p.scene.camera.height);
+  const RenderStats plain = renderer.render(film, 0, spp);
+  Profile prof;
+  prof.trace = !f.trace.empty();
+  prof.record_rays = f.roofline;
+  film.reset(p.scene.camera.width, p.scene.camera.height);
+  const RenderStats st = renderer.render(film, 0, spp, &prof);
+  const double samples = static_cast<double>(st.samples);
+  double stage_total = 0;
+  for (double v : prof.stage_seconds) stage_total += v;
+  const double thread_seconds = st.seconds * prof.threads;
+  std::printf("scene: %s, %dx%d, %u spp, %d thread(s), pipeline %s\n", p.scene.source.c_str(), p.scene.camera.width,
+              p.scene.camera.height, spp, prof.threads, st.pipeline.c_str());
+  std::printf("%-18s %10s %7s %10s %10s\n", "stage", "ms", "%", "ns/sample", "Mrays/s");
+  auto row = [&](const char* name, double sec, double rays) {
+    std::printf("%-18s %10.2f %6.1f%% %10.2f", name, sec * 1e3, 100.0 * sec / thread_seconds, sec * 1e9 / samples);
+    if (rays > 0) std::printf(" %10.2f", rays / sec * 1e-6);
+    std::printf("\n");
+  };
+  for (int k = 0; k < stage_count; ++k) {
+    const Stage s = static_cast<Stage>(k);
+    double rays = 0;
+    if (s == Stage::intersect_camera) rays = static_cast<double>(st.rays_camera);
+    if (s == Stage::intersect_shadow) rays = static_cast<double>(st.rays_shadow);
+    if (s == Stage::intersect_bounce) rays = static_cast<double>(st.rays_bounce);
+    row(stage_name(s), prof.stage_seconds[k], rays);
+  }
+  row("scheduling", std::max(0.0, thread_seconds - stage_total), 0);
+  const double embree = prof.stage_seconds[static_cast<int>(Stage::intersect_camera)] +
+                        prof.stage_seconds[static_cast<int>(Stage::intersect_shadow)] +
+                        prof.stage_seconds[static_cast<int>(Stage::intersect_bounce)];
+  std::printf("total: %.2f ms wall, %.4g samples/s; Embree share %.1f%% of thread time\n", st.seconds * 1e3,
+              samples / st.seconds, 100.0 * embree / thread_seconds);
+  std::printf("profiling cost: %.4g samples/s unprofiled vs %.4g profiled (%+.1f%%)\n",
+              samples / plain.seconds, samples / st.seconds, 100.0 * (plain.seconds / st.seconds - 1.0));
+  if (f.roofline) {
+    // median of 3 replays of the first pass's packets through Embree alone
+    std::vector<double> t;
+    for (int r = 0; r < 3; ++r) t.push_back(replay_rays(*p.accel, prof.rays, prof.threads));
+    const double pass_samples = static_cast<double>(p.scene.camera.width) * p.scene.camera.height;
+    const double bound = pass_samples / median(t);
+    const double ours = samples / plain.seconds;
+    std::printf("roofline: Embree alone on one pass's %zu camera, %zu shadow, %zu bounce packets: %.4g samples/s; "
+                "tuile %.4g samples/s = %.1f%% of that bound\n",
+                prof.rays.camera.size(), prof.rays.shadow.size(), prof.rays.bounce.size(), bound, ours,
+                100.0 * ours / bound);
+  }
+  if (!f.trace.empty()) {
+    std::ofstream js(f.trace);
+    if (!js) throw std::runtime_error(f.trace + ": cannot open for writing");
+    js << "{\"traceEvents\":[\n";
+    bool first = true;
+    for (const TraceEvent& e : prof.events) {
+      js << (first ? "" : ",\n") << "{\"name\":\"" << stage_name(e.stage) << "\",\"cat\":\"stage\",\"ph\":\"X\",\"ts\":"
+         << e.start_us << ",\"dur\":" << e.dur_us << ",\"pid\":1,\"tid\":" << e.thread << ",\"args\":{\"tile\":"
+         << e.tile << "}}";
+      first = false;
+    }
+    js << "\n],\"displayTimeUnit\":\"ms\"}\n";
+    std::printf("trace: %zu events -> %s\n", prof.events.size(), f.trace.c_str());
+  }
+  return 0;
+}
+
 }  // namespace tuile

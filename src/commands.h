@@ -20,6 +20,8 @@ struct ConvergeFlags {
   RenderFlags render;
   std::string reference, strategies, csv, plot;
   double budget = 10;
+  int spp_max = 0;        // 0 = no limit but the budget
+  int reference_spp = 0;  // 0 = 64x the largest spp a quick calibration says fits the budget
 };
 
 struct FiguresFlags {

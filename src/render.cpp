@@ -5,6 +5,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <cstring>
 #include <chrono>
 #include <cmath>
 #include <numeric>
@@ -141,15 +142,21 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   L.alias_prob = v.alias_prob.data();
   L.alias_idx = v.alias_idx.data();
 
+  const int32_t default_material = static_cast<int32_t>(scene.materials.size());
   for (const Mesh& m : scene.meshes) {
-    v.geom_material.push_back(m.material);
+    v.geom_material.push_back(m.material >= 0 ? m.material : default_material);
+    float ext = 0;
+    for (size_t k = 0; k + 2 < m.positions.size(); k += 3)
+      ext = std::max({ext, std::fabs(m.positions[k]), std::fabs(m.positions[k + 1]), std::fabs(m.positions[k + 2])});
+    v.geom_extent.push_back(ext);
     v.prim_light.push_back(m.prim_light.empty() ? nullptr : m.prim_light.data());
     v.indices.push_back(m.indices.data());
     v.positions.push_back(m.positions.data());
     v.uvs.push_back(m.uvs.empty() ? nullptr : m.uvs.data());
   }
   for (const Sphere& s : scene.spheres) {
-    v.geom_material.push_back(s.material);
+    v.geom_material.push_back(s.material >= 0 ? s.material : default_material);
+    v.geom_extent.push_back(max_abs(s.center) + s.radius);
     v.sphere_light.push_back(s.light);
   }
   v.sphere_light.push_back(-1);  // never empty
@@ -158,7 +165,12 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     v.mat_g.push_back(m.reflectance.g);
     v.mat_b.push_back(m.reflectance.b);
     v.mat_texture.push_back(m.texture);
+    v.geom.has_textures |= m.texture >= 0;
   }
+  v.mat_r.push_back(0.5f);  // the default material
+  v.mat_g.push_back(0.5f);
+  v.mat_b.push_back(0.5f);
+  v.mat_texture.push_back(-1);
   for (const Texture& t : scene.textures) {
     v.tex_rgb.push_back(t.rgb.data());
     v.tex_w.push_back(t.width);
@@ -167,6 +179,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   GeomView& G = v.geom;
   G.mesh_count = static_cast<int32_t>(scene.meshes.size());
   G.geom_material = v.geom_material.data();
+  G.geom_extent = v.geom_extent.data();
   G.prim_light = v.prim_light.data();
   G.sphere_light = v.sphere_light.data();
   G.mat_r = v.mat_r.data();
@@ -238,7 +251,16 @@ struct TileContext {
 struct ThreadProfile {
   double stage_ns[stage_count] = {};
   std::vector<TraceEvent> events;
+  RayRecord rays;
 };
+
+// Keeps a copy of a packet about to be traced, for the roofline replay (first pass only).
+template <class P> inline void record(std::vector<RecordedPacket<P>>& out, const P& p, const int32_t* valid) {
+  RecordedPacket<P> r;
+  r.packet = p;
+  std::memcpy(r.valid, valid, sizeof(r.valid));
+  out.push_back(r);
+}
 
 // Times one stage call when profiling; a single well-predicted branch otherwise.
 struct StageTimer {
@@ -291,7 +313,11 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     generate(v.camera, est, s, lanes, tb);
     timer.stop(Stage::generate);
     timer.start();
-    for (int p = 0; p < cam_packets; ++p) c.accel.intersect16(tb.cam_valid + p * packet_width, tb.cam[p], true);
+    const bool rec = tp && c.profile->record_rays && s == begin;
+    for (int p = 0; p < cam_packets; ++p) {
+      if (rec) record(tp->rays.camera, tb.cam[p], tb.cam_valid + p * packet_width);
+      c.accel.intersect16(tb.cam_valid + p * packet_width, tb.cam[p], true);
+    }
     tb.rays_camera += static_cast<uint64_t>(lanes);
     timer.stop(Stage::intersect_camera);
     timer.start();
@@ -313,6 +339,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
             const int32_t* valid = tb.valid + p * packet_width;
             const int active = active_lanes(valid);
             if (!active) continue;
+            if (rec) record(tp->rays.shadow, tb.shadow[p], valid);
             c.accel.occluded16(valid, tb.shadow[p], false);
             tb.rays_shadow += static_cast<uint64_t>(active);
           }
@@ -334,6 +361,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
             const int32_t* valid = tb.valid + p * packet_width;
             const int active = active_lanes(valid);
             if (!active) continue;
+            if (rec) record(tp->rays.bounce, tb.bounce[p], valid);
             c.accel.intersect16(valid, tb.bounce[p], false);
             tb.rays_bounce += static_cast<uint64_t>(active);
           }
@@ -416,6 +444,31 @@ PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool gene
 
 }  // namespace
 
+double replay_rays(const Accel& accel, const RayRecord& rays, int threads) {
+  const size_t nc = rays.camera.size(), ns = rays.shadow.size(), nb = rays.bounce.size();
+  const auto t0 = clock_type::now();
+  tbb::task_arena arena(threads > 0 ? threads : tbb::this_task_arena::max_concurrency());
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nc + ns + nb, 16), [&](const tbb::blocked_range<size_t>& r) {
+      RayHit16 hit;
+      Ray16 ray;
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        if (i < nc) {
+          hit = rays.camera[i].packet;
+          accel.intersect16(rays.camera[i].valid, hit, true);
+        } else if (i < nc + ns) {
+          ray = rays.shadow[i - nc].packet;
+          accel.occluded16(rays.shadow[i - nc].valid, ray, false);
+        } else {
+          hit = rays.bounce[i - nc - ns].packet;
+          accel.intersect16(rays.bounce[i - nc - ns].valid, hit, false);
+        }
+      }
+    });
+  });
+  return std::chrono::duration<double>(clock_type::now() - t0).count();
+}
+
 std::string Renderer::pipeline_name(std::string* why) const {
   std::string w;
   const PipelineEntry e = pick_pipeline(*views_, opt_.est, opt_.general_pipeline, w);
@@ -487,6 +540,10 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
         e.thread = tid;
         profile->events.push_back(e);
       }
+      auto append = [](auto& dst, auto& src) { dst.insert(dst.end(), src.begin(), src.end()); };
+      append(profile->rays.camera, tp.rays.camera);
+      append(profile->rays.shadow, tp.rays.shadow);
+      append(profile->rays.bounce, tp.rays.bounce);
       ++tid;
     }
   }

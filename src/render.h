@@ -43,6 +43,16 @@ struct TraceEvent {
   int thread = 0;
 };
 
+template <class P> struct RecordedPacket {
+  P packet;
+  int32_t valid[packet_width];
+};
+// The packets one pass traces, in order (profile --roofline).
+struct RayRecord {
+  std::vector<RecordedPacket<RayHit16>> camera, bounce;
+  std::vector<RecordedPacket<Ray16>> shadow;
+};
+
 // Filled by Renderer::render when given: time per stage summed over threads, and
 // optionally one trace event per stage call.
 struct Profile {
@@ -52,7 +62,13 @@ struct Profile {
   double wall_seconds = 0;
   double stage_seconds[stage_count] = {};
   std::vector<TraceEvent> events;
+  bool record_rays = false;  // keep the first pass's packets in `rays`
+  RayRecord rays;
 };
+
+// Traces the recorded packets through Embree alone, in the same packets and flags, with
+// the given thread count; returns the seconds taken (the roofline's bound).
+double replay_rays(const Accel& accel, const RayRecord& rays, int threads);
 
 // Per-pixel sums in double: 10^7 samples in one pixel lose nothing.
 struct Film {
@@ -95,6 +111,7 @@ struct SceneViews {
   std::vector<int32_t> alias_idx;
   LightView lights;
   // geometry
+  std::vector<float> geom_extent;
   std::vector<int32_t> geom_material, sphere_light, mat_texture, tex_w, tex_h;
   std::vector<const int32_t*> prim_light;
   std::vector<const uint32_t*> indices;

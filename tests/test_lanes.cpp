@@ -142,6 +142,12 @@ TEST(Lanes, StagesEqualScalar) {
           pass.fixed_light = pick == LightPick::all ? 2 : -1;
           for (int k = 0; k < n; k += simd_width) sample_lights_lanes<vfloat>(views.lights, est, pass, *a, k);
           for (int k = 0; k < n; ++k) sample_lights_lanes<float>(views.lights, est, pass, *b, k);
+          if (pass.fixed_light >= 0) {  // the specialised broadcast path gives the same bits
+            auto c = std::make_unique<TileBuffers>(*b);
+            for (int k = 0; k < n; k += simd_width)
+              sample_lights_lanes<vfloat, kind_all, false>(views.lights, est, pass, *c, k);
+            expect_same_floats(a->cr, c->cr, n, name);
+          }
           expect_same_floats(a->cr, b->cr, n, name);
           expect_same_floats(a->cg, b->cg, n, name);
           expect_same_floats(a->cb, b->cb, n, name);
@@ -165,13 +171,25 @@ TEST(Lanes, StagesEqualScalar) {
               ASSERT_EQ(a->bounce[p].ray.dir_z[l], b->bounce[p].ray.dir_z[l]);
               ASSERT_EQ(a->bounce[p].ray.org_y[l], b->bounce[p].ray.org_y[l]);
             }
-          // MIS weight stage on synthetic hits of every light
+          // MIS weight stage on a synthetic queue of hits of every area light
+          a->queue_count = b->queue_count = n - 5;
           for (int k = 0; k < n; ++k) {
-            const int32_t li = static_cast<int32_t>(rng() % 5) - 1;  // -1 or an area light
-            a->hit_light[k] = b->hit_light[k] = li < 0 ? -1 : li;
-            const float t = 0.1f + static_cast<float>(rng() % 1000) * 0.003f;
-            a->bounce[k / packet_width].ray.tfar[k % packet_width] = t;
-            b->bounce[k / packet_width].ray.tfar[k % packet_width] = t;
+            const int32_t li = static_cast<int32_t>(rng() % 4);
+            a->qlight[k] = b->qlight[k] = li;
+            a->qx[k] = b->qx[k] = a->px[k];
+            a->qy[k] = b->qy[k] = a->py[k];
+            a->qz[k] = b->qz[k] = a->pz[k];
+            a->qnx[k] = b->qnx[k] = a->nx[k];
+            a->qny[k] = b->qny[k] = a->ny[k];
+            a->qnz[k] = b->qnz[k] = a->nz[k];
+            const vec3f d = normalize(vec3f{a->u0[k] - 0.5f, 1.f, a->u1[k] - 0.5f});
+            a->qdx[k] = b->qdx[k] = d.x;
+            a->qdy[k] = b->qdy[k] = d.y;
+            a->qdz[k] = b->qdz[k] = d.z;
+            a->qdist[k] = b->qdist[k] = 0.1f + static_cast<float>(rng() % 1000) * 0.003f;
+            a->qar[k] = b->qar[k] = a->ar[k];
+            a->qag[k] = b->qag[k] = a->ag[k];
+            a->qab[k] = b->qab[k] = a->ab[k];
           }
           for (int k = 0; k < n; k += simd_width) weight_lanes<vfloat>(views.lights, est, 1.f, 1.f, *a, k);
           for (int k = 0; k < n; ++k) weight_lanes<float>(views.lights, est, 1.f, 1.f, *b, k);
@@ -201,4 +219,23 @@ TEST(Lanes, CameraRays) {
       ASSERT_EQ(a->cam[p].ray.dir_y[l], b->cam[p].ray.dir_y[l]);
       ASSERT_EQ(a->cam[p].ray.dir_z[l], b->cam[p].ray.dir_z[l]);
     }
+}
+
+TEST(Lanes, SobolFastMatchesGeneratorMatrix) {
+  for (uint64_t i = 0; i < (1ull << 32); i += 65521) {
+    const uint32_t x = static_cast<uint32_t>(i);
+    ASSERT_EQ(sobol_dim1(x), sobol_dim1_reference(x)) << x;
+  }
+  // first points of the (0,2)-sequence: every elementary interval of 2^k points holds one
+  for (int k = 1; k <= 10; ++k) {
+    const uint32_t n = 1u << k;
+    for (int a = 0; a <= k; ++a) {
+      std::vector<int> count(n, 0);
+      for (uint32_t i = 0; i < n; ++i) {
+        const uint32_t xs = a == 0 ? 0 : sobol_dim0(i) >> (32 - a), ys = a == k ? 0 : sobol_dim1(i) >> (32 - (k - a));
+        ++count[(xs << (k - a)) | ys];
+      }
+      for (int c : count) ASSERT_EQ(c, 1) << "k " << k << " a " << a;
+    }
+  }
 }
