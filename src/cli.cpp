@@ -30,6 +30,9 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
   app.add_option("--tile", f.tile, "tile side in pixels (16 or 32; 1..32)")->capture_default_str();
   app.add_option("--res", f.res, "resolution WxH, overrides the scene's film");
   app.add_option("--aov", f.aov, "extra EXR layers: variance,mis_weight");
+  app.add_option("--pipeline", f.pipeline,
+                 "auto (specialised to the scene's features) | general (every stage, the reference)")
+      ->capture_default_str();
   app.add_flag("--quiet", f.quiet, "no progress or summary on stderr");
   app.add_flag("--stats", f.stats, "print rejected samples, worst accident and mean variance");
 }
@@ -77,6 +80,8 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
     scene.camera.width = w;
     scene.camera.height = h;
   }
+  if (f.pipeline == "general") o.general_pipeline = true;
+  else if (f.pipeline != "auto") throw std::invalid_argument("--pipeline '" + f.pipeline + "': expected auto or general");
   size_t start = 0;
   while (start < f.aov.size()) {
     size_t end = f.aov.find(',', start);

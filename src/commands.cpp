@@ -97,6 +97,12 @@ int run_info(const RenderFlags& f) {
   for (int i = 0; i < 6; ++i)
     if (scene.features & (1u << i)) std::printf(" %s", names[i]);
   std::printf("\nestimator: %s\n", describe(opt.est).c_str());
+  {
+    Renderer r(scene, accel, opt);
+    std::string why;
+    const std::string name = r.pipeline_name(&why);
+    std::printf("pipeline: %s (%s)\n", name.c_str(), why.c_str());
+  }
   for (const std::string& w : scene.warnings) std::printf("approximation: %s\n", w.c_str());
   std::printf("load: %.3f s\nbvh build: %.3f s\n", load, bvh);
   return 0;

@@ -1,0 +1,101 @@
+// Specialised pipelines (DESIGN.md: leave out what a scene does not need) give the same
+// image as the general reference pipeline from the same seed, bit for bit: they skip
+// stages and lookups whose results cannot change the image.
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+#include "render_util.h"
+
+using namespace tuile;
+
+namespace {
+
+Scene point_lit() {
+  Scene s = builtin_scene("cornell");
+  s.meshes.pop_back();  // no area light
+  Light p;
+  p.type = LightType::point;
+  p.p0 = {0.5f, 0.9f, 0.5f};
+  p.radiance = {1, 1, 1};
+  s.lights.push_back(p);
+  Light spot;
+  spot.type = LightType::spot;
+  spot.p0 = {0.2f, 0.9f, 0.8f};
+  spot.e1 = normalize(vec3f{0.2f, -1, -0.3f});
+  spot.e2 = {0.9f, 0.8f, 0};
+  spot.radiance = {2, 1, 1};
+  s.lights.push_back(spot);
+  return s;
+}
+Scene single_point() {
+  Scene s = point_lit();
+  s.lights.pop_back();
+  return s;
+}
+Scene mixed() {
+  Scene s = builtin_scene("cornell");
+  Light d;
+  d.type = LightType::distant;
+  d.e1 = normalize(vec3f{0.1f, 1, 0.4f});
+  d.radiance = {0.5f, 0.5f, 0.5f};
+  s.lights.push_back(d);
+  return s;
+}
+
+struct Case {
+  const char* name;
+  Scene (*make)();
+};
+
+}  // namespace
+
+TEST(Pipeline, SpecialisedEqualsGeneral) {
+  const Case cases[] = {{"point-lit", point_lit},
+                        {"single-point", single_point},
+                        {"cornell", [] { return builtin_scene("cornell"); }},
+                        {"two-panels", [] { return builtin_scene("two-panels"); }},
+                        {"mixed", mixed}};
+  int distinct_pipelines = 0;
+  std::string last;
+  for (const Case& c : cases)
+    for (Strategy st : {Strategy::light, Strategy::bsdf, Strategy::mis})
+      for (LightPick pk : {LightPick::power, LightPick::all})
+        for (MisMode mode : {MisMode::multi, MisMode::one}) {
+          if (mode == MisMode::one && st != Strategy::mis) continue;
+          Scene s = c.make();
+          s.camera.width = 40;
+          s.camera.height = 24;
+          finalize_scene(s);
+          RenderOptions o;
+          o.est.strategy = st;
+          o.est.pick = pk;
+          o.est.mode = mode;
+          o.est.spp = 4;
+          o.est.seed = 3;
+          Accel accel(s);
+          Film a, b;
+          RenderOptions og = o;
+          og.general_pipeline = true;
+          Renderer rs(s, accel, o), rg(s, accel, og);
+          const RenderStats ss = rs.render(a, 0, o.est.spp);
+          const RenderStats sg = rg.render(b, 0, o.est.spp);
+          ASSERT_EQ(sg.pipeline, "general");
+          if (ss.pipeline != last) {
+            ++distinct_pipelines;
+            last = ss.pipeline;
+          }
+          const std::vector<float> ma = a.mean(), mb = b.mean();
+          ASSERT_EQ(std::memcmp(ma.data(), mb.data(), ma.size() * sizeof(float)), 0)
+              << c.name << " " << describe(o.est) << " pipeline " << ss.pipeline;
+          // the specialised pipeline does not trace what it does not need
+          if (std::string(c.name).find("point") != std::string::npos) {
+            EXPECT_EQ(ss.rays_bounce, 0u) << ss.pipeline;
+            EXPECT_GT(sg.rays_bounce, 0u);
+          }
+          if (st == Strategy::light) {
+            EXPECT_EQ(ss.rays_bounce, 0u) << c.name;
+          }
+        }
+  EXPECT_GE(distinct_pipelines, 4);
+}
