@@ -49,17 +49,27 @@ inline int32_t light_of_hit(const GeomView& G, uint32_t geom, uint32_t prim) {
   return G.sphere_light[geom - G.mesh_count];
 }
 
-// Radiance a ray travelling along d sees when it hits light l at point y: one-sided
-// planar sources emit on the side of their normal.
-inline bool light_front(const LightView& L, int32_t l, float dx, float dy, float dz) {
-  if (L.type[l] == lt_sphere || L.two_sided[l] > 0.f) return true;
+// Whether a ray from o travelling along d sees the emitting side of light l: one-sided
+// planar sources emit on the side of their normal, spheres outwards (a ray starting
+// inside a sphere light sees no emission, as in pbrt).
+inline bool light_front(const LightView& L, int32_t l, float ox, float oy, float oz, float dx, float dy, float dz) {
+  if (L.type[l] == lt_sphere) {
+    const float cx = ox - L.p0x[l], cy = oy - L.p0y[l], cz = oz - L.p0z[l], r = L.e1x[l];
+    return cx * cx + cy * cy + cz * cz > r * r;
+  }
+  if (L.two_sided[l] > 0.f) return true;
   return dx * L.nx[l] + dy * L.ny[l] + dz * L.nz[l] < 0.f;
 }
 
+// Ray offset for a surface point: the per-axis error bound of the point projected on the
+// normal (pbrt-v4's OffsetRayOrigin), never zero so the new ray starts off the plane.
+inline float offset_along_normal(vec3f err, vec3f n) {
+  return std::fabs(n.x) * err.x + std::fabs(n.y) * err.y + std::fabs(n.z) * err.z + 1e-30f;
+}
+
 // SIMD half of the camera-hit stage, lanes [i, i + width): hit point, facing normal,
-// material reflectance and ray offset for every lane, written in lane order to the queue
-// arrays (scratch here). Point x = o + t d; the offset scales with the hit mesh's extent
-// and the ray length, which bound the error of x along the normal.
+// material reflectance for every lane, written in lane order to the queue arrays
+// (scratch here). The point o + t d is refined with its error bound in the scalar half.
 template <class T> inline void camera_hit_lanes(const GeomView& G, TileBuffers& tb, int i) {
   const RayHit16& p = tb.cam[i / packet_width];
   const int l = i % packet_width;
@@ -81,7 +91,6 @@ template <class T> inline void camera_hit_lanes(const GeomView& G, TileBuffers& 
   store(tb.qar + i, gather(G.mat_r, mat));
   store(tb.qag + i, gather(G.mat_g, mat));
   store(tb.qab + i, gather(G.mat_b, mat));
-  store(tb.qdist + i, offset_scale(x, gather(G.geom_extent, gi) + t));
   store(tb.qdx + i, sel(ok, T(1.f), T(0.f)));
 }
 
@@ -105,7 +114,8 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
     }
     if constexpr (Emitters) {
       const int32_t light = light_of_hit(G, geom, p.primID[l]);
-      if (light >= 0 && light_front(L, light, p.ray.dir_x[l], p.ray.dir_y[l], p.ray.dir_z[l])) {
+      if (light >= 0 && light_front(L, light, p.ray.org_x[l], p.ray.org_y[l], p.ray.org_z[l], p.ray.dir_x[l],
+                                    p.ray.dir_y[l], p.ray.dir_z[l])) {
         tb.Lr[i] += L.Lr[light];
         tb.Lg[i] += L.Lg[light];
         tb.Lb[i] += L.Lb[light];
@@ -113,13 +123,42 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
     }
     float r = tb.qar[i], g = tb.qag[i], b = tb.qab[i];
     if (G.has_textures) hit_albedo(G, geom, p.primID[l], p.u[l], p.v[l], r, g, b);
-    tb.px[n] = tb.qx[i];
-    tb.py[n] = tb.qy[i];
-    tb.pz[n] = tb.qz[i];
-    tb.nx[n] = tb.qnx[i];
-    tb.ny[n] = tb.qny[i];
-    tb.nz[n] = tb.qnz[i];
-    tb.eps[n] = tb.qdist[i];
+    // The hit point and its error bound (pbrt-v4): for triangles from the barycentrics,
+    // err_i = gamma(7) sum_k |b_k v_k,i|, so an axis-aligned plane at any distance keeps
+    // an exact coordinate; for spheres reprojected onto the surface, err = gamma(5) |x|.
+    vec3f x{tb.qx[i], tb.qy[i], tb.qz[i]};
+    const vec3f nrm{tb.qnx[i], tb.qny[i], tb.qnz[i]};
+    vec3f err;
+    if (static_cast<int32_t>(geom) < G.mesh_count) {
+      const uint32_t* tri = G.indices[geom] + 3 * p.primID[l];
+      const float* P = G.positions[geom];
+      const float b1 = p.u[l], b2 = p.v[l], b0 = 1.f - b1 - b2;
+      const float* v0 = P + 3 * tri[0];
+      const float* v1 = P + 3 * tri[1];
+      const float* v2 = P + 3 * tri[2];
+      x = {b0 * v0[0] + b1 * v1[0] + b2 * v2[0], b0 * v0[1] + b1 * v1[1] + b2 * v2[1],
+           b0 * v0[2] + b1 * v1[2] + b2 * v2[2]};
+      const float g7 = gamma_err(7);
+      err = {g7 * (std::fabs(b0 * v0[0]) + std::fabs(b1 * v1[0]) + std::fabs(b2 * v2[0])),
+             g7 * (std::fabs(b0 * v0[1]) + std::fabs(b1 * v1[1]) + std::fabs(b2 * v2[1])),
+             g7 * (std::fabs(b0 * v0[2]) + std::fabs(b1 * v1[2]) + std::fabs(b2 * v2[2]))};
+    } else {
+      const int32_t sl = G.sphere_light[geom - G.mesh_count];
+      (void)sl;
+      const float* c = G.sphere_center + 4 * (geom - G.mesh_count);
+      vec3f rel{x.x - c[0], x.y - c[1], x.z - c[2]};
+      rel = rel * (c[3] / length(rel));
+      x = {c[0] + rel.x, c[1] + rel.y, c[2] + rel.z};
+      const float g5 = gamma_err(5);
+      err = {g5 * std::fabs(x.x), g5 * std::fabs(x.y), g5 * std::fabs(x.z)};
+    }
+    tb.px[n] = x.x;
+    tb.py[n] = x.y;
+    tb.pz[n] = x.z;
+    tb.nx[n] = nrm.x;
+    tb.ny[n] = nrm.y;
+    tb.nz[n] = nrm.z;
+    tb.eps[n] = offset_along_normal(err, nrm);
     tb.ar[n] = r;
     tb.ag[n] = g;
     tb.ab[n] = b;

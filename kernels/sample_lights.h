@@ -70,7 +70,7 @@ inline void sample_lights_lanes(const LightView& L, const Estimator& est, const 
   const T c_g = load<T>(tb.ag + k) * Le_g * factor;
   const T c_b = load<T>(tb.ab + k) * Le_b * factor;
   const auto fin = is_finite(c_r) && is_finite(c_g) && is_finite(c_b);
-  const auto live = ok && fin && (c_r + c_g + c_b > T(0.f));
+  auto live = ok && fin && (c_r + c_g + c_b > T(0.f));
   store(tb.cr + k, sel(live, c_r, T(0.f)));
   store(tb.cg + k, sel(live, c_g, T(0.f)));
   store(tb.cb + k, sel(live, c_b, T(0.f)));
@@ -88,15 +88,33 @@ inline void sample_lights_lanes(const LightView& L, const Estimator& est, const 
   const auto is_dist = type_is<T>(g.type, lt_distant);
   const auto is_sph = type_is<T>(g.type, lt_sphere);
   const Vec3<T> y = x + s.wi * sel(is_dist, T(0.f), s.dist);
-  const T light_extent = max_abs(g.p0) + max_abs(g.e1) + max_abs(g.e2);
+  // error bound of the light point, per axis (it is p0 + u e1 + v e2, or x + t wi)
+  const T g7 = T(gamma_err(7));
+  const Vec3<T> err_y{g7 * (abs(g.p0.x) + abs(g.e1.x) + abs(g.e2.x) + abs(y.x)),
+                      g7 * (abs(g.p0.y) + abs(g.e1.y) + abs(g.e2.y) + abs(y.y)),
+                      g7 * (abs(g.p0.z) + abs(g.e1.z) + abs(g.e2.z) + abs(y.z))};
   Vec3<T> ny = sel(dot(g.n, s.wi) > T(0.f), -g.n, g.n);  // planar normal facing x
-  if (any(is_sph)) ny = sel(is_sph, normalize(y - g.p0), ny);
+  if (any(is_sph)) {  // outward normal; a point at the centre of a tiny sphere falls back to -wi
+    const Vec3<T> rel = y - g.p0;
+    const T rl = length(rel);
+    const auto good = rl > T(0.f) && is_finite(rl);
+    ny = sel(is_sph, sel(good, rel * (T(1.f) / sel(good, rl, T(1.f))), -s.wi), ny);
+  }
   ny = sel(planar || is_sph, ny, Vec3<T>(T(0.f), T(0.f), T(0.f)));
-  const Vec3<T> target = y + ny * offset_scale(y, light_extent);
+  const T eps_y = abs(ny.x) * err_y.x + abs(ny.y) * err_y.y + abs(ny.z) * err_y.z;
+  const Vec3<T> target = y + ny * eps_y;
   const Vec3<T> to = target - org;
   const T len = length(to);
   const Vec3<T> dir = sel(is_dist || !(len > T(0.f)), s.wi, to * (T(1.f) / sel(len > T(0.f), len, T(1.f))));
   const T tfar = sel(is_dist, T(3.0e38f), len * T(1.f - 1.f / 4096.f));
+  // Embree does not skip non-finite rays: a lane whose ray is not finite is dropped
+  const auto ray_ok = is_finite(dir.x) && is_finite(dir.y) && is_finite(dir.z) && is_finite(tfar) &&
+                     is_finite(org.x) && is_finite(org.y) && is_finite(org.z);
+  if (any(live && !ray_ok)) {
+    if constexpr (std::is_same_v<T, float>) tb.rejected_light += 1;
+    else tb.rejected_light += static_cast<uint64_t>(xsimd::hadd(xsimd::select(live && !ray_ok, vfloat(1.f), vfloat(0.f))));
+  }
+  live = live && ray_ok;
   Ray16& r = tb.shadow[k / packet_width];
   const int l = k % packet_width;
   store3(r.org_x + l, r.org_y + l, r.org_z + l, org);

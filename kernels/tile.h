@@ -44,7 +44,7 @@ struct Estimator {
 struct GeomView {
   int32_t mesh_count = 0;
   const int32_t* geom_material = nullptr;      // per geomID (meshes then spheres), never -1
-  const float* geom_extent = nullptr;          // per geomID: largest |coordinate| of its vertices
+  const float* sphere_center = nullptr;        // per sphere: centre xyz and radius
   bool has_textures = false;
   const int32_t* const* prim_light = nullptr;  // per mesh: light of each triangle or nullptr
   const int32_t* sphere_light = nullptr;       // per sphere: light or -1
@@ -106,6 +106,9 @@ struct alignas(64) TileBuffers {
   uint64_t rejected_light = 0, rejected_bsdf = 0, rejected_camera = 0;
   uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0;
 };
+
+// pbrt-v4's gamma(n) = n u / (1 - n u), u = 2^-24: bounds on floating-point error.
+inline constexpr float gamma_err(int n) { return (static_cast<float>(n) * 0x1p-24f) / (1 - static_cast<float>(n) * 0x1p-24f); }
 
 // Offset of a ray origin off a surface, scaled to the magnitude of the coordinates that
 // produced the point (float spacing near |p| is |p| 2^-23; 2^-19 leaves 16 ulps). For a

@@ -45,7 +45,9 @@ inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator
     const RayHit16& r = tb.bounce[k / packet_width];
     const int l = k % packet_width;
     const int32_t light = light_of_hit(G, r.geomID[l], r.primID[l]);
-    if (light < 0 || !light_front(L, light, r.ray.dir_x[l], r.ray.dir_y[l], r.ray.dir_z[l])) continue;
+    if (light < 0 || !light_front(L, light, r.ray.org_x[l], r.ray.org_y[l], r.ray.org_z[l], r.ray.dir_x[l],
+                                  r.ray.dir_y[l], r.ray.dir_z[l]))
+      continue;
     tb.qx[nq] = tb.px[k];
     tb.qy[nq] = tb.py[k];
     tb.qz[nq] = tb.pz[k];

@@ -23,7 +23,8 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
   app.add_option("--light-samples", f.light_samples, "light samples per pixel sample (per source with --light-pick all)")
       ->capture_default_str();
   app.add_option("--bsdf-samples", f.bsdf_samples, "cosine samples per pixel sample")->capture_default_str();
-  app.add_option("--spp", f.spp, "samples per pixel (default: the scene file's, else 16)");
+  app.add_option("--spp", f.spp, "samples per pixel (default: the scene file's, else 16)")
+      ->each([&f](const std::string&) { f.spp_given = true; });
   app.add_option("--seed", f.seed, "random seed")->capture_default_str();
   app.add_option("--sampler", f.sampler, "independent | stratified | sobol (default sobol)");
   app.add_option("--threads", f.threads, "worker threads (0 = all cores)")->capture_default_str();
@@ -60,8 +61,8 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   if (f.bsdf_samples < 1 || f.bsdf_samples > 4096) throw std::invalid_argument("--bsdf-samples must be in 1..4096");
   e.light_samples = f.light_samples;
   e.bsdf_samples = f.bsdf_samples;
-  const int spp = f.spp > 0 ? f.spp : scene.file_spp > 0 ? scene.file_spp : 16;
-  if (f.spp < 0) throw std::invalid_argument("--spp must be >= 0");
+  if (f.spp_given && f.spp < 1) throw std::invalid_argument("--spp must be >= 1");
+  const int spp = f.spp_given ? f.spp : scene.file_spp > 0 ? scene.file_spp : 16;
   e.spp = static_cast<uint32_t>(spp);
   const std::string sampler = !f.sampler.empty() ? f.sampler : !scene.file_sampler.empty() ? scene.file_sampler : "sobol";
   e.sampler = parse_sampler(sampler);

@@ -17,7 +17,7 @@ struct RenderFlags {
   float beta = 2.f, alpha = 0.1f;
   int light_samples = 1, bsdf_samples = 1, spp = 0, threads = 0, tile = 16;
   uint32_t seed = 0;
-  bool quiet = false, stats = false;
+  bool quiet = false, stats = false, spp_given = false;
 };
 
 void add_render_flags(CLI::App& app, RenderFlags& f);

@@ -145,10 +145,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   const int32_t default_material = static_cast<int32_t>(scene.materials.size());
   for (const Mesh& m : scene.meshes) {
     v.geom_material.push_back(m.material >= 0 ? m.material : default_material);
-    float ext = 0;
-    for (size_t k = 0; k + 2 < m.positions.size(); k += 3)
-      ext = std::max({ext, std::fabs(m.positions[k]), std::fabs(m.positions[k + 1]), std::fabs(m.positions[k + 2])});
-    v.geom_extent.push_back(ext);
+
     v.prim_light.push_back(m.prim_light.empty() ? nullptr : m.prim_light.data());
     v.indices.push_back(m.indices.data());
     v.positions.push_back(m.positions.data());
@@ -156,7 +153,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   }
   for (const Sphere& s : scene.spheres) {
     v.geom_material.push_back(s.material >= 0 ? s.material : default_material);
-    v.geom_extent.push_back(max_abs(s.center) + s.radius);
+    v.sphere_center.insert(v.sphere_center.end(), {s.center.x, s.center.y, s.center.z, s.radius});
     v.sphere_light.push_back(s.light);
   }
   v.sphere_light.push_back(-1);  // never empty
@@ -179,7 +176,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   GeomView& G = v.geom;
   G.mesh_count = static_cast<int32_t>(scene.meshes.size());
   G.geom_material = v.geom_material.data();
-  G.geom_extent = v.geom_extent.data();
+  G.sphere_center = v.sphere_center.data();
   G.prim_light = v.prim_light.data();
   G.sphere_light = v.sphere_light.data();
   G.mat_r = v.mat_r.data();

@@ -111,7 +111,7 @@ struct SceneViews {
   std::vector<int32_t> alias_idx;
   LightView lights;
   // geometry
-  std::vector<float> geom_extent;
+  std::vector<float> sphere_center;
   std::vector<int32_t> geom_material, sphere_light, mat_texture, tex_w, tex_h;
   std::vector<const int32_t*> prim_light;
   std::vector<const uint32_t*> indices;

@@ -1,5 +1,6 @@
 #include "scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -66,8 +67,10 @@ static bool match_parallelogram(const Mesh& m, size_t t, vec3f& p0, vec3f& e1, v
   const vec3f y = vertex(m, a[(lone_a + 2) % 3]);
   const vec3f q = vertex(m, b[lone_b]);
   const vec3f d = (x + y - o) - q;
+  // relative to the edges, plus the rounding of the coordinates themselves
   const float size = std::max(length(x - o), length(y - o));
-  if (!(length(d) <= 1e-5f * size)) return false;
+  const float coord = std::max({max_abs(o), max_abs(x), max_abs(y), max_abs(q)});
+  if (!(length(d) <= 1e-5f * size + 0x1p-20f * coord)) return false;
   // same orientation for both triangles
   const vec3f na = cross(vertex(m, a[1]) - vertex(m, a[0]), vertex(m, a[2]) - vertex(m, a[0]));
   const vec3f nb = cross(vertex(m, b[1]) - vertex(m, b[0]), vertex(m, b[2]) - vertex(m, b[0]));
