@@ -218,15 +218,30 @@ int run_profile(const ProfileFlags& f) {
   Prepared p = prepare(f.render);
   Renderer renderer(p.scene, *p.accel, p.opt);
   const uint32_t spp = p.opt.est.spp;
-  // unprofiled run first: the speed profiling is compared with
+  // a warm-up, then unprofiled and profiled renders alternately (3 each; medians), so the
+  // cost of profiling is measured under the same machine load
   Film film;
   film.reset(p.scene.camera.width, p.scene.camera.height);
-  const RenderStats plain = renderer.render(film, 0, spp);
+  renderer.render(film, 0, spp);
+  std::vector<double> plain_s, prof_s;
   Profile prof;
-  prof.trace = !f.trace.empty();
-  prof.record_rays = f.roofline;
-  film.reset(p.scene.camera.width, p.scene.camera.height);
-  const RenderStats st = renderer.render(film, 0, spp, &prof);
+  RenderStats st;
+  for (int r = 0; r < 3; ++r) {
+    film.reset(p.scene.camera.width, p.scene.camera.height);
+    plain_s.push_back(renderer.render(film, 0, spp).seconds);
+    Profile pr;
+    pr.trace = !f.trace.empty() && r == 2;
+    pr.record_rays = f.roofline && r == 2;
+    film.reset(p.scene.camera.width, p.scene.camera.height);
+    const RenderStats s2 = renderer.render(film, 0, spp, &pr);
+    prof_s.push_back(s2.seconds);
+    if (r == 2) {
+      prof = std::move(pr);
+      st = s2;
+    }
+  }
+  RenderStats plain = st;
+  plain.seconds = median(plain_s);
   const double samples = static_cast<double>(st.samples);
   double stage_total = 0;
   for (double v : prof.stage_seconds) stage_total += v;

@@ -1,0 +1,144 @@
+// Micro-benchmarks of each kernel stage on one tile's worth of lanes (Google Benchmark).
+// items_per_second is lanes (samples) per second; compare the SIMD and scalar rows of the
+// same kernel for the SIMD speed-up measured in one run.
+#include <benchmark/benchmark.h>
+
+#include <memory>
+#include <random>
+
+#include "../kernels/generate.h"
+#include "../kernels/mis.h"
+#include "../kernels/rng.h"
+#include "../kernels/sample_cosine.h"
+#include "../kernels/sample_lights.h"
+#include "../kernels/weight.h"
+#include "render.h"
+#include "scene.h"
+
+using namespace tuile;
+
+namespace {
+
+constexpr int lanes = 256;
+
+struct Fixture {
+  Scene scene = load_scene("built-in:cornell");
+  SceneViews views;
+  std::unique_ptr<TileBuffers> tb = std::make_unique<TileBuffers>();
+  Estimator est;
+  explicit Fixture(LightPoint point = LightPoint::solid_angle) {
+    views = build_views(scene, LightPick::power);
+    est.point = point;
+    std::mt19937 rng(1);
+    std::uniform_real_distribution<float> U(0.f, 1.f);
+    tb->shade_count = lanes;
+    for (int k = 0; k < max_tile_lanes; ++k) {
+      tb->px[k] = 0.1f + 0.8f * U(rng);
+      tb->py[k] = 0.f;
+      tb->pz[k] = 0.1f + 0.8f * U(rng);
+      tb->nx[k] = 0.f;
+      tb->ny[k] = 1.f;
+      tb->nz[k] = 0.f;
+      tb->eps[k] = 1e-6f;
+      tb->ar[k] = tb->ag[k] = tb->ab[k] = 0.7f;
+      tb->spix[k] = static_cast<uint32_t>(k);
+      tb->slane[k] = k;
+      tb->u0[k] = U(rng);
+      tb->u1[k] = U(rng);
+      tb->u2[k] = U(rng);
+      tb->u3[k] = U(rng);
+      tb->fx[k] = static_cast<float>(k % 16);
+      tb->fy[k] = static_cast<float>(k / 16);
+      tb->pixel[k] = static_cast<uint32_t>(k);
+      tb->qlight[k] = 0;
+      tb->qx[k] = tb->px[k];
+      tb->qy[k] = 0.f;
+      tb->qz[k] = tb->pz[k];
+      tb->qnx[k] = tb->qnz[k] = 0.f;
+      tb->qny[k] = 1.f;
+      tb->qdx[k] = 0.f;
+      tb->qdy[k] = 1.f;
+      tb->qdz[k] = 0.f;
+      tb->qdist[k] = 1.f;
+      tb->qar[k] = tb->qag[k] = tb->qab[k] = 0.7f;
+    }
+    tb->queue_count = lanes;
+  }
+};
+
+template <class T> void BM_sample_lights(benchmark::State& state) {
+  Fixture f(static_cast<LightPoint>(state.range(0)));
+  LightPass pass;
+  pass.fixed_light = 0;
+  constexpr int w = lane_traits<T>::width;
+  for (auto _ : state) {
+    for (int k = 0; k < lanes; k += w) sample_lights_lanes<T, kind_area, false>(f.views.lights, f.est, pass, *f.tb, k);
+    benchmark::DoNotOptimize(f.tb->cr[0]);
+  }
+  state.SetItemsProcessed(state.iterations() * lanes);
+}
+template <class T> void BM_sample_cosine(benchmark::State& state) {
+  Fixture f;
+  constexpr int w = lane_traits<T>::width;
+  for (auto _ : state) {
+    for (int k = 0; k < lanes; k += w) sample_cosine_lanes<T>(f.est, *f.tb, k);
+    benchmark::DoNotOptimize(f.tb->bounce[0].ray.dir_x[0]);
+  }
+  state.SetItemsProcessed(state.iterations() * lanes);
+}
+template <class T> void BM_mis_weight(benchmark::State& state) {
+  Fixture f(static_cast<LightPoint>(state.range(0)));
+  constexpr int w = lane_traits<T>::width;
+  for (auto _ : state) {
+    for (int k = 0; k < lanes; k += w) weight_lanes<T>(f.views.lights, f.est, 1.f, 1.f, *f.tb, k);
+    benchmark::DoNotOptimize(f.tb->cr[0]);
+  }
+  state.SetItemsProcessed(state.iterations() * lanes);
+}
+template <class T> void BM_generate(benchmark::State& state) {
+  Fixture f;
+  constexpr int w = lane_traits<T>::width;
+  for (auto _ : state) {
+    for (int k = 0; k < lanes; k += w) generate_lanes<T>(f.views.camera, *f.tb, k);
+    benchmark::DoNotOptimize(f.tb->cam[0].ray.dir_x[0]);
+  }
+  state.SetItemsProcessed(state.iterations() * lanes);
+}
+template <class T> void BM_heuristic(benchmark::State& state) {
+  alignas(64) float a[lanes], b[lanes], out[lanes];
+  for (int i = 0; i < lanes; ++i) a[i] = 0.1f + i, b[i] = 3.f + 0.5f * i;
+  constexpr int w = lane_traits<T>::width;
+  const Heuristic h = static_cast<Heuristic>(state.range(0));
+  for (auto _ : state) {
+    for (int i = 0; i < lanes; i += w) store(out + i, mis_weight(h, load<T>(a + i), load<T>(b + i), MisParams{}));
+    benchmark::DoNotOptimize(out[0]);
+  }
+  state.SetItemsProcessed(state.iterations() * lanes);
+}
+void BM_sampler(benchmark::State& state) {
+  Fixture f;
+  const SamplerKind kind = static_cast<SamplerKind>(state.range(0));
+  uint32_t s = 0;
+  for (auto _ : state) {
+    sample_pairs(kind, 1, f.tb->pixel, s++, 64, 3, lanes, f.tb->u0, f.tb->u1);
+    benchmark::DoNotOptimize(f.tb->u0[0]);
+  }
+  state.SetItemsProcessed(state.iterations() * lanes);
+}
+
+}  // namespace
+
+// Arg: 0 = area, 1 = solid angle
+BENCHMARK_TEMPLATE(BM_sample_lights, vfloat)->Arg(0)->Arg(1);
+BENCHMARK_TEMPLATE(BM_sample_lights, float)->Arg(0)->Arg(1);
+BENCHMARK_TEMPLATE(BM_mis_weight, vfloat)->Arg(0)->Arg(1);
+BENCHMARK_TEMPLATE(BM_mis_weight, float)->Arg(0)->Arg(1);
+BENCHMARK_TEMPLATE(BM_sample_cosine, vfloat);
+BENCHMARK_TEMPLATE(BM_sample_cosine, float);
+BENCHMARK_TEMPLATE(BM_generate, vfloat);
+BENCHMARK_TEMPLATE(BM_generate, float);
+// Arg: heuristic 0 balance, 1 power, 2 cutoff, 3 maximum
+BENCHMARK_TEMPLATE(BM_heuristic, vfloat)->DenseRange(0, 3);
+BENCHMARK_TEMPLATE(BM_heuristic, float)->DenseRange(0, 3);
+// Arg: 0 independent, 1 stratified, 2 sobol
+BENCHMARK(BM_sampler)->DenseRange(0, 2);
