@@ -37,6 +37,44 @@ static std::string png_path_for(const std::string& exr) {
   return exr.substr(0, dot) + ".png";
 }
 
+// Renders all samples; on a terminal, renders longer than a second report progress
+// (percent, samples/s, ETA) on stderr. Samples are added in chunks of whole passes, which
+// gives the same image as one call: each pixel's samples still arrive in order.
+static RenderStats render_with_progress(Renderer& renderer, Film& film, uint32_t spp, bool progress) {
+  if (!progress || spp < 2) return renderer.render(film, 0, spp);
+  RenderStats total;
+  const uint64_t pixels = static_cast<uint64_t>(film.width) * film.height;
+  uint32_t chunk = 1, done = 0;
+  bool shown = false;
+  while (done < spp) {
+    const uint32_t end = std::min(spp, done + chunk);
+    const uint32_t passes = end - done;
+    const RenderStats st = renderer.render(film, done, end);
+    total.seconds += st.seconds;
+    total.samples += st.samples;
+    total.rays_camera += st.rays_camera;
+    total.rays_shadow += st.rays_shadow;
+    total.rays_bounce += st.rays_bounce;
+    total.rejected_camera += st.rejected_camera;
+    total.rejected_light += st.rejected_light;
+    total.rejected_bsdf += st.rejected_bsdf;
+    total.worst_ratio = st.worst_ratio;
+    total.pipeline = st.pipeline;
+    done = end;
+    // aim at about four updates a second
+    const double per_pass = st.seconds / passes;
+    chunk = std::max<uint32_t>(1, static_cast<uint32_t>(0.25 / std::max(per_pass, 1e-9)));
+    if (total.seconds > 1.0 || shown) {
+      const double rate = static_cast<double>(total.samples) / total.seconds;
+      const double eta = static_cast<double>((spp - done) * pixels) / rate;
+      std::fprintf(stderr, "\rtuile: %5.1f%%  %.2f M samples/s  ETA %.1f s   ", 100.0 * done / spp, rate * 1e-6, eta);
+      shown = true;
+    }
+  }
+  if (shown) std::fprintf(stderr, "\n");
+  return total;
+}
+
 int run_render(const RenderFlags& f) {
   const auto t0 = std::chrono::steady_clock::now();
   Scene scene = load_scene(f.scene);
@@ -50,7 +88,7 @@ int run_render(const RenderFlags& f) {
   Film film;
   film.reset(scene.camera.width, scene.camera.height);
   const double setup = seconds_since(t0);
-  const RenderStats st = renderer.render(film, 0, opt.est.spp);
+  const RenderStats st = render_with_progress(renderer, film, opt.est.spp, !f.quiet && isatty(2));
   std::vector<ImageLayer> layers;
   if (opt.aov_variance) layers.push_back({"variance", 3, film.variance_of_mean()});
   if (opt.aov_mis_weight) layers.push_back({"mis_weight", 1, film.mis_weight()});
@@ -277,6 +315,11 @@ int run_profile(const ProfileFlags& f) {
     const double pass_samples = static_cast<double>(p.scene.camera.width) * p.scene.camera.height;
     const double bound = pass_samples / median(t);
     const double ours = samples / plain.seconds;
+    std::vector<double> ts;
+    for (int r = 0; r < 3; ++r) ts.push_back(replay_rays_stream(*p.accel, prof.rays, prof.threads));
+    std::printf("packets vs streams: the pass's rays take %.2f ms as 16-wide packets (tuile's layout), %.2f ms as "
+                "rtcIntersectNp/rtcOccludedNp streams of one tile (medians of 3)\n",
+                median(t) * 1e3, median(ts) * 1e3);
     std::printf("roofline: Embree alone on one pass's %zu camera, %zu shadow, %zu bounce packets: %.4g samples/s; "
                 "tuile %.4g samples/s = %.1f%% of that bound\n",
                 prof.rays.camera.size(), prof.rays.shadow.size(), prof.rays.bounce.size(), bound, ours,

@@ -85,6 +85,36 @@ void Accel::occluded16(const int32_t* valid, Ray16& packet, bool coherent) const
   rtcOccluded16(valid, impl_->scene, &ctx, reinterpret_cast<RTCRay16*>(&packet));
 }
 
+static RTCRayHitNp to_np(Accel::StreamRays& r) {
+  RTCRayHitNp np;
+  np.ray = {r.org_x, r.org_y, r.org_z, r.tnear, r.dir_x, r.dir_y, r.dir_z, r.time, r.tfar, r.mask, r.id, r.flags};
+  np.hit.Ng_x = r.Ng_x;
+  np.hit.Ng_y = r.Ng_y;
+  np.hit.Ng_z = r.Ng_z;
+  np.hit.u = r.u;
+  np.hit.v = r.v;
+  np.hit.primID = r.primID;
+  np.hit.geomID = r.geomID;
+  np.hit.instID[0] = r.instID;
+  return np;
+}
+
+void Accel::intersect_stream(StreamRays& r, unsigned n, bool coherent) const noexcept {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  RTCRayHitNp np = to_np(r);
+  rtcIntersectNp(impl_->scene, &ctx, &np, n);
+}
+
+void Accel::occluded_stream(StreamRays& r, unsigned n, bool coherent) const noexcept {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  RTCRayHitNp np = to_np(r);
+  rtcOccludedNp(impl_->scene, &ctx, &np.ray, n);
+}
+
 void Accel::intersect1(RayHit16& p, int i) const noexcept {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);

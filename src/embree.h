@@ -28,6 +28,16 @@ class Accel {
   void intersect16(const int32_t* valid, RayHit16& packet, bool coherent) const noexcept;
   void occluded16(const int32_t* valid, Ray16& packet, bool coherent) const noexcept;
   void intersect1(RayHit16& packet, int lane) const noexcept;  // reference path for tests
+  // The same rays through Embree's stream API (rtcIntersectNp / rtcOccludedNp on
+  // pointer-SoA arrays of n rays): used only to measure packets against streams.
+  struct StreamRays {
+    float *org_x, *org_y, *org_z, *tnear, *dir_x, *dir_y, *dir_z, *time, *tfar;
+    uint32_t *mask, *id, *flags;
+    float *Ng_x, *Ng_y, *Ng_z, *u, *v;
+    uint32_t *primID, *geomID, *instID;
+  };
+  void intersect_stream(StreamRays& rays, unsigned n, bool coherent) const noexcept;
+  void occluded_stream(StreamRays& rays, unsigned n, bool coherent) const noexcept;
   double build_seconds() const { return build_seconds_; }
 
  public:

@@ -473,6 +473,64 @@ double replay_rays(const Accel& accel, const RayRecord& rays, int threads) {
   return std::chrono::duration<double>(clock_type::now() - t0).count();
 }
 
+// The recorded rays of each kind as pointer-SoA streams of one tile's packets each (inactive
+// lanes are left out), traced with rtcIntersectNp / rtcOccludedNp.
+double replay_rays_stream(const Accel& accel, const RayRecord& rays, int threads) {
+  struct Stream {
+    std::vector<float> f[16];
+    std::vector<uint32_t> u[6];
+    unsigned n = 0;
+    bool occluded = false, coherent = false;
+  };
+  std::vector<Stream> streams;
+  constexpr size_t per_stream = max_tile_lanes / packet_width;  // packets of one tile
+  auto build = [&](const auto& packets, bool occluded, bool coherent) {
+    for (size_t start = 0; start < packets.size(); start += per_stream) {
+      Stream st;
+      st.occluded = occluded;
+      st.coherent = coherent;
+      for (size_t p = start; p < std::min(packets.size(), start + per_stream); ++p) {
+        const auto& rec = packets[p];
+        const Ray16* r;
+        if constexpr (std::is_same_v<std::decay_t<decltype(rec.packet)>, RayHit16>) r = &rec.packet.ray;
+        else r = &rec.packet;
+        for (int l = 0; l < packet_width; ++l) {
+          if (!rec.valid[l]) continue;
+          const float vals[9] = {r->org_x[l], r->org_y[l], r->org_z[l], r->tnear[l], r->dir_x[l],
+                                 r->dir_y[l], r->dir_z[l], r->time[l],  r->tfar[l]};
+          for (int k = 0; k < 9; ++k) st.f[k].push_back(vals[k]);
+          for (int k = 9; k < 16; ++k) st.f[k].push_back(0.f);
+          st.u[0].push_back(r->mask[l]);
+          st.u[1].push_back(0);
+          st.u[2].push_back(0);
+          for (int k = 3; k < 6; ++k) st.u[k].push_back(invalid_id);
+          ++st.n;
+        }
+      }
+      streams.push_back(std::move(st));
+    }
+  };
+  build(rays.camera, false, true);
+  build(rays.shadow, true, false);
+  build(rays.bounce, false, false);
+  const auto t0 = clock_type::now();
+  tbb::task_arena arena(threads > 0 ? threads : tbb::this_task_arena::max_concurrency());
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, streams.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        Stream st = streams[i];  // a fresh copy: tracing overwrites tfar and hits
+        Accel::StreamRays sr{st.f[0].data(),  st.f[1].data(),  st.f[2].data(),  st.f[3].data(),  st.f[4].data(),
+                             st.f[5].data(),  st.f[6].data(),  st.f[7].data(),  st.f[8].data(),  st.u[0].data(),
+                             st.u[1].data(),  st.u[2].data(),  st.f[9].data(),  st.f[10].data(), st.f[11].data(),
+                             st.f[12].data(), st.f[13].data(), st.u[3].data(),  st.u[4].data(),  st.u[5].data()};
+        if (st.occluded) accel.occluded_stream(sr, st.n, st.coherent);
+        else accel.intersect_stream(sr, st.n, st.coherent);
+      }
+    });
+  });
+  return std::chrono::duration<double>(clock_type::now() - t0).count();
+}
+
 std::string Renderer::pipeline_name(std::string* why) const {
   std::string w;
   const PipelineEntry e = pick_pipeline(*views_, opt_.est, opt_.general_pipeline, w);
