@@ -3,6 +3,8 @@
 // Embree's layout) and clears the per-pixel radiance. pbrt-v4 perspective camera: fov
 // over the shorter axis, raster y down, box filter (one uniform point per pixel).
 #pragma once
+#include <algorithm>
+
 #include "tile.h"
 #include "vec.h"
 
@@ -52,17 +54,16 @@ inline void generate(const CameraView& c, const Estimator& est, uint32_t sample,
   for (; i < padded; ++i) generate_lanes<float>(c, tb, i);
   for (int k = 0; k < padded / packet_width; ++k) {
     RayHit16& p = tb.cam[k];
-    for (int l = 0; l < packet_width; ++l) {
-      p.ray.mask[l] = 0xffffffffu;
-      p.ray.id[l] = 0;
-      p.ray.flags[l] = 0;
-      p.geomID[l] = invalid_id;
-      p.instID[0][l] = invalid_id;
-      const int lane = k * packet_width + l;
-      tb.cam_valid[lane] = lane < lanes ? -1 : 0;
-    }
+    std::fill_n(p.ray.mask, packet_width, 0xffffffffu);
+    std::fill_n(p.ray.id, packet_width, 0u);
+    std::fill_n(p.ray.flags, packet_width, 0u);
+    std::fill_n(p.geomID, packet_width, invalid_id);
+    std::fill_n(p.instID[0], packet_width, invalid_id);
   }
-  for (int l = 0; l < padded; ++l) tb.wsum[l] = tb.wcnt[l] = 0.f;
+  std::fill_n(tb.cam_valid, lanes, -1);
+  std::fill_n(tb.cam_valid + lanes, padded - lanes, 0);
+  std::fill_n(tb.wsum, padded, 0.f);
+  std::fill_n(tb.wcnt, padded, 0.f);
 }
 
 }  // namespace tuile

@@ -7,6 +7,8 @@
 // with w_light from the heuristic on q = n p of both techniques (multi-sample) or
 // q = c p (one-sample, c = choice probability, then n_light = c). Delta lights: w = 1.
 #pragma once
+#include <algorithm>
+
 #include "tile.h"
 
 namespace tuile {
@@ -140,12 +142,11 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
   int k = 0;
   for (; k + simd_width <= padded; k += simd_width) sample_lights_lanes<vfloat, Kinds, Pick>(L, est, pass, tb, k);
   for (; k < padded; ++k) sample_lights_lanes<float, Kinds, Pick>(L, est, pass, tb, k);
-  for (int p = 0; p < padded / packet_width; ++p)
-    for (int l = 0; l < packet_width; ++l) {
-      tb.shadow[p].mask[l] = 0xffffffffu;
-      tb.shadow[p].id[l] = 0;
-      tb.shadow[p].flags[l] = 0;
-    }
+  for (int p = 0; p < padded / packet_width; ++p) {
+    std::fill_n(tb.shadow[p].mask, packet_width, 0xffffffffu);
+    std::fill_n(tb.shadow[p].id, packet_width, 0u);
+    std::fill_n(tb.shadow[p].flags, packet_width, 0u);
+  }
 }
 
 // After the shadow query: unoccluded lanes add their contribution to their pixel.
