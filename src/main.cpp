@@ -53,7 +53,9 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
+    std::cerr << "tuile: error: " << e.what() << "\nRun with --help for more information.\n";
+    return 1;
   }
   try {
     if (*render) return run_render(rf);

@@ -1,0 +1,133 @@
+// The command-line contract: subcommands, --help/--version, exit codes and messages on bad
+// input, the files render writes, and the JSON schema of bench.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <string>
+
+#include "image_io.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+struct CmdResult {
+  int code;
+  std::string out;  // stdout and stderr
+};
+CmdResult run(const std::string& args) {
+  const std::string cmd = std::string(TUILE_BINARY) + " " + args + " 2>&1";
+  FILE* f = popen(cmd.c_str(), "r");
+  CmdResult r{-1, ""};
+  if (!f) return r;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, f)) > 0) r.out.append(buf, n);
+  const int st = pclose(f);
+  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+std::string tmp(const std::string& name) { return (fs::path(::testing::TempDir()) / name).string(); }
+}  // namespace
+
+TEST(Cli, HelpAndVersion) {
+  for (const char* sub : {"", "render ", "info ", "bench ", "profile ", "converge ", "figures "}) {
+    const CmdResult r = run(std::string(sub) + "--help");
+    EXPECT_EQ(r.code, 0) << sub;
+    EXPECT_NE(r.out.find("--"), std::string::npos) << sub;
+  }
+  const CmdResult v = run("--version");
+  EXPECT_EQ(v.code, 0);
+  EXPECT_NE(v.out.find("tuile "), std::string::npos);
+  EXPECT_NE(run("").code, 0);  // a subcommand is required
+}
+
+TEST(Cli, RenderWritesExrAndPng) {
+  const std::string exr = tmp("cli_render.exr");
+  const CmdResult r = run("render built-in:cornell --res 24x16 --spp 2 --quiet --aov variance,mis_weight -o " + exr);
+  ASSERT_EQ(r.code, 0) << r.out;
+  int w = 0, h = 0;
+  const std::vector<float> rgb = tuile::read_exr(exr, w, h);
+  EXPECT_EQ(w, 24);
+  EXPECT_EQ(h, 16);
+  double sum = 0;
+  for (float x : rgb) sum += x;
+  EXPECT_GT(sum, 0.0);
+  std::ifstream png(tmp("cli_render.png"), std::ios::binary);
+  char sig[8] = {};
+  png.read(sig, 8);
+  EXPECT_EQ(std::string(sig + 1, 3), "PNG");
+}
+
+TEST(Cli, BadInputIsAClearErrorWithExitOne) {
+  const std::string bad = tmp("cli_bad.pbrt");
+  {
+    std::ofstream f(bad);
+    f << "LookAt 0 0 0  0 0 1  0 1 0\nCamera \"perspective\"\nWorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 nan ]\n";
+  }
+  CmdResult r = run("render " + bad + " --quiet -o " + tmp("cli_bad.exr"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("cli_bad.pbrt:4:"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(tmp("cli_bad.exr")));  // no partial output
+  r = run("render /nonexistent/scene.pbrt --quiet");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("/nonexistent/scene.pbrt"), std::string::npos) << r.out;
+  for (const char* args : {"--res 0x10", "--res 100000x100000", "--beta nan", "--strategy maybe", "--spp 0",
+                           "--light-samples 0", "--threads -1", "--aov unknown", "--pipeline fast"}) {
+    r = run(std::string("render built-in:cornell --quiet -o ") + tmp("cli_x.exr") + " " + args);
+    EXPECT_EQ(r.code, 1) << args << ": " << r.out;
+    EXPECT_NE(r.out.find("error"), std::string::npos) << args << ": " << r.out;
+  }
+}
+
+TEST(Cli, InfoNamesThePipeline) {
+  const CmdResult r = run("info built-in:two-panels");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("pipeline: area/mis/pick"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("lights: 101"), std::string::npos) << r.out;
+  const CmdResult g = run("info built-in:two-panels --pipeline general");
+  EXPECT_NE(g.out.find("pipeline: general"), std::string::npos) << g.out;
+}
+
+TEST(Cli, BenchJsonSchema) {
+  const std::string js = tmp("cli_bench.json");
+  const CmdResult r = run("bench built-in:cornell --res 16x16 --spp 2 --repeat 3 --warmup 1 --json " + js);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("samples/s: median"), std::string::npos);
+  std::ifstream f(js);
+  const std::string s((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const std::string num = "[-+0-9.eE]+";
+  const std::regex sps("\"samples_per_second\": \\{\"median\": (" + num + "), \"min\": (" + num + "), \"max\": (" +
+                       num + ")\\}");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(s, m, sps)) << s;
+  const double med = std::stod(m[1]), mn = std::stod(m[2]), mx = std::stod(m[3]);
+  EXPECT_GT(mn, 0.0);
+  EXPECT_LE(mn, med);
+  EXPECT_LE(med, mx);
+  for (const char* key : {"\"rays_per_second\"", "\"camera\"", "\"shadow\"", "\"bounce\"", "\"time_to_first_pixel\"",
+                          "\"peak_memory_bytes\"", "\"runs_samples_per_second\"", "\"pipeline\""})
+    EXPECT_NE(s.find(key), std::string::npos) << key;
+  // three runs recorded
+  const size_t a = s.find("\"runs_samples_per_second\": ["), b = s.find(']', a);
+  ASSERT_NE(a, std::string::npos);
+  const std::string runs = s.substr(a, b - a);
+  EXPECT_EQ(std::count(runs.begin(), runs.end(), ','), 2) << runs;
+}
+
+TEST(Cli, ProfileTraceIsChromeTraceJson) {
+  const std::string tr = tmp("cli_trace.json");
+  const CmdResult r = run("profile built-in:cornell --res 32x32 --spp 2 --threads 2 --roofline --trace " + tr);
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (const char* stage : {"generate", "intersect camera", "sample lights", "sample cosine", "intersect shadow",
+                            "intersect bounce", "MIS weight", "accumulate", "scheduling", "roofline"})
+    EXPECT_NE(r.out.find(stage), std::string::npos) << stage;
+  std::ifstream f(tr);
+  const std::string s((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(s.rfind("{\"traceEvents\":[", 0), 0u);
+  EXPECT_NE(s.find("\"ph\":\"X\""), std::string::npos);
+  EXPECT_NE(s.find("\"name\":\"intersect shadow\""), std::string::npos);
+}
