@@ -8,6 +8,8 @@
 #include <random>
 
 #include "../kernels/generate.h"
+#include "../kernels/hit.h"
+#include "embree.h"
 #include "../kernels/sample_cosine.h"
 #include "../kernels/sample_lights.h"
 #include "../kernels/weight.h"
@@ -251,4 +253,32 @@ TEST(Lanes, FusedSobolEqualsTextbookComposition) {
       ASSERT_EQ(u, fu);
       ASSERT_EQ(v, fv);
     }
+}
+
+TEST(Lanes, CameraHitsEqualScalar) {
+  Scene s = all_lights_scene();
+  SceneViews views = build_views(s, LightPick::power);
+  Accel accel(s);
+  auto a = std::make_unique<TileBuffers>();
+  for (int i = 0; i < 256; ++i) {
+    a->fx[i] = static_cast<float>(i % 16);
+    a->fy[i] = static_cast<float>(i / 16);
+    a->pixel[i] = static_cast<uint32_t>(i);
+  }
+  Estimator est;
+  generate(views.camera, est, 0, 256, *a);
+  for (int p = 0; p < 16; ++p) accel.intersect16(a->cam_valid + p * packet_width, a->cam[p], true);
+  auto b = std::make_unique<TileBuffers>(*a);
+  for (int i = 0; i < 256; i += simd_width) camera_hit_lanes<vfloat>(views.geom, *a, i);
+  for (int i = 0; i < 256; ++i) camera_hit_lanes<float>(views.geom, *b, i);
+  int hits = 0;
+  for (int i = 0; i < 256; ++i) {
+    hits += a->cam[i / 16].geomID[i % 16] != invalid_id;
+    ASSERT_EQ(a->qdx[i], b->qdx[i]) << i;
+    if (!(a->qdx[i] > 0.f)) continue;
+    for (auto arr : {&TileBuffers::qx, &TileBuffers::qy, &TileBuffers::qz, &TileBuffers::qnx, &TileBuffers::qny,
+                     &TileBuffers::qnz, &TileBuffers::qar, &TileBuffers::qag, &TileBuffers::qab})
+      ASSERT_EQ(((*a).*arr)[i], ((*b).*arr)[i]) << i;
+  }
+  EXPECT_GT(hits, 100);
 }
