@@ -52,14 +52,7 @@ inline void generate(const CameraView& c, const Estimator& est, uint32_t sample,
   int i = 0;
   for (; i + simd_width <= padded; i += simd_width) generate_lanes<vfloat>(c, tb, i);
   for (; i < padded; ++i) generate_lanes<float>(c, tb, i);
-  for (int k = 0; k < padded / packet_width; ++k) {
-    RayHit16& p = tb.cam[k];
-    std::fill_n(p.ray.mask, packet_width, 0xffffffffu);
-    std::fill_n(p.ray.id, packet_width, 0u);
-    std::fill_n(p.ray.flags, packet_width, 0u);
-    std::fill_n(p.geomID, packet_width, invalid_id);
-    std::fill_n(p.instID[0], packet_width, invalid_id);
-  }
+  for (int k = 0; k < padded / packet_width; ++k) reset_query_fields(tb.cam[k]);
   std::fill_n(tb.cam_valid, lanes, -1);
   std::fill_n(tb.cam_valid + lanes, padded - lanes, 0);
   std::fill_n(tb.wsum, padded, 0.f);

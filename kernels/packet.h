@@ -22,4 +22,18 @@ struct alignas(64) RayHit16 {
   uint32_t primID[16], geomID[16], instID[1][16];
 };
 
+// The fields of a packet that stay the same for every query: all rays enabled, no id,
+// no flags; and no hit yet (Embree writes geomID only where a ray hits).
+inline void reset_query_fields(Ray16& r) noexcept {
+  for (int l = 0; l < packet_width; ++l) {
+    r.mask[l] = 0xffffffffu;
+    r.id[l] = 0;
+    r.flags[l] = 0;
+  }
+}
+inline void reset_query_fields(RayHit16& p) noexcept {
+  reset_query_fields(p.ray);
+  for (int l = 0; l < packet_width; ++l) p.geomID[l] = p.instID[0][l] = invalid_id;
+}
+
 }  // namespace tuile

@@ -37,14 +37,7 @@ inline void sample_cosine(const Estimator& est, uint32_t sample, uint32_t pair, 
   int k = 0;
   for (; k + simd_width <= padded; k += simd_width) sample_cosine_lanes<vfloat>(est, tb, k);
   for (; k < padded; ++k) sample_cosine_lanes<float>(est, tb, k);
-  for (int p = 0; p < padded / packet_width; ++p) {
-    RayHit16& r = tb.bounce[p];
-    std::fill_n(r.ray.mask, packet_width, 0xffffffffu);
-    std::fill_n(r.ray.id, packet_width, 0u);
-    std::fill_n(r.ray.flags, packet_width, 0u);
-    std::fill_n(r.geomID, packet_width, invalid_id);
-    std::fill_n(r.instID[0], packet_width, invalid_id);
-  }
+  for (int p = 0; p < padded / packet_width; ++p) reset_query_fields(tb.bounce[p]);
 }
 
 }  // namespace tuile

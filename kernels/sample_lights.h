@@ -142,11 +142,7 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
   int k = 0;
   for (; k + simd_width <= padded; k += simd_width) sample_lights_lanes<vfloat, Kinds, Pick>(L, est, pass, tb, k);
   for (; k < padded; ++k) sample_lights_lanes<float, Kinds, Pick>(L, est, pass, tb, k);
-  for (int p = 0; p < padded / packet_width; ++p) {
-    std::fill_n(tb.shadow[p].mask, packet_width, 0xffffffffu);
-    std::fill_n(tb.shadow[p].id, packet_width, 0u);
-    std::fill_n(tb.shadow[p].flags, packet_width, 0u);
-  }
+  for (int p = 0; p < padded / packet_width; ++p) reset_query_fields(tb.shadow[p]);
 }
 
 // After the shadow query: unoccluded lanes add their contribution to their pixel.
