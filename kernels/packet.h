@@ -2,6 +2,7 @@
 // rtcOccluded16 (RTCRayHit16, RTCRay16), so the intersect stage copies nothing.
 // src/embree.cpp static_asserts that the layouts match.
 #pragma once
+#include <algorithm>
 #include <cstdint>
 
 namespace tuile {
@@ -25,15 +26,14 @@ struct alignas(64) RayHit16 {
 // The fields of a packet that stay the same for every query: all rays enabled, no id,
 // no flags; and no hit yet (Embree writes geomID only where a ray hits).
 inline void reset_query_fields(Ray16& r) noexcept {
-  for (int l = 0; l < packet_width; ++l) {
-    r.mask[l] = 0xffffffffu;
-    r.id[l] = 0;
-    r.flags[l] = 0;
-  }
+  std::fill_n(r.mask, packet_width, 0xffffffffu);
+  std::fill_n(r.id, packet_width, 0u);
+  std::fill_n(r.flags, packet_width, 0u);
 }
 inline void reset_query_fields(RayHit16& p) noexcept {
   reset_query_fields(p.ray);
-  for (int l = 0; l < packet_width; ++l) p.geomID[l] = p.instID[0][l] = invalid_id;
+  std::fill_n(p.geomID, packet_width, invalid_id);
+  std::fill_n(p.instID[0], packet_width, invalid_id);
 }
 
 }  // namespace tuile
