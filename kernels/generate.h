@@ -55,8 +55,10 @@ inline void generate(const CameraView& c, const Estimator& est, uint32_t sample,
   for (int k = 0; k < padded / packet_width; ++k) reset_query_fields(tb.cam[k]);
   std::fill_n(tb.cam_valid, lanes, -1);
   std::fill_n(tb.cam_valid + lanes, padded - lanes, 0);
-  std::fill_n(tb.wsum, padded, 0.f);
-  std::fill_n(tb.wcnt, padded, 0.f);
+  if (est.aov_mis_weight) {
+    std::fill_n(tb.wsum, padded, 0.f);
+    std::fill_n(tb.wcnt, padded, 0.f);
+  }
 }
 
 }  // namespace tuile

@@ -30,6 +30,7 @@ struct Estimator {
   int light_samples = 1;
   int bsdf_samples = 1;
   SamplerKind sampler = SamplerKind::sobol;
+  bool aov_mis_weight = false;  // accumulate the BSDF technique's MIS weight (AOV) at all
   uint32_t seed = 0;
   uint32_t spp = 16;
 

@@ -92,8 +92,10 @@ inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator
     tb.Lr[i] += r;
     tb.Lg[i] += g;
     tb.Lb[i] += b;
-    tb.wsum[i] += tb.wb[j];
-    tb.wcnt[i] += 1.f;
+    if (est.aov_mis_weight) {
+      tb.wsum[i] += tb.wb[j];
+      tb.wcnt[i] += 1.f;
+    }
   }
 }
 

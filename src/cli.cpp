@@ -89,7 +89,7 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
     if (end == std::string::npos) end = f.aov.size();
     const std::string a = f.aov.substr(start, end - start);
     if (a == "variance") o.aov_variance = true;
-    else if (a == "mis_weight") o.aov_mis_weight = true;
+    else if (a == "mis_weight") o.aov_mis_weight = o.est.aov_mis_weight = true;
     else if (!a.empty()) throw std::invalid_argument("--aov: unknown layer '" + a + "' (expected variance, mis_weight)");
     start = end + 1;
   }

@@ -216,6 +216,7 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
     throw std::invalid_argument("--light-samples and --bsdf-samples must be >= 1");
   if (!(opt_.est.mis.beta > 0) || !std::isfinite(opt_.est.mis.beta)) throw std::invalid_argument("--beta must be > 0");
   if (!(opt_.est.mis.alpha >= 0 && opt_.est.mis.alpha <= 1)) throw std::invalid_argument("--alpha must be in [0, 1]");
+  opt_.est.aov_mis_weight = opt_.est.aov_mis_weight || opt_.aov_mis_weight;
   *views_ = build_views(scene, opt_.est.pick);
 }
 
@@ -393,8 +394,10 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
       sq[0] += r * r;
       sq[1] += g * g;
       sq[2] += b * b;
-      film.w_sum[pix] += tb.wsum[i];
-      film.w_cnt[pix] += tb.wcnt[i];
+      if (est.aov_mis_weight) {  // no AOV requested: none computed
+        film.w_sum[pix] += tb.wsum[i];
+        film.w_cnt[pix] += tb.wcnt[i];
+      }
       const float y = luminance(static_cast<float>(r), static_cast<float>(g), static_cast<float>(b));
       if (y > film.max_sample[pix]) film.max_sample[pix] = y;
     }

@@ -109,6 +109,11 @@ TEST(Render, OutputIsFiniteAndAovsAreSane) {
   Scene s = cornell(24);
   RenderOptions o;
   o.est.spp = 16;
+  {  // no AOV requested: none computed
+    const RenderResult plain = render_scene(s, o);
+    for (double c : plain.film.w_cnt) ASSERT_EQ(c, 0.0);
+  }
+  o.aov_mis_weight = true;
   const RenderResult r = render_scene(s, o);
   for (float v : r.mean) ASSERT_TRUE(std::isfinite(v));
   const std::vector<float> var = r.film.variance_of_mean();
