@@ -50,8 +50,7 @@ inline void generate(const CameraView& c, const Estimator& est, uint32_t sample,
   }
   sample_pairs(est.sampler, est.seed, tb.pixel, sample, est.spp, 0, padded, tb.u0, tb.u1);
   int i = 0;
-  for (; i + simd_width <= padded; i += simd_width) generate_lanes<vfloat>(c, tb, i);
-  for (; i < padded; ++i) generate_lanes<float>(c, tb, i);
+  for (; i < padded; i += simd_width) generate_lanes<vfloat>(c, tb, i);  // padded: whole packets
   for (int k = 0; k < padded / packet_width; ++k) reset_query_fields(tb.cam[k]);
   std::fill_n(tb.cam_valid, lanes, -1);
   std::fill_n(tb.cam_valid + lanes, padded - lanes, 0);

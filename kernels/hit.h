@@ -100,8 +100,7 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
                         TileBuffers& tb) {
   const int padded_lanes = (lanes + packet_width - 1) / packet_width * packet_width;
   int i = 0;
-  for (; i + simd_width <= padded_lanes; i += simd_width) camera_hit_lanes<vfloat>(G, tb, i);
-  for (; i < padded_lanes; ++i) camera_hit_lanes<float>(G, tb, i);
+  for (; i < padded_lanes; i += simd_width) camera_hit_lanes<vfloat>(G, tb, i);
   int n = 0;
   for (i = 0; i < lanes; ++i) {
     const RayHit16& p = tb.cam[i / packet_width];

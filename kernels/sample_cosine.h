@@ -35,8 +35,7 @@ inline void sample_cosine(const Estimator& est, uint32_t sample, uint32_t pair, 
   const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
   sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair, padded, tb.u0, tb.u1);
   int k = 0;
-  for (; k + simd_width <= padded; k += simd_width) sample_cosine_lanes<vfloat>(est, tb, k);
-  for (; k < padded; ++k) sample_cosine_lanes<float>(est, tb, k);
+  for (; k < padded; k += simd_width) sample_cosine_lanes<vfloat>(est, tb, k);
   for (int p = 0; p < padded / packet_width; ++p) reset_query_fields(tb.bounce[p]);
 }
 

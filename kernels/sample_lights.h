@@ -140,8 +140,7 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
     sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair, padded, tb.u0, tb.u1);
   sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair + 1, padded, tb.u2, tb.u3);
   int k = 0;
-  for (; k + simd_width <= padded; k += simd_width) sample_lights_lanes<vfloat, Kinds, Pick>(L, est, pass, tb, k);
-  for (; k < padded; ++k) sample_lights_lanes<float, Kinds, Pick>(L, est, pass, tb, k);
+  for (; k < padded; k += simd_width) sample_lights_lanes<vfloat, Kinds, Pick>(L, est, pass, tb, k);
   for (int p = 0; p < padded / packet_width; ++p) reset_query_fields(tb.shadow[p]);
 }
 

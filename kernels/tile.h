@@ -15,6 +15,8 @@ namespace tuile {
 inline constexpr int max_tile_side = 32;
 inline constexpr int max_tile_lanes = max_tile_side * max_tile_side;
 inline constexpr int max_packets = max_tile_lanes / packet_width;
+// Stages run whole packets of lanes as whole SIMD batches: no scalar tails.
+static_assert(packet_width % simd_width == 0, "the SIMD width must divide the packet width");
 
 enum class Strategy : int { light = 0, bsdf = 1, mis = 2 };
 enum class LightPick : int { all = 0, uniform = 1, area = 2, power = 3 };
