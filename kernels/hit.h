@@ -142,8 +142,6 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
              g7 * (std::fabs(b0 * v0[1]) + std::fabs(b1 * v1[1]) + std::fabs(b2 * v2[1])),
              g7 * (std::fabs(b0 * v0[2]) + std::fabs(b1 * v1[2]) + std::fabs(b2 * v2[2]))};
     } else {
-      const int32_t sl = G.sphere_light[geom - G.mesh_count];
-      (void)sl;
       const float* c = G.sphere_center + 4 * (geom - G.mesh_count);
       vec3f rel{x.x - c[0], x.y - c[1], x.z - c[2]};
       rel = rel * (c[3] / length(rel));
