@@ -82,7 +82,16 @@ int run_render(const RenderFlags& f) {
   for (const std::string& w : scene.warnings)
     if (!f.quiet) std::cerr << "tuile: warning: " << w << "\n";
   if (scene.lights.empty() && !f.quiet) std::cerr << "tuile: warning: the scene has no light; the image is black\n";
-  std::string out = !f.output.empty() ? f.output : "tuile.exr";
+  // -o, else the scene's Film "filename" (as an .exr), else tuile.exr
+  std::string out = "tuile.exr";
+  if (!f.output.empty()) {
+    out = f.output;
+  } else if (!scene.file_output.empty()) {
+    out = scene.file_output;
+    const size_t dot = out.find_last_of('.'), slash = out.find_last_of('/');
+    if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) out += ".exr";
+    else if (out.substr(dot) != ".exr") out = out.substr(0, dot) + ".exr";
+  }
   Accel accel(scene);
   Renderer renderer(scene, accel, opt);
   Film film;

@@ -25,7 +25,8 @@ int main(int argc, char** argv) {
   RenderFlags rf;
   CLI::App* render = app.add_subcommand("render", "render a scene to OpenEXR (+ PNG preview)");
   add_render_flags(*render, rf);
-  render->add_option("-o,--output", rf.output, "output .exr (a .png preview is written beside it); default tuile.exr");
+  render->add_option("-o,--output", rf.output,
+                     "output .exr (a .png preview is written beside it); default: the scene's Film filename, else tuile.exr");
 
   RenderFlags inf;
   CLI::App* info = app.add_subcommand("info", "scene statistics, detected features and the pipeline that will run");
