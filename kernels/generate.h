@@ -23,7 +23,7 @@ inline void camera_ray(const CameraView& c, T rx, T ry, Vec3<T>& org, Vec3<T>& d
 }
 
 // Writes lanes [i, i + width(T)) of the camera packets.
-template <class T> [[gnu::flatten]] inline void generate_lanes(const CameraView& c, TileBuffers& tb, int i) {
+template <class T> TUILE_FLATTEN inline void generate_lanes(const CameraView& c, TileBuffers& tb, int i) {
   const T rx = load<T>(tb.fx + i) + load<T>(tb.u0 + i);
   const T ry = load<T>(tb.fy + i) + load<T>(tb.u1 + i);
   Vec3<T> o, d;

@@ -70,7 +70,7 @@ inline float offset_along_normal(vec3f err, vec3f n) {
 // SIMD half of the camera-hit stage, lanes [i, i + width): hit point, facing normal,
 // material reflectance for every lane, written in lane order to the queue arrays
 // (scratch here). The point o + t d is refined with its error bound in the scalar half.
-template <class T> [[gnu::flatten]] inline void camera_hit_lanes(const GeomView& G, TileBuffers& tb, int i) {
+template <class T> TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, TileBuffers& tb, int i) {
   const RayHit16& p = tb.cam[i / packet_width];
   const int l = i % packet_width;
   const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(p.geomID + l));

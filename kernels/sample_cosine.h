@@ -9,7 +9,7 @@
 
 namespace tuile {
 
-template <class T> [[gnu::flatten]] inline void sample_cosine_lanes(const Estimator& est, TileBuffers& tb, int k) {
+template <class T> TUILE_FLATTEN inline void sample_cosine_lanes(const Estimator& est, TileBuffers& tb, int k) {
   auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.shade_count));
   if (est.one_sample()) active = active && (load<T>(tb.choose_light + k) < T(0.5f));
   const Vec3<T> x = load3<T>(tb.px + k, tb.py + k, tb.pz + k);

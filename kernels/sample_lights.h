@@ -22,7 +22,7 @@ struct LightPass {
 // Kinds: which kinds of source can occur (kind_area, kind_delta); Pick: whether lanes pick
 // a source (false: every lane samples pass.fixed_light, as with one light or "all").
 template <class T, unsigned Kinds = kind_all, bool Pick = true>
-[[gnu::flatten]] inline void sample_lights_lanes(const LightView& L, const Estimator& est, const LightPass& pass, TileBuffers& tb,
+TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimator& est, const LightPass& pass, TileBuffers& tb,
                                 int k) {
   constexpr float inv_pi = 0.318309886f;
   auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.shade_count));

@@ -17,6 +17,15 @@
 #include <xsimd/xsimd.hpp>
 #endif
 
+// The per-lane stage kernels are flattened (every call inlined): 29% faster for the
+// solid-angle light stage. Not under AddressSanitizer, where instrumenting the flattened
+// bodies takes GCC tens of minutes.
+#if defined(__SANITIZE_ADDRESS__)
+#define TUILE_FLATTEN
+#else
+#define TUILE_FLATTEN [[gnu::flatten]]
+#endif
+
 namespace tuile {
 
 using vfloat = xsimd::batch<float>;

@@ -11,7 +11,7 @@ namespace tuile {
 
 // Lanes [j, j + width) of the hit queue.
 template <class T>
-[[gnu::flatten]] inline void weight_lanes(const LightView& L, const Estimator& est, float n_light, float n_bsdf, TileBuffers& tb,
+TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est, float n_light, float n_bsdf, TileBuffers& tb,
                          int j) {
   constexpr float inv_pi = 0.318309886f;
   const auto live = (T(static_cast<float>(j)) + lane_iota<T>()) < T(static_cast<float>(tb.queue_count));
