@@ -13,11 +13,7 @@ inline float luminance(float r, float g, float b) { return 0.2126f * r + 0.7152f
 // Reflectance at a hit: material constant or texture lookup (nearest texel, wrap).
 inline void hit_albedo(const GeomView& G, uint32_t geom, uint32_t prim, float u, float v, float& r, float& g,
                        float& b) {
-  const int32_t m = G.geom_material[geom];
-  if (m < 0) {
-    r = g = b = 0.5f;
-    return;
-  }
+  const int32_t m = G.geom_material[geom];  // never -1: build_views appends a default material
   r = G.mat_r[m];
   g = G.mat_g[m];
   b = G.mat_b[m];

@@ -118,10 +118,6 @@ inline bool i_mask_from_f(bool m) noexcept { return m; }
 inline xsimd::batch_bool<int32_t> i_mask_from_f(const vmask& m) noexcept {
   return xsimd::bitwise_cast<vint>(xsimd::select(m, vfloat(1.f), vfloat(0.f))) != vint(0);
 }
-inline bool f_mask_from_u(bool m) noexcept { return m; }
-inline vmask f_mask_from_u(const xsimd::batch_bool<uint32_t>& m) noexcept {
-  return xsimd::bitwise_cast<vfloat>(xsimd::select(m, vuint(0x3f800000u), vuint(0u))) != vfloat(0.f);
-}
 
 // loads and stores of the lane type from/to plain arrays
 template <class T> inline T load(const float* p) noexcept {
@@ -133,10 +129,6 @@ inline void store(float* p, const vfloat& v) noexcept { v.store_unaligned(p); }
 template <class T> inline i32_t<T> load_i32(const int32_t* p) noexcept {
   if constexpr (std::is_same_v<T, float>) return *p;
   else return vint::load_unaligned(p);
-}
-template <class T> inline u32_t<T> load_u32(const uint32_t* p) noexcept {
-  if constexpr (std::is_same_v<T, float>) return *p;
-  else return vuint::load_unaligned(p);
 }
 inline void store(int32_t* p, int32_t v) noexcept { *p = v; }
 inline void store(int32_t* p, const vint& v) noexcept { v.store_unaligned(p); }

@@ -113,12 +113,4 @@ struct alignas(64) TileBuffers {
 // pbrt-v4's gamma(n) = n u / (1 - n u), u = 2^-24: bounds on floating-point error.
 inline constexpr float gamma_err(int n) { return (static_cast<float>(n) * 0x1p-24f) / (1 - static_cast<float>(n) * 0x1p-24f); }
 
-// Offset of a ray origin off a surface, scaled to the magnitude of the coordinates that
-// produced the point (float spacing near |p| is |p| 2^-23; 2^-19 leaves 16 ulps). For a
-// triangle hit, pass the largest vertex coordinate as `extent`: Embree works with vertices
-// relative to the ray origin, so a plane with far vertices is only known to that precision.
-template <class T> inline T offset_scale(const Vec3<T>& p, T extent) {
-  return (max_abs(p) + extent) * T(1.0f / 524288.f) + T(1e-30f);
-}
-
 }  // namespace tuile

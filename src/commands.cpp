@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <thread>
 
@@ -30,12 +31,32 @@ static double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-static std::string png_path_for(const std::string& exr) {
-  const size_t dot = exr.find_last_of('.');
-  const size_t slash = exr.find_last_of('/');
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return exr + ".png";
-  return exr.substr(0, dot) + ".png";
+static std::string with_extension(const std::string& path, const char* ext) {
+  return std::filesystem::path(path).replace_extension(ext).string();
 }
+
+namespace {
+// Scene + resolved options + BVH, with load and build times.
+struct Prepared {
+  Scene scene;
+  RenderOptions opt;
+  std::unique_ptr<Accel> accel;
+  double load_seconds = 0, bvh_seconds = 0;
+};
+
+Prepared prepare(const RenderFlags& f) {
+  Prepared p;
+  const auto t0 = std::chrono::steady_clock::now();
+  p.scene = load_scene(f.scene);
+  p.opt = resolve_options(f, p.scene);
+  p.load_seconds = seconds_since(t0);
+  const auto t1 = std::chrono::steady_clock::now();
+  p.accel = std::make_unique<Accel>(p.scene);
+  p.bvh_seconds = seconds_since(t1);
+  return p;
+}
+
+}  // namespace
 
 // Renders all samples; on a terminal, renders longer than a second report progress
 // (percent, samples/s, ETA) on stderr. Samples are added in chunks of whole passes, which
@@ -50,14 +71,7 @@ static RenderStats render_with_progress(Renderer& renderer, Film& film, uint32_t
     const uint32_t end = std::min(spp, done + chunk);
     const uint32_t passes = end - done;
     const RenderStats st = renderer.render(film, done, end);
-    total.seconds += st.seconds;
-    total.samples += st.samples;
-    total.rays_camera += st.rays_camera;
-    total.rays_shadow += st.rays_shadow;
-    total.rays_bounce += st.rays_bounce;
-    total.rejected_camera += st.rejected_camera;
-    total.rejected_light += st.rejected_light;
-    total.rejected_bsdf += st.rejected_bsdf;
+    total.add_counts(st);
     total.worst_ratio = st.worst_ratio;
     total.pipeline = st.pipeline;
     done = end;
@@ -77,8 +91,9 @@ static RenderStats render_with_progress(Renderer& renderer, Film& film, uint32_t
 
 int run_render(const RenderFlags& f) {
   const auto t0 = std::chrono::steady_clock::now();
-  Scene scene = load_scene(f.scene);
-  RenderOptions opt = resolve_options(f, scene);
+  Prepared p = prepare(f);
+  const Scene& scene = p.scene;
+  const RenderOptions& opt = p.opt;
   for (const std::string& w : scene.warnings)
     if (!f.quiet) std::cerr << "tuile: warning: " << w << "\n";
   if (scene.lights.empty() && !f.quiet) std::cerr << "tuile: warning: the scene has no light; the image is black\n";
@@ -87,13 +102,9 @@ int run_render(const RenderFlags& f) {
   if (!f.output.empty()) {
     out = f.output;
   } else if (!scene.file_output.empty()) {
-    out = scene.file_output;
-    const size_t dot = out.find_last_of('.'), slash = out.find_last_of('/');
-    if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) out += ".exr";
-    else if (out.substr(dot) != ".exr") out = out.substr(0, dot) + ".exr";
+    out = with_extension(scene.file_output, ".exr");
   }
-  Accel accel(scene);
-  Renderer renderer(scene, accel, opt);
+  Renderer renderer(scene, *p.accel, opt);
   Film film;
   film.reset(scene.camera.width, scene.camera.height);
   const double setup = seconds_since(t0);
@@ -103,7 +114,7 @@ int run_render(const RenderFlags& f) {
   if (opt.aov_mis_weight) layers.push_back({"mis_weight", 1, film.mis_weight()});
   const std::vector<float> img = film.mean();
   write_exr(out, film.width, film.height, img, layers);
-  write_png(png_path_for(out), film.width, film.height, img);
+  write_png(with_extension(out, ".png"), film.width, film.height, img);
   if (!f.quiet) {
     std::fprintf(stderr, "tuile: %s %dx%d, %u spp, %s\n", scene.source.c_str(), film.width, film.height, opt.est.spp,
                  describe(opt.est).c_str());
@@ -125,13 +136,11 @@ int run_render(const RenderFlags& f) {
 }
 
 int run_info(const RenderFlags& f) {
-  const auto t0 = std::chrono::steady_clock::now();
-  Scene scene = load_scene(f.scene);
-  const double load = seconds_since(t0);
-  RenderOptions opt = resolve_options(f, scene);
-  const auto t1 = std::chrono::steady_clock::now();
-  Accel accel(scene);
-  const double bvh = seconds_since(t1);
+  const Prepared p = prepare(f);
+  const Scene& scene = p.scene;
+  const RenderOptions& opt = p.opt;
+  const Accel& accel = *p.accel;
+  const double load = p.load_seconds, bvh = p.bvh_seconds;
   size_t area = 0, delta = 0;
   for (const Light& l : scene.lights) (is_delta(l.type) ? delta : area)++;
   std::printf("scene: %s\n", scene.source.c_str());
@@ -178,26 +187,6 @@ std::string json_escape(const std::string& s) {
     o += ch;
   }
   return o;
-}
-
-// Scene + options + BVH with the time to first pixel measured from process start.
-struct Prepared {
-  Scene scene;
-  RenderOptions opt;
-  std::unique_ptr<Accel> accel;
-  double load_seconds = 0, bvh_seconds = 0;
-};
-
-Prepared prepare(const RenderFlags& f) {
-  Prepared p;
-  const auto t0 = std::chrono::steady_clock::now();
-  p.scene = load_scene(f.scene);
-  p.opt = resolve_options(f, p.scene);
-  p.load_seconds = seconds_since(t0);
-  const auto t1 = std::chrono::steady_clock::now();
-  p.accel = std::make_unique<Accel>(p.scene);
-  p.bvh_seconds = seconds_since(t1);
-  return p;
 }
 
 }  // namespace

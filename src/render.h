@@ -93,9 +93,20 @@ struct RenderStats {
   double seconds = 0;
   uint64_t samples = 0;  // camera samples
   uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0;
-  uint64_t rejected_camera = 0, rejected_light = 0, rejected_bsdf = 0, rejected_film = 0;
+  uint64_t rejected_camera = 0, rejected_light = 0, rejected_bsdf = 0;
   double worst_ratio = 0;  // largest single-sample luminance relative to its pixel mean
   std::string pipeline;
+  // Adds the counters of another render (seconds and samples included).
+  void add_counts(const RenderStats& o) {
+    seconds += o.seconds;
+    samples += o.samples;
+    rays_camera += o.rays_camera;
+    rays_shadow += o.rays_shadow;
+    rays_bounce += o.rays_bounce;
+    rejected_camera += o.rejected_camera;
+    rejected_light += o.rejected_light;
+    rejected_bsdf += o.rejected_bsdf;
+  }
 };
 
 // The scene as the kernels read it: SoA light table (with the pick distribution and its

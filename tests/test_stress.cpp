@@ -57,7 +57,7 @@ RenderOptions options(const Est& e, uint32_t spp, uint32_t seed = 1, SamplerKind
 
 std::string name_of(const RenderOptions& o) { return describe(o.est); }
 
-uint64_t rejected(const RenderStats& s) { return s.rejected_camera + s.rejected_light + s.rejected_bsdf + s.rejected_film; }
+uint64_t rejected(const RenderStats& s) { return s.rejected_camera + s.rejected_light + s.rejected_bsdf; }
 
 // Every pixel and its variance finite, and no sample thrown away as non-finite.
 void expect_clean(const RenderResult& r, const std::string& what) {
