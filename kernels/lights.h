@@ -31,6 +31,9 @@ struct LightView {
   const float *Lr = nullptr, *Lg = nullptr, *Lb = nullptr;
   const float* area = nullptr;
   const float* two_sided = nullptr;   // 1 or 0
+  // constants of planar sources (light_geom_derive): edge lengths, their inverses, and 1
+  // for parallelograms with orthogonal edges (sampled with Urena's map)
+  const float *len1 = nullptr, *len2 = nullptr, *inv_len1 = nullptr, *inv_len2 = nullptr, *rect = nullptr;
   const float* pick_pdf = nullptr;    // probability of picking each source (1 with "all")
   const float* alias_prob = nullptr;  // alias table of pick_pdf
   const int32_t* alias_idx = nullptr;
@@ -53,6 +56,7 @@ template <class T> struct LightGeom {
   i32_t<T> type;
   Vec3<T> p0, e1, e2, n;
   T area, two_sided;
+  T len1, len2, inv_len1, inv_len2, rect;  // light_geom_derive
 };
 
 template <class I> inline auto gather_light(const LightView& L, const I& idx) {
@@ -65,6 +69,11 @@ template <class I> inline auto gather_light(const LightView& L, const I& idx) {
   g.n = gather3(L.nx, L.ny, L.nz, idx);
   g.area = gather(L.area, idx);
   g.two_sided = gather(L.two_sided, idx);
+  g.len1 = gather(L.len1, idx);
+  g.len2 = gather(L.len2, idx);
+  g.inv_len1 = gather(L.inv_len1, idx);
+  g.inv_len2 = gather(L.inv_len2, idx);
+  g.rect = gather(L.rect, idx);
   return g;
 }
 
@@ -77,6 +86,11 @@ template <class T> inline LightGeom<T> broadcast_light(const LightView& L, int32
   g.n = {T(L.nx[i]), T(L.ny[i]), T(L.nz[i])};
   g.area = T(L.area[i]);
   g.two_sided = T(L.two_sided[i]);
+  g.len1 = T(L.len1[i]);
+  g.len2 = T(L.len2[i]);
+  g.inv_len1 = T(L.inv_len1[i]);
+  g.inv_len2 = T(L.inv_len2[i]);
+  g.rect = T(L.rect[i]);
   return g;
 }
 
@@ -85,15 +99,32 @@ template <class T> inline mask_t<T> type_is(const i32_t<T>& type, int32_t t) {
   else return f_mask_from_i(type == vint(t));
 }
 
+// The per-source constants of LightGeom that follow from its edges (computed once per
+// source by the renderer; tests that build a LightGeom by hand call this too).
+template <class T> inline void light_geom_derive(LightGeom<T>& g) {
+  g.len1 = length(g.e1);
+  g.len2 = length(g.e2);
+  const mask_t<T> ok = g.len1 > T(0.f) && g.len2 > T(0.f);
+  g.inv_len1 = T(1.f) / sel(ok, g.len1, T(1.f));
+  g.inv_len2 = T(1.f) / sel(ok, g.len2, T(1.f));
+  g.rect = sel(type_is<T>(g.type, lt_parallelogram) && parallelogram_is_rectangle(g.e1, g.e2), T(1.f), T(0.f));
+}
+
 // Solid angle a triangle/parallelogram/sphere source subtends from x (0 where x is
-// behind a one-sided source, where it emits nothing towards x).
+// behind a one-sided source, where it emits nothing towards x). Rectangles use their
+// constants (the same setup the sampler uses, so both see the same Omega to the bit).
 template <class T> inline T light_solid_angle(const LightGeom<T>& g, const Vec3<T>& x) {
   const auto is_tri = type_is<T>(g.type, lt_triangle);
   const auto is_par = type_is<T>(g.type, lt_parallelogram);
   const auto is_sph = type_is<T>(g.type, lt_sphere);
+  const auto rect = is_par && g.rect > T(0.5f);
+  const auto skew = is_par && !rect;
   T omega(0.f);
   if (any(is_tri)) omega = sel(is_tri, spherical_triangle_solid_angle(x, g.p0, g.p0 + g.e1, g.p0 + g.e2), omega);
-  if (any(is_par)) omega = sel(is_par, parallelogram_solid_angle(x, g.p0, g.e1, g.e2), omega);
+  if (any(rect))
+    omega = sel(rect,
+                spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2).omega, omega);
+  if (any(skew)) omega = sel(skew, spherical_parallelogram_solid_angle(x, g.p0, g.e1, g.e2), omega);
   if (any(is_sph)) omega = sel(is_sph, sphere_cone_solid_angle(x, g.p0, g.e1.x), omega);
   return omega;
 }
@@ -116,13 +147,30 @@ template <class T> inline mask_t<T> use_solid_angle(const LightGeom<T>& g, const
   const auto is_tri = type_is<T>(g.type, lt_triangle);
   const auto is_par = type_is<T>(g.type, lt_parallelogram);
   const auto is_sph = type_is<T>(g.type, lt_sphere);
-  const auto rect = is_par && parallelogram_is_rectangle(g.e1, g.e2);
+  const auto rect = is_par && g.rect > T(0.5f);
   const auto rect_ok = omega >= T(min_sa_sample_omega) && omega < T(6.2831853f) && is_finite(omega);
   const Vec3<T> to_c = g.p0 + (g.e1 + g.e2) * T(sel(is_tri, T(1.f / 3.f), T(0.5f))) - x;
-  const auto grazing =
-      abs(dot(to_c, g.n)) < T(grazing_plane_ratio) * length(to_c) && omega < T(grazing_max_omega);
+  // |to_c . n| < ratio |to_c|, squared (no square root)
+  const T h = dot(to_c, g.n);
+  const T r = T(grazing_plane_ratio);
+  const auto grazing = h * h < r * r * length_sq(to_c) && omega < T(grazing_max_omega);
   return ((((is_tri || (is_par && !rect)) && solid_angle_sampling_safe(omega)) || (rect && rect_ok)) && !grazing) ||
          (is_sph && omega > T(0.f));
+}
+
+// Density in solid angle at x of reaching the source at distance dist along wi when the
+// point is drawn uniformly by area: d^2 / (cos theta_y A); 0 from behind a one-sided source.
+template <class T> inline T pdf_area_as_solid_angle(const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist) {
+  const T cos_y_signed = -dot(wi, g.n);
+  const T cos_y = sel(g.two_sided > T(0.f), abs(cos_y_signed), cos_y_signed);
+  const auto is_sph = type_is<T>(g.type, lt_sphere);
+  // sphere: cos at y from its outward normal
+  T cos_eff = cos_y;
+  if (any(is_sph)) {
+    const Vec3<T> y = x + wi * dist;
+    cos_eff = sel(is_sph, -dot(wi, (y - g.p0)) / max(g.e1.x, T(1e-30f)), cos_y);
+  }
+  return sel(cos_eff > T(0.f), dist * dist / (cos_eff * g.area), T(0.f));
 }
 
 // Density in solid angle of a direction from x reaching the source at point y (distance
@@ -132,21 +180,11 @@ template <class T> inline mask_t<T> use_solid_angle(const LightGeom<T>& g, const
 template <class T>
 inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist,
                             T omega) {
-  const T cos_y_signed = -dot(wi, g.n);
-  const T cos_y = sel(g.two_sided > T(0.f), abs(cos_y_signed), cos_y_signed);
-  const auto is_sph = type_is<T>(g.type, lt_sphere);
-  // sphere: cos at y from its outward normal
-  T cos_sph(0.f);
-  if (any(is_sph)) {
-    const Vec3<T> y = x + wi * dist;
-    cos_sph = -dot(wi, (y - g.p0)) / max(g.e1.x, T(1e-30f));
-  }
-  const T cos_eff = sel(is_sph, cos_sph, cos_y);
-  const T pdf_area = sel(cos_eff > T(0.f), dist * dist / (cos_eff * g.area), T(0.f));
-  if (mode == LightPoint::area) return finite_or_zero(pdf_area);
+  if (mode == LightPoint::area) return finite_or_zero(pdf_area_as_solid_angle(g, x, wi, dist));
   const auto safe = use_solid_angle(g, x, omega);
-  const T pdf_sa = sel(omega > T(0.f), T(1.f) / omega, T(0.f));
-  return finite_or_zero(sel(safe, pdf_sa, pdf_area));
+  T pdf = sel(omega > T(0.f), T(1.f) / sel(omega > T(0.f), omega, T(1.f)), T(0.f));
+  if (!all(safe)) pdf = sel(safe, pdf, pdf_area_as_solid_angle(g, x, wi, dist));
+  return finite_or_zero(pdf);
 }
 
 template <class T>
@@ -168,13 +206,14 @@ template <class T> struct LightPointSample {
   mask_t<T> valid, is_delta;
 };
 
+// In solid-angle mode the spherical maps run first: their Omega decides (use_solid_angle)
+// which lanes keep them, and only the lanes that fall back draw a point by area. The pdf
+// is always the one of the strategy that produced the sample, as pdf_light_point_sa
+// evaluates it.
 template <unsigned Kinds = kind_all, class T>
 inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, T u1,
                                               T u2) {
   LightPointSample<T> s;
-  s.wi = Vec3<T>(T(0.f), T(0.f), T(1.f));
-  s.dist = T(0.f);
-  s.valid = T(0.f) > T(1.f);
   const auto is_tri = type_is<T>(g.type, lt_triangle);
   const auto is_par = type_is<T>(g.type, lt_parallelogram);
   const auto is_sph = type_is<T>(g.type, lt_sphere);
@@ -184,70 +223,95 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
   s.is_delta = is_pt || is_spot || is_dist;
   s.scale = T(1.f);
 
-  Vec3<T> wi = s.wi;
-  T dist = s.dist;
-  T omega(0.f);
+  Vec3<T> wi(T(0.f), T(0.f), T(1.f));
+  T dist(0.f), pdf(0.f);
+  auto valid = T(0.f) > T(1.f);
   if constexpr ((Kinds & kind_area) != 0) {
-  // area sampling: a point y on the surface
-  Vec3<T> y = g.p0;
-  if (any(is_tri)) {
-    T b1, b2;
-    sample_triangle_area(u1, u2, b1, b2);
-    y = sel(is_tri, g.p0 + g.e1 * b1 + g.e2 * b2, y);
-  }
-  if (any(is_par)) y = sel(is_par, g.p0 + g.e1 * u1 + g.e2 * u2, y);
-  if (any(is_sph)) y = sel(is_sph, sample_sphere_area(g.p0, g.e1.x, u1, u2), y);
-  Vec3<T> d = y - x;
-  dist = sqrt(length_sq(d));
-  wi = d * (T(1.f) / sel(dist > T(0.f), dist, T(1.f)));
-  s.valid = dist > T(0.f);
-
-  if (mode == LightPoint::solid_angle) {
-    // Solid-angle samples first: their pdf is 1 / Omega, so Omega is not computed twice.
-    // Where Omega is outside the safe range the area sample above stands.
-    Vec3<T> dir = wi;
-    auto ok = s.valid && !s.valid;
-    if (any(is_tri)) {
-      Vec3<T> dt;
-      T pt;
-      const auto m = sample_spherical_triangle(x, g.p0, g.p0 + g.e1, g.p0 + g.e2, u1, u2, dt, pt);
-      dir = sel(is_tri, dt, dir);
-      omega = sel(is_tri, sel(pt > T(0.f), T(1.f) / sel(pt > T(0.f), pt, T(1.f)), T(0.f)), omega);
-      ok = sel_mask(is_tri, m, ok);
-    }
-    if (any(is_par)) {
-      Vec3<T> dp;
-      T pp;
-      const auto m = sample_parallelogram_sa(x, g.p0, g.e1, g.e2, u1, u2, dp, pp);
-      dir = sel(is_par, dp, dir);
-      omega = sel(is_par, sel(pp > T(0.f), T(1.f) / sel(pp > T(0.f), pp, T(1.f)), T(0.f)), omega);
-      ok = sel_mask(is_par, m, ok);
-    }
-    if (any(is_sph)) {
-      Vec3<T> ds;
-      T ps;
-      const auto m = sample_sphere_cone(x, g.p0, g.e1.x, u1, u2, ds, ps);
-      dir = sel(is_sph, ds, dir);
-      omega = sel(is_sph, sphere_cone_solid_angle(x, g.p0, g.e1.x), omega);
-      ok = sel_mask(is_sph, m, ok);
-    }
-    const auto use_sa = use_solid_angle(g, x, omega);
-    if (any(use_sa)) {
-      // distance along dir to the source's plane (triangle/parallelogram) or sphere
-      const T denom = dot(dir, g.n);
-      const T t_plane = dot(g.p0 - x, g.n) / sel(abs(denom) > T(0.f), denom, T(1.f));
-      const Vec3<T> oc = x - g.p0;
-      const T bq = dot(oc, dir);
-      const T cq = length_sq(oc) - g.e1.x * g.e1.x;
-      const T disc = max(T(0.f), bq * bq - cq);
-      // nearer root, computed stably
-      const T t_sph = cq / max(-bq + sqrt(disc), T(1e-30f));
-      const T t_sa = sel(is_sph, t_sph, t_plane);
+    const auto is_area = is_tri || is_par || is_sph;
+    auto use_sa = valid;
+    if (mode == LightPoint::solid_angle && any(is_area)) {
+      const auto rect = is_par && g.rect > T(0.5f);
+      const auto skew = is_par && !rect;
+      Vec3<T> dir = wi;
+      T omega(0.f), t_sa(0.f);
+      auto ok = valid;
+      if (any(rect)) {
+        const SphericalRectangle<T> r =
+            spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
+        Vec3<T> dr;
+        T tr;
+        const auto m = sample_spherical_rectangle(r, u1, u2, dr, tr);
+        dir = sel(rect, dr, dir);
+        t_sa = sel(rect, tr, t_sa);
+        omega = sel(rect, r.omega, omega);
+        ok = sel_mask(rect, m, ok);
+      }
+      if (any(is_tri)) {
+        const SphericalTriangle<T> st = spherical_triangle_setup(x, g.p0, g.p0 + g.e1, g.p0 + g.e2);
+        Vec3<T> dt;
+        T pt;
+        const auto m = sample_spherical_triangle(st, u1, u2, dt, pt);
+        dir = sel(is_tri, dt, dir);
+        omega = sel(is_tri, st.omega, omega);
+        ok = sel_mask(is_tri, m, ok);
+      }
+      if (any(skew)) {
+        Vec3<T> dp;
+        T pp;
+        const auto m = sample_spherical_parallelogram(x, g.p0, g.e1, g.e2, u1, u2, dp, pp);
+        dir = sel(skew, dp, dir);
+        omega = sel(skew, sel(pp > T(0.f), T(1.f) / sel(pp > T(0.f), pp, T(1.f)), T(0.f)), omega);
+        ok = sel_mask(skew, m, ok);
+      }
+      if (any(is_sph)) {
+        Vec3<T> ds;
+        T ps;
+        const auto m = sample_sphere_cone(x, g.p0, g.e1.x, u1, u2, ds, ps);
+        dir = sel(is_sph, ds, dir);
+        omega = sel(is_sph, sphere_cone_solid_angle(x, g.p0, g.e1.x), omega);
+        ok = sel_mask(is_sph, m, ok);
+      }
+      use_sa = is_area && use_solid_angle(g, x, omega);
+      // distance along dir to the source's plane (triangles, skew parallelograms) or
+      // sphere; rectangles know it already
+      if (any(use_sa && !rect)) {
+        const T denom = dot(dir, g.n);
+        const T t_plane = dot(g.p0 - x, g.n) / sel(abs(denom) > T(0.f), denom, T(1.f));
+        T t_other = t_plane;
+        if (any(is_sph)) {
+          const Vec3<T> oc = x - g.p0;
+          const T bq = dot(oc, dir);
+          const T cq = length_sq(oc) - g.e1.x * g.e1.x;
+          const T disc = max(T(0.f), bq * bq - cq);
+          // nearer root, computed stably
+          t_other = sel(is_sph, cq / max(-bq + sqrt(disc), T(1e-30f)), t_plane);
+        }
+        t_sa = sel(rect, t_sa, t_other);
+      }
       wi = sel(use_sa, dir, wi);
       dist = sel(use_sa, t_sa, dist);
-      s.valid = sel_mask(use_sa, ok && t_sa > T(0.f), s.valid);
+      pdf = sel(use_sa && omega > T(0.f), T(1.f) / sel(omega > T(0.f), omega, T(1.f)), pdf);
+      valid = use_sa && ok && t_sa > T(0.f);
     }
-  }
+    // area sampling: a point y on the surface, for area mode and the lanes that fall back
+    const auto by_area = is_area && !use_sa;
+    if (any(by_area)) {
+      Vec3<T> y = g.p0;
+      if (any(is_tri)) {
+        T b1, b2;
+        sample_triangle_area(u1, u2, b1, b2);
+        y = sel(is_tri, g.p0 + g.e1 * b1 + g.e2 * b2, y);
+      }
+      if (any(is_par)) y = sel(is_par, g.p0 + g.e1 * u1 + g.e2 * u2, y);
+      if (any(is_sph)) y = sel(is_sph, sample_sphere_area(g.p0, g.e1.x, u1, u2), y);
+      const Vec3<T> d = y - x;
+      const T da = sqrt(length_sq(d));
+      const Vec3<T> wa = d * (T(1.f) / sel(da > T(0.f), da, T(1.f)));
+      wi = sel(by_area, wa, wi);
+      dist = sel(by_area, da, dist);
+      pdf = sel(by_area, pdf_area_as_solid_angle(g, x, wa, da), pdf);
+      valid = sel_mask(by_area, da > T(0.f), valid);
+    }
   }
 
   if constexpr ((Kinds & kind_delta) != 0) {
@@ -269,23 +333,18 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
       sc = sel(is_spot, sc * t * t * (T(3.f) - T(2.f) * t), sc);
     }
     s.scale = sel(m, sc, s.scale);
-    s.valid = sel_mask(m, dd > T(0.f), s.valid);
+    valid = sel_mask(m, dd > T(0.f), valid);
   }
   if (any(is_dist)) {
     wi = sel(is_dist, g.e1, wi);
     dist = sel(is_dist, T(3.0e38f), dist);
-    s.valid = sel_mask(is_dist, mask_t<T>(true), s.valid);
+    valid = sel_mask(is_dist, mask_t<T>(true), valid);
   }
   }
   s.wi = wi;
   s.dist = dist;
-  if constexpr ((Kinds & kind_area) != 0) {
-    const T pdf = pdf_light_point_sa(mode, g, x, wi, dist, omega);
-    s.pdf_sa = sel(s.is_delta, T(0.f), pdf);
-  } else {
-    s.pdf_sa = T(0.f);
-  }
-  s.valid = s.valid && (s.is_delta || s.pdf_sa > T(0.f)) && is_finite(dist);
+  s.pdf_sa = sel(s.is_delta, T(0.f), finite_or_zero(pdf));
+  s.valid = valid && (s.is_delta || s.pdf_sa > T(0.f)) && is_finite(dist);
   return s;
 }
 

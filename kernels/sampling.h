@@ -122,9 +122,9 @@ template <class T> inline T atan_reduced(const T& z) noexcept {
 template <class T> inline T atan2(const T& y, const T& x) noexcept {
   const T ax = abs(x), ay = abs(y);
   const T mx = max(ax, ay), mn = min(ax, ay);
-  const T r = mn / sel(mx > T(0.f), mx, T(1.f));  // in [0, 1]
-  const mask_t<T> big = r > T(0.414213562373095048802f);
-  const T z = sel(big, (r - T(1.f)) / (r + T(1.f)), r);
+  // z = r or (r - 1) / (r + 1) with r = mn / mx in [0, 1], in one division
+  const mask_t<T> big = mn > T(0.414213562373095048802f) * mx;
+  const T z = sel(big, mn - mx, mn) / sel(big, mn + mx, sel(mx > T(0.f), mx, T(1.f)));
   T a = lane_math::atan_reduced(z) + sel(big, T(0.785398163397448309616f), T(0.f));
   a = sel(ay > ax, T(1.57079632679489661923f) - a, a);
   a = sel(x < T(0.f), T(pi_f) - a, a);
@@ -345,15 +345,16 @@ template <class T> struct SphericalRectangle {
   mask_t<T> valid;
 };
 
+// Setup with the edge lengths and their inverses given (a source's constants, made once
+// per light by the renderer).
 template <class T>
 inline SphericalRectangle<T> spherical_rectangle_setup(const Vec3<T>& x, const Vec3<T>& p0, const Vec3<T>& e1,
-                                                       const Vec3<T>& e2) noexcept {
-  using namespace sampling_detail;
+                                                       const Vec3<T>& e2, const T& lx, const T& ly, const T& ilx,
+                                                       const T& ily) noexcept {
   SphericalRectangle<T> r;
-  const T lx = length(e1), ly = length(e2);
   const mask_t<T> ok_e = lx > T(0.f) && ly > T(0.f) && is_finite(lx) && is_finite(ly);
-  r.ex = e1 * (T(1.f) / sel(ok_e, lx, T(1.f)));
-  r.ey = e2 * (T(1.f) / sel(ok_e, ly, T(1.f)));
+  r.ex = e1 * ilx;
+  r.ey = e2 * ily;
   r.ez = cross(r.ex, r.ey);
   const Vec3<T> d = p0 - x;
   const T zd = dot(d, r.ez);
@@ -371,20 +372,35 @@ inline SphericalRectangle<T> spherical_rectangle_setup(const Vec3<T>& x, const V
   const T i0 = T(1.f) / sel(ok_m, m0, T(1.f)), i1 = T(1.f) / sel(ok_m, m1, T(1.f));
   const T i2 = T(1.f) / sel(ok_m, m2, T(1.f)), i3 = T(1.f) / sel(ok_m, m3, T(1.f));
   // Unit normals n0 = (0, z0, -y0)/m0, n1 = (-z0, 0, x1)/m1, n2 = (0, -z0, y1)/m2,
-  // n3 = (z0, 0, -x0)/m3; t_i = n_i . n_(i+1).
+  // n3 = (z0, 0, -x0)/m3; t_i = n_i . n_(i+1) = sin(asin t_i), c_i = cos(asin t_i) >= 0.
   const T t0 = -(r.y0 * i0) * (r.x1 * i1);
   const T t1 = (r.x1 * i1) * (r.y1 * i2);
   const T t2 = -(r.y1 * i2) * (r.x0 * i3);
   const T t3 = (r.x0 * i3) * (r.y0 * i0);
-  const T a0 = lane_math::asin(t0), a1 = lane_math::asin(t1);
-  const T a2 = lane_math::asin(t2), a3 = lane_math::asin(t3);
+  auto cos_of = [](const T& t) {
+    const T tc = min(max(t, T(-1.f)), T(1.f));
+    return sqrt((T(1.f) - tc) * (T(1.f) + tc));
+  };
+  const T c0 = cos_of(t0), c1 = cos_of(t1), c2 = cos_of(t2), c3 = cos_of(t3);
+  // asin t0 + asin t1 and asin t2 + asin t3, each in [-pi, pi], as the arguments of the
+  // products (c0 + i t0)(c1 + i t1) and (c2 + i t2)(c3 + i t3): two atan2, not four asin.
+  const T a01 = lane_math::atan2(t0 * c1 + c0 * t1, c0 * c1 - t0 * t1);
+  const T a23 = lane_math::atan2(t2 * c3 + c2 * t3, c2 * c3 - t2 * t3);
   r.b0 = -r.y0 * i0;
   r.b1 = r.y1 * i2;
-  r.k_sin_off = a2 + a3;
-  r.omega = (a0 + a1) + (a2 + a3);
+  r.k_sin_off = a23;
+  r.omega = a01 + a23;
   r.valid = ok_e && ok_m && r.z0 < T(0.f) && r.omega > T(0.f) && is_finite(r.omega);
   r.omega = sel(r.valid, r.omega, T(0.f));
   return r;
+}
+
+template <class T>
+inline SphericalRectangle<T> spherical_rectangle_setup(const Vec3<T>& x, const Vec3<T>& p0, const Vec3<T>& e1,
+                                                       const Vec3<T>& e2) noexcept {
+  const T lx = length(e1), ly = length(e2);
+  const mask_t<T> ok = lx > T(0.f) && ly > T(0.f);
+  return spherical_rectangle_setup(x, p0, e1, e2, lx, ly, T(1.f) / sel(ok, lx, T(1.f)), T(1.f) / sel(ok, ly, T(1.f)));
 }
 
 template <class T>
@@ -393,9 +409,12 @@ inline T spherical_rectangle_solid_angle(const Vec3<T>& x, const Vec3<T>& p0, co
   return spherical_rectangle_setup(x, p0, e1, e2).omega;
 }
 
+// Urena's map for a prepared rectangle: the unit direction and the distance from x to the
+// point it reaches on the rectangle (the local point (xu, yv, z0) is known, so no plane
+// intersection is needed). The density is 1 / r.omega.
 template <class T>
 inline mask_t<T> sample_spherical_rectangle(const SphericalRectangle<T>& r, const T& u1, const T& u2, Vec3<T>& dir,
-                                            T& pdf_sa) noexcept {
+                                            T& dist_y) noexcept {
   using namespace sampling_detail;
   // Urena's au = u1 S + k with k = 2 pi - gamma2 - gamma3 = pi - (asin t2 + asin t3), so
   // sin(au) = sin(psi), cos(au) = -cos(psi) with psi = asin t2 + asin t3 - u1 S.
@@ -421,15 +440,24 @@ inline mask_t<T> sample_spherical_rectangle(const SphericalRectangle<T>& r, cons
   const T yv = sel(inner, hv * dist / sqrt(sel(inner, T(1.f) - hv2, T(1.f))), r.y1);
   const T yc = min(max(yv, r.y0), r.y1);
   const Vec3<T> v = r.ex * xu + r.ey * yc + r.ez * r.z0;
-  dir = normalize_or(v, -r.ez);
-  pdf_sa = T(1.f) / sel(r.omega > T(0.f), r.omega, T(1.f));
-  return finish(r.valid, dir, pdf_sa, Vec3<T>(T(0.f), T(0.f), T(1.f)));
+  // |v| from the local coordinates (the frame is orthonormal)
+  const T len = sqrt(dist2 + yc * yc);
+  const mask_t<T> ok = len > T(0.f) && is_finite(len);
+  dir = sel(ok, v * (T(1.f) / sel(ok, len, T(1.f))), -r.ez);
+  dist_y = sel(ok, len, T(0.f));
+  const mask_t<T> valid = r.valid && ok && finite3(dir);
+  dir = sel(valid, dir, Vec3<T>(T(0.f), T(0.f), T(1.f)));
+  return valid;
 }
 
 template <class T>
 inline mask_t<T> sample_spherical_rectangle(const Vec3<T>& x, const Vec3<T>& p0, const Vec3<T>& e1, const Vec3<T>& e2,
                                             const T& u1, const T& u2, Vec3<T>& dir, T& pdf_sa) noexcept {
-  return sample_spherical_rectangle(spherical_rectangle_setup(x, p0, e1, e2), u1, u2, dir, pdf_sa);
+  const SphericalRectangle<T> r = spherical_rectangle_setup(x, p0, e1, e2);
+  T dist;
+  const mask_t<T> valid = sample_spherical_rectangle(r, u1, u2, dir, dist);
+  pdf_sa = sel(valid, T(1.f) / sel(r.omega > T(0.f), r.omega, T(1.f)), T(0.f));
+  return valid;
 }
 
 // Parallelograms with non-orthogonal edges: two triangles (p0, p0+e1, p0+e1+e2) and

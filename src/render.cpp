@@ -101,6 +101,14 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     v.Lr.push_back(l.radiance.r); v.Lg.push_back(l.radiance.g); v.Lb.push_back(l.radiance.b);
     v.area.push_back(l.area);
     v.two_sided.push_back(l.two_sided ? 1.f : 0.f);
+    LightGeom<float> g;
+    g.type = static_cast<int32_t>(l.type);
+    g.e1 = l.e1;
+    g.e2 = l.e2;
+    light_geom_derive(g);
+    v.len1.push_back(g.len1); v.len2.push_back(g.len2);
+    v.inv_len1.push_back(g.inv_len1); v.inv_len2.push_back(g.inv_len2);
+    v.rect.push_back(g.rect);
     (is_delta(l.type) ? v.has_delta : v.has_area) = true;
   }
   // pick distribution
@@ -139,6 +147,9 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   L.Lr = v.Lr.data(); L.Lg = v.Lg.data(); L.Lb = v.Lb.data();
   L.area = v.area.data();
   L.two_sided = v.two_sided.data();
+  L.len1 = v.len1.data(); L.len2 = v.len2.data();
+  L.inv_len1 = v.inv_len1.data(); L.inv_len2 = v.inv_len2.data();
+  L.rect = v.rect.data();
   L.pick_pdf = v.pick_pdf.data();
   L.alias_prob = v.alias_prob.data();
   L.alias_idx = v.alias_idx.data();

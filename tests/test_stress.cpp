@@ -623,6 +623,7 @@ TEST(StressMis, ExtremePdfsThroughLightKernels) {
     g.n = normalize(cross(e1, e2));
     g.area = length(cross(e1, e2)) * (type == lt_triangle ? 0.5f : 1.f);
     g.two_sided = 0;
+    light_geom_derive(g);
     return g;
   };
   LightGeom<float> sph;
@@ -633,6 +634,7 @@ TEST(StressMis, ExtremePdfsThroughLightKernels) {
   sph.n = {0, 0, 0};
   sph.area = 4 * 3.14159265f * 1e-30f;
   sph.two_sided = 0;
+  light_geom_derive(sph);
   struct C {
     const char* name;
     LightGeom<float> g;
