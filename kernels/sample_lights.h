@@ -145,15 +145,17 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
 }
 
 // After the shadow query: unoccluded lanes add their contribution to their pixel.
+// Branch-free (occlusion is a coin toss per lane): lanes that were not traced carry a zero
+// contribution, and an occluded lane (Embree sets tfar = -inf) adds +0, which changes no
+// sum (the radiance sums start at +0 and never hold -0).
 inline void accumulate_shadow(TileBuffers& tb) {
   for (int k = 0; k < tb.shade_count; ++k) {
-    if (!tb.valid[k]) continue;
-    const Ray16& r = tb.shadow[k / packet_width];
-    if (r.tfar[k % packet_width] < 0.f && std::isinf(r.tfar[k % packet_width])) continue;  // occluded: tfar = -inf
+    const float tfar = tb.shadow[k / packet_width].tfar[k % packet_width];
+    const bool lit = tb.valid[k] && tfar != -INFINITY;
     const int i = tb.slane[k];
-    tb.Lr[i] += tb.cr[k];
-    tb.Lg[i] += tb.cg[k];
-    tb.Lb[i] += tb.cb[k];
+    tb.Lr[i] += lit ? tb.cr[k] : 0.f;
+    tb.Lg[i] += lit ? tb.cg[k] : 0.f;
+    tb.Lb[i] += lit ? tb.cb[k] : 0.f;
   }
 }
 
