@@ -130,6 +130,7 @@ void BM_sampler(benchmark::State& state) {
 
 // Arg: 0 = area, 1 = solid angle
 BENCHMARK_TEMPLATE(BM_sample_lights, vfloat)->Arg(0)->Arg(1);
+BENCHMARK_TEMPLATE(BM_sample_lights, vfloat2)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_sample_lights, float)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_mis_weight, vfloat)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_mis_weight, float)->Arg(0)->Arg(1);

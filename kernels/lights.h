@@ -96,7 +96,7 @@ template <class T> inline LightGeom<T> broadcast_light(const LightView& L, int32
 
 template <class T> inline mask_t<T> type_is(const i32_t<T>& type, int32_t t) {
   if constexpr (std::is_same_v<T, float>) return type == t;
-  else return f_mask_from_i(type == vint(t));
+  else return f_mask_from_i(type == i32_t<T>(t));
 }
 
 // The per-source constants of LightGeom that follow from its edges (computed once per

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cstdint>
 
+#include "simd.h"
+
 namespace tuile {
 
 inline constexpr int packet_width = 16;
@@ -22,6 +24,17 @@ struct alignas(64) RayHit16 {
   float Ng_x[16], Ng_y[16], Ng_z[16], u[16], v[16];
   uint32_t primID[16], geomID[16], instID[1][16];
 };
+
+// Stores lanes [k, k + width) of one field (e.g. &Ray16::org_x) of an array of packets,
+// packet k / 16 at lane k % 16; a lane type wider than a packet continues into the next.
+template <class P, class T> inline void store_field(P* packets, float (P::*field)[16], int k, const T& v) noexcept {
+  if constexpr (std::is_same_v<T, float>) (packets[k / packet_width].*field)[k % packet_width] = v;
+  else if constexpr (lane_traits<T>::width <= packet_width) store((packets[k / packet_width].*field) + k % packet_width, v);
+  else {
+    store_field(packets, field, k, v.a);
+    store_field(packets, field, k + lane_traits<T>::width / 2, v.b);
+  }
+}
 
 // The fields of a packet that stay the same for every query: all rays enabled, no id,
 // no flags; and no hit yet (Embree writes geomID only where a ray hits).

@@ -77,10 +77,7 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   store(tb.cg + k, sel(live, c_g, T(0.f)));
   store(tb.cb + k, sel(live, c_b, T(0.f)));
   // count contributions dropped as non-finite where the sample itself was fine
-  if (any(ok && !fin)) {
-    if constexpr (std::is_same_v<T, float>) tb.rejected_light += 1;
-    else tb.rejected_light += static_cast<uint64_t>(xsimd::hadd(xsimd::select(ok && !fin, vfloat(1.f), vfloat(0.f))));
-  }
+  if (any(ok && !fin)) tb.rejected_light += static_cast<uint64_t>(count(ok && !fin));
 
   // Shadow ray from the offset origin to the light point, itself offset off the source
   // towards x (pbrt's "spawn ray to"): at grazing angles the ray along wi from a lifted
@@ -112,23 +109,18 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   // Embree does not skip non-finite rays: a lane whose ray is not finite is dropped
   const auto ray_ok = is_finite(dir.x) && is_finite(dir.y) && is_finite(dir.z) && is_finite(tfar) &&
                      is_finite(org.x) && is_finite(org.y) && is_finite(org.z);
-  if (any(live && !ray_ok)) {
-    if constexpr (std::is_same_v<T, float>) tb.rejected_light += 1;
-    else tb.rejected_light += static_cast<uint64_t>(xsimd::hadd(xsimd::select(live && !ray_ok, vfloat(1.f), vfloat(0.f))));
-  }
+  if (any(live && !ray_ok)) tb.rejected_light += static_cast<uint64_t>(count(live && !ray_ok));
   live = live && ray_ok;
-  Ray16& r = tb.shadow[k / packet_width];
-  const int l = k % packet_width;
-  store3(r.org_x + l, r.org_y + l, r.org_z + l, org);
-  store3(r.dir_x + l, r.dir_y + l, r.dir_z + l, dir);
-  store(r.tnear + l, T(0.f));
-  store(r.tfar + l, tfar);
-  store(r.time + l, T(0.f));
-  if constexpr (std::is_same_v<T, float>) tb.valid[k] = live ? -1 : 0;
-  else {
-    const vint v = xsimd::select(i_mask_from_f(live), vint(-1), vint(0));
-    v.store_unaligned(tb.valid + k);
-  }
+  store_field(tb.shadow, &Ray16::org_x, k, org.x);
+  store_field(tb.shadow, &Ray16::org_y, k, org.y);
+  store_field(tb.shadow, &Ray16::org_z, k, org.z);
+  store_field(tb.shadow, &Ray16::dir_x, k, dir.x);
+  store_field(tb.shadow, &Ray16::dir_y, k, dir.y);
+  store_field(tb.shadow, &Ray16::dir_z, k, dir.z);
+  store_field(tb.shadow, &Ray16::tnear, k, T(0.f));
+  store_field(tb.shadow, &Ray16::tfar, k, tfar);
+  store_field(tb.shadow, &Ray16::time, k, T(0.f));
+  store_valid(tb.valid + k, live);
 }
 
 // Draws the pass's random numbers and runs the lanes of every shading point.
@@ -139,7 +131,9 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
   if (Pick && pass.fixed_light < 0)
     sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair, padded, tb.u0, tb.u1);
   sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair + 1, padded, tb.u2, tb.u3);
+  // two batches at a time (vfloat2): the solid-angle maps are latency-bound chains
   int k = 0;
+  for (; k + 2 * simd_width <= padded; k += 2 * simd_width) sample_lights_lanes<vfloat2, Kinds, Pick>(L, est, pass, tb, k);
   for (; k < padded; k += simd_width) sample_lights_lanes<vfloat, Kinds, Pick>(L, est, pass, tb, k);
   for (int p = 0; p < padded / packet_width; ++p) reset_query_fields(tb.shadow[p]);
 }

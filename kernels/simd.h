@@ -120,16 +120,8 @@ inline xsimd::batch_bool<int32_t> i_mask_from_f(const vmask& m) noexcept {
 }
 
 // loads and stores of the lane type from/to plain arrays
-template <class T> inline T load(const float* p) noexcept {
-  if constexpr (std::is_same_v<T, float>) return *p;
-  else return vfloat::load_unaligned(p);
-}
 inline void store(float* p, float v) noexcept { *p = v; }
 inline void store(float* p, const vfloat& v) noexcept { v.store_unaligned(p); }
-template <class T> inline i32_t<T> load_i32(const int32_t* p) noexcept {
-  if constexpr (std::is_same_v<T, float>) return *p;
-  else return vint::load_unaligned(p);
-}
 inline void store(int32_t* p, int32_t v) noexcept { *p = v; }
 inline void store(int32_t* p, const vint& v) noexcept { v.store_unaligned(p); }
 inline void store(uint32_t* p, uint32_t v) noexcept { *p = v; }
@@ -170,21 +162,145 @@ inline vint gather(const int32_t* base, const vint& i) noexcept {
 #endif
 }
 
-// lane index and per-lane construction helpers
-template <class T> inline T lane_iota() noexcept {
-  if constexpr (std::is_same_v<T, float>) return 0.f;
-  else {
-    alignas(64) float v[simd_width];
-    for (int i = 0; i < simd_width; ++i) v[i] = static_cast<float>(i);
-    return vfloat::load_aligned(v);
-  }
-}
-
 inline float finite_or_zero(float x) noexcept { return std::isfinite(x) ? x : 0.f; }
 inline vfloat finite_or_zero(const vfloat& x) noexcept {
   return xsimd::select(xsimd::abs(x) <= vfloat(3.4028234e38f), x, vfloat(0.f));
 }
 inline bool is_finite(float x) noexcept { return std::isfinite(x); }
 inline vmask is_finite(const vfloat& x) noexcept { return xsimd::abs(x) <= vfloat(3.4028234e38f); }
+
+// ---------------------------------------------------------------------------------------
+// Two batches as one lane type, for latency-bound kernels (the solid-angle light stage is a
+// chain of square roots, divisions and polynomials: one batch at a time leaves the core
+// waiting). Every operation is issued for both halves back to back, so the two dependency
+// chains overlap. Half a is lanes [0, W), half b lanes [W, 2W).
+template <class V> struct Twin {
+  V a, b;
+  Twin() = default;
+  Twin(const V& x, const V& y) : a(x), b(y) {}
+  template <class S, class = std::enable_if_t<std::is_arithmetic_v<S>>> Twin(S s) : a(V(s)), b(V(s)) {}
+};
+using vfloat2 = Twin<vfloat>;
+using vint2 = Twin<vint>;
+using vmask2 = Twin<vmask>;
+using vimask2 = Twin<xsimd::batch_bool<int32_t>>;
+
+template <> struct lane_traits<vfloat2> {
+  using mask = vmask2;
+  using i32 = vint2;
+  using u32 = Twin<vuint>;
+  static constexpr int width = 2 * simd_width;
+};
+
+#define TUILE_TWIN_BINARY(op)                                                                                 \
+  template <class V> inline auto operator op(const Twin<V>& x, const Twin<V>& y) noexcept {                  \
+    return Twin<decltype(x.a op y.a)>(x.a op y.a, x.b op y.b);                                                \
+  }                                                                                                           \
+  template <class V, class S, class = std::enable_if_t<std::is_arithmetic_v<S>>>                              \
+  inline auto operator op(const Twin<V>& x, S s) noexcept {                                                   \
+    return x op Twin<V>(s);                                                                                   \
+  }                                                                                                           \
+  template <class V, class S, class = std::enable_if_t<std::is_arithmetic_v<S>>>                              \
+  inline auto operator op(S s, const Twin<V>& y) noexcept {                                                   \
+    return Twin<V>(s) op y;                                                                                   \
+  }
+TUILE_TWIN_BINARY(+)
+TUILE_TWIN_BINARY(-)
+TUILE_TWIN_BINARY(*)
+TUILE_TWIN_BINARY(/)
+TUILE_TWIN_BINARY(<)
+TUILE_TWIN_BINARY(<=)
+TUILE_TWIN_BINARY(>)
+TUILE_TWIN_BINARY(>=)
+TUILE_TWIN_BINARY(==)
+TUILE_TWIN_BINARY(!=)
+TUILE_TWIN_BINARY(&&)
+TUILE_TWIN_BINARY(||)
+#undef TUILE_TWIN_BINARY
+template <class V> inline Twin<V> operator-(const Twin<V>& x) noexcept { return {-x.a, -x.b}; }
+template <class V> inline Twin<V> operator!(const Twin<V>& x) noexcept { return {!x.a, !x.b}; }
+template <class V> inline Twin<V>& operator+=(Twin<V>& x, const Twin<V>& y) noexcept {
+  x.a += y.a;
+  x.b += y.b;
+  return x;
+}
+
+#define TUILE_TWIN_UNARY(fn) \
+  inline vfloat2 fn(const vfloat2& x) noexcept { return {fn(x.a), fn(x.b)}; }
+TUILE_TWIN_UNARY(abs)
+TUILE_TWIN_UNARY(sqrt)
+TUILE_TWIN_UNARY(floor)
+TUILE_TWIN_UNARY(finite_or_zero)
+TUILE_TWIN_UNARY(exp)
+TUILE_TWIN_UNARY(log)
+#undef TUILE_TWIN_UNARY
+inline vfloat2 min(const vfloat2& x, const vfloat2& y) noexcept { return {min(x.a, y.a), min(x.b, y.b)}; }
+inline vfloat2 max(const vfloat2& x, const vfloat2& y) noexcept { return {max(x.a, y.a), max(x.b, y.b)}; }
+inline vint2 min(const vint2& x, const vint2& y) noexcept { return {min(x.a, y.a), min(x.b, y.b)}; }
+inline vint2 max(const vint2& x, const vint2& y) noexcept { return {max(x.a, y.a), max(x.b, y.b)}; }
+inline vmask2 is_finite(const vfloat2& x) noexcept { return {is_finite(x.a), is_finite(x.b)}; }
+inline vfloat2 sel(const vmask2& m, const vfloat2& x, const vfloat2& y) noexcept {
+  return {sel(m.a, x.a, y.a), sel(m.b, x.b, y.b)};
+}
+inline vint2 sel(const vimask2& m, const vint2& x, const vint2& y) noexcept {
+  return {sel(m.a, x.a, y.a), sel(m.b, x.b, y.b)};
+}
+inline vmask2 sel_mask(const vmask2& m, const vmask2& x, const vmask2& y) noexcept {
+  return {sel_mask(m.a, x.a, y.a), sel_mask(m.b, x.b, y.b)};
+}
+inline bool any(const vmask2& m) noexcept { return any(m.a || m.b); }
+inline bool all(const vmask2& m) noexcept { return all(m.a && m.b); }
+inline bool none(const vmask2& m) noexcept { return !any(m); }
+inline vint2 to_i32(const vfloat2& x) noexcept { return {to_i32(x.a), to_i32(x.b)}; }
+inline vfloat2 to_f32(const vint2& x) noexcept { return {to_f32(x.a), to_f32(x.b)}; }
+inline vmask2 f_mask_from_i(const vimask2& m) noexcept { return {f_mask_from_i(m.a), f_mask_from_i(m.b)}; }
+inline vimask2 i_mask_from_f(const vmask2& m) noexcept { return {i_mask_from_f(m.a), i_mask_from_f(m.b)}; }
+inline void store(float* p, const vfloat2& v) noexcept {
+  store(p, v.a);
+  store(p + simd_width, v.b);
+}
+inline void store(int32_t* p, const vint2& v) noexcept {
+  store(p, v.a);
+  store(p + simd_width, v.b);
+}
+inline vfloat2 gather(const float* base, const vint2& i) noexcept { return {gather(base, i.a), gather(base, i.b)}; }
+inline vint2 gather(const int32_t* base, const vint2& i) noexcept { return {gather(base, i.a), gather(base, i.b)}; }
+
+// Lane-type generic forms of what differs between float, vfloat and vfloat2.
+template <class T> inline T load(const float* p) noexcept {
+  if constexpr (std::is_same_v<T, float>) return *p;
+  else if constexpr (std::is_same_v<T, vfloat>) return vfloat::load_unaligned(p);
+  else return T(vfloat::load_unaligned(p), vfloat::load_unaligned(p + simd_width));
+}
+template <class T> inline i32_t<T> load_i32(const int32_t* p) noexcept {
+  if constexpr (std::is_same_v<T, float>) return *p;
+  else if constexpr (std::is_same_v<T, vfloat>) return vint::load_unaligned(p);
+  else return vint2(vint::load_unaligned(p), vint::load_unaligned(p + simd_width));
+}
+template <class T> inline T lane_iota() noexcept {
+  if constexpr (std::is_same_v<T, float>) return 0.f;
+  else if constexpr (std::is_same_v<T, vfloat>) {
+    alignas(64) float v[simd_width];
+    for (int i = 0; i < simd_width; ++i) v[i] = static_cast<float>(i);
+    return vfloat::load_aligned(v);
+  } else {
+    const vfloat lo = lane_iota<vfloat>();
+    return T(lo, lo + vfloat(static_cast<float>(simd_width)));
+  }
+}
+// number of set lanes
+inline int count(bool m) noexcept { return m ? 1 : 0; }
+inline int count(const vmask& m) noexcept { return static_cast<int>(xsimd::hadd(xsimd::select(m, vfloat(1.f), vfloat(0.f)))); }
+inline int count(const vmask2& m) noexcept { return count(m.a) + count(m.b); }
+// -1 (all bits) where the mask is set, else 0: Embree's valid arrays
+inline void store_valid(int32_t* p, bool m) noexcept { *p = m ? -1 : 0; }
+inline void store_valid(int32_t* p, const vmask& m) noexcept {
+  xsimd::select(i_mask_from_f(m), vint(-1), vint(0)).store_unaligned(p);
+}
+inline void store_valid(int32_t* p, const vmask2& m) noexcept {
+  store_valid(p, m.a);
+  store_valid(p + simd_width, m.b);
+}
+
 
 } // namespace tuile
