@@ -49,7 +49,10 @@ struct GeomView {
   const int32_t* geom_material = nullptr;      // per geomID (meshes then spheres), never -1
   const float* sphere_center = nullptr;        // per sphere: centre xyz and radius
   bool has_textures = false;
-  const int32_t* const* prim_light = nullptr;  // per mesh: light of each triangle or nullptr
+  // Every triangle of every mesh, flattened: triangle tri_offset[geomID] + primID.
+  const int32_t* tri_offset = nullptr;         // per geomID (0 for spheres)
+  const float* tri_pos = nullptr;              // per triangle: v0 v1 v2, xyz each (9 floats)
+  const int32_t* tri_light = nullptr;          // per triangle: light or -1
   const int32_t* sphere_light = nullptr;       // per sphere: light or -1
   const float *mat_r = nullptr, *mat_g = nullptr, *mat_b = nullptr;
   const int32_t* mat_texture = nullptr;

@@ -144,10 +144,24 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   L.alias_idx = v.alias_idx.data();
 
   const int32_t default_material = static_cast<int32_t>(scene.materials.size());
+  // Flattened triangles, gathered by the camera-hit stage at 9 * triangle in int32 lanes.
+  size_t tris = 0;
+  for (const Mesh& m : scene.meshes) tris += m.triangle_count();
+  if (9 * (tris + 1) > static_cast<size_t>(INT32_MAX))
+    throw std::runtime_error("scene has " + std::to_string(tris) + " triangles; at most " +
+                             std::to_string(INT32_MAX / 9 - 1) + " are supported");
+  v.tri_pos.reserve(9 * (tris + 1));
+  v.tri_light.reserve(tris + 1);
   for (const Mesh& m : scene.meshes) {
     v.geom_material.push_back(m.material >= 0 ? m.material : default_material);
-
-    v.prim_light.push_back(m.prim_light.empty() ? nullptr : m.prim_light.data());
+    v.tri_offset.push_back(static_cast<int32_t>(v.tri_light.size()));
+    for (size_t t = 0; t < m.triangle_count(); ++t) {
+      for (int k = 0; k < 3; ++k) {
+        const float* p = m.positions.data() + 3 * static_cast<size_t>(m.indices[3 * t + k]);
+        v.tri_pos.insert(v.tri_pos.end(), p, p + 3);
+      }
+      v.tri_light.push_back(m.prim_light.empty() ? -1 : m.prim_light[t]);
+    }
     v.indices.push_back(m.indices.data());
     v.positions.push_back(m.positions.data());
     v.uvs.push_back(m.uvs.empty() ? nullptr : m.uvs.data());
@@ -156,8 +170,11 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     v.geom_material.push_back(s.material >= 0 ? s.material : default_material);
     v.sphere_center.insert(v.sphere_center.end(), {s.center.x, s.center.y, s.center.z, s.radius});
     v.sphere_light.push_back(s.light);
+    v.tri_offset.push_back(0);
   }
   v.sphere_light.push_back(-1);  // never empty
+  v.tri_pos.insert(v.tri_pos.end(), 9, 0.f);  // a spare triangle: never empty
+  v.tri_light.push_back(-1);
   for (const Material& m : scene.materials) {
     v.mat_r.push_back(m.reflectance.r);
     v.mat_g.push_back(m.reflectance.g);
@@ -178,7 +195,9 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   G.mesh_count = static_cast<int32_t>(scene.meshes.size());
   G.geom_material = v.geom_material.data();
   G.sphere_center = v.sphere_center.data();
-  G.prim_light = v.prim_light.data();
+  G.tri_offset = v.tri_offset.data();
+  G.tri_pos = v.tri_pos.data();
+  G.tri_light = v.tri_light.data();
   G.sphere_light = v.sphere_light.data();
   G.mat_r = v.mat_r.data();
   G.mat_g = v.mat_g.data();
