@@ -12,8 +12,6 @@
 
 namespace tuile {
 
-inline float luminance(float r, float g, float b) { return 0.2126f * r + 0.7152f * g + 0.0722f * b; }
-
 // Reflectance at a hit: material constant or texture lookup (nearest texel, wrap).
 inline void hit_albedo(const GeomView& G, uint32_t geom, uint32_t prim, float u, float v, float& r, float& g,
                        float& b) {

@@ -82,6 +82,12 @@ struct alignas(64) TileBuffers {
   alignas(64) float Lr[max_tile_lanes], Lg[max_tile_lanes], Lb[max_tile_lanes];
   alignas(64) float wsum[max_tile_lanes], wcnt[max_tile_lanes];  // MIS weight of the BSDF technique (AOV)
 
+  // per tile pixel, summed over the tile's samples in double, added to the Film at the end
+  alignas(64) double acc_r[max_tile_lanes], acc_g[max_tile_lanes], acc_b[max_tile_lanes];
+  alignas(64) double acc_rr[max_tile_lanes], acc_gg[max_tile_lanes], acc_bb[max_tile_lanes];  // squares
+  alignas(64) double acc_w[max_tile_lanes], acc_wc[max_tile_lanes];  // wsum, wcnt
+  alignas(64) float acc_max[max_tile_lanes];                          // largest sample luminance
+
   // compacted shading points: the camera hits
   int shade_count = 0;
   alignas(64) float px[max_tile_lanes], py[max_tile_lanes], pz[max_tile_lanes];

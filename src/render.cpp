@@ -12,6 +12,7 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "../kernels/accumulate.h"
 #include "../kernels/generate.h"
 #include "../kernels/hit.h"
 #include "../kernels/sample_cosine.h"
@@ -332,6 +333,9 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   }
   const int cam_packets = (lanes + packet_width - 1) / packet_width;
   StageTimer timer(tp, c, tile);
+  timer.start();
+  clear_tile_sums(tb, lanes);
+  timer.stop(Stage::accumulate);
   for (uint32_t s = begin; s < end; ++s) {
     timer.start();
     generate(v.camera, est, s, lanes, tb);
@@ -396,32 +400,34 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
         }
       }
     }
-    // one sample of every pixel of the tile into the film, in double
+    // one sample of every pixel into the tile's double sums
     timer.start();
-    for (int i = 0; i < lanes; ++i) {
-      const size_t pix = tb.pixel[i];
-      double r = tb.Lr[i], g = tb.Lg[i], b = tb.Lb[i];
-      if (!(std::isfinite(r) && std::isfinite(g) && std::isfinite(b))) {
-        ++tb.rejected_camera;
-        r = g = b = 0;
-      }
-      double* sp = &film.sum[3 * pix];
-      double* sq = &film.sum_sq[3 * pix];
-      sp[0] += r;
-      sp[1] += g;
-      sp[2] += b;
-      sq[0] += r * r;
-      sq[1] += g * g;
-      sq[2] += b * b;
-      if (est.aov_mis_weight) {  // no AOV requested: none computed
-        film.w_sum[pix] += tb.wsum[i];
-        film.w_cnt[pix] += tb.wcnt[i];
-      }
-      const float y = luminance(static_cast<float>(r), static_cast<float>(g), static_cast<float>(b));
-      if (y > film.max_sample[pix]) film.max_sample[pix] = y;
-    }
+    accumulate_samples(tb, lanes, est.aov_mis_weight);
     timer.stop(Stage::accumulate);
   }
+  // The tile's sums into the film, once. Each pixel belongs to one tile, so the film
+  // gets the same bits for any thread count and tile order. A fresh film (0) gets the
+  // bits of adding sample by sample; a film that already holds samples (progressive
+  // renders) gets its old sum plus this render's partial sum: other rounding than adding
+  // one sample at a time, equally deterministic.
+  timer.start();
+  for (int i = 0; i < lanes; ++i) {
+    const size_t pix = tb.pixel[i];
+    double* sp = &film.sum[3 * pix];
+    double* sq = &film.sum_sq[3 * pix];
+    sp[0] += tb.acc_r[i];
+    sp[1] += tb.acc_g[i];
+    sp[2] += tb.acc_b[i];
+    sq[0] += tb.acc_rr[i];
+    sq[1] += tb.acc_gg[i];
+    sq[2] += tb.acc_bb[i];
+    if (est.aov_mis_weight) {
+      film.w_sum[pix] += tb.acc_w[i];
+      film.w_cnt[pix] += tb.acc_wc[i];
+    }
+    if (tb.acc_max[i] > film.max_sample[pix]) film.max_sample[pix] = tb.acc_max[i];
+  }
+  timer.stop(Stage::accumulate);
 }
 
 using TileFn = void (*)(const TileContext&, TileBuffers&, ThreadProfile*, int, uint32_t, uint32_t);

@@ -1,7 +1,7 @@
 // Every SIMD lane equals the scalar reference, for every stage kernel: the samplers,
 // camera rays, the camera-hit stage, light point sampling and its pdf, the light-sampling
-// stage, the cosine stage and the MIS weight stage (the whole per-lane state they write
-// is compared).
+// stage, the cosine stage, the MIS weight stage and the film accumulation (the whole
+// per-lane state they write is compared).
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -10,6 +10,7 @@
 #include <random>
 #include <set>
 
+#include "../kernels/accumulate.h"
 #include "../kernels/generate.h"
 #include "../kernels/hit.h"
 #include "embree.h"
@@ -372,3 +373,35 @@ TEST(Lanes, CameraHitsEqualScalar) {
     }
 }
 
+// Film accumulation into the tile's double sums, with non-finite samples and padding.
+TEST(Lanes, AccumulateEqualScalar) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> U(0.f, 4.f);
+  for (int lanes : {256, 250, 7}) {
+    auto a = std::make_unique<TileBuffers>();
+    clear_tile_sums(*a, lanes);
+    auto b = std::make_unique<TileBuffers>(*a);
+    for (int pass = 0; pass < 5; ++pass) {
+      for (int i = 0; i < 256; ++i) {
+        float r = U(rng), g = U(rng), bl = U(rng);
+        if (rng() % 17 == 0) r = std::numeric_limits<float>::quiet_NaN();
+        if (rng() % 23 == 0) bl = -std::numeric_limits<float>::infinity();
+        if (rng() % 5 == 0) g = 0.f;
+        a->Lr[i] = b->Lr[i] = r;
+        a->Lg[i] = b->Lg[i] = g;
+        a->Lb[i] = b->Lb[i] = bl;
+        a->wsum[i] = b->wsum[i] = U(rng);
+        a->wcnt[i] = b->wcnt[i] = static_cast<float>(rng() % 3);
+      }
+      accumulate_samples<vfloat>(*a, lanes, true);
+      accumulate_samples<float>(*b, lanes, true);
+    }
+    ASSERT_EQ(a->rejected_camera, b->rejected_camera) << lanes;
+    EXPECT_GT(a->rejected_camera, 0u) << lanes;
+    for (auto arr : {&TileBuffers::acc_r, &TileBuffers::acc_g, &TileBuffers::acc_b, &TileBuffers::acc_rr,
+                     &TileBuffers::acc_gg, &TileBuffers::acc_bb, &TileBuffers::acc_w, &TileBuffers::acc_wc})
+      for (int i = 0; i < lanes; ++i)
+        ASSERT_TRUE(std::memcmp(&((*a).*arr)[i], &((*b).*arr)[i], sizeof(double)) == 0) << lanes << " lane " << i;
+    expect_same_floats(a->acc_max, b->acc_max, lanes, [&] { return "max lanes " + std::to_string(lanes); });
+  }
+}
