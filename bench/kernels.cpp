@@ -7,11 +7,13 @@
 #include <random>
 
 #include "../kernels/generate.h"
+#include "../kernels/hit.h"
 #include "../kernels/mis.h"
 #include "../kernels/rng.h"
 #include "../kernels/sample_cosine.h"
 #include "../kernels/sample_lights.h"
 #include "../kernels/weight.h"
+#include "embree.h"
 #include "render.h"
 #include "scene.h"
 
@@ -104,6 +106,22 @@ template <class T> void BM_generate(benchmark::State& state) {
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }
+// The whole camera-hit stage on one traced 16x16 tile at the image centre.
+template <class T> void BM_camera_hits(benchmark::State& state) {
+  Fixture f;
+  Accel accel(f.scene);
+  for (int k = 0; k < lanes; ++k) {
+    f.tb->fx[k] = static_cast<float>(f.scene.camera.width / 2 - 8 + k % 16);
+    f.tb->fy[k] = static_cast<float>(f.scene.camera.height / 2 - 8 + k / 16);
+  }
+  generate(f.views.camera, f.est, 0, lanes, *f.tb);
+  for (int p = 0; p < lanes / packet_width; ++p) accel.intersect16(f.tb->cam_valid + p * packet_width, f.tb->cam[p], true);
+  for (auto _ : state) {
+    camera_hits<true, T>(f.views.geom, f.views.lights, f.est, 0, lanes, *f.tb);
+    benchmark::DoNotOptimize(f.tb->px[0]);
+  }
+  state.SetItemsProcessed(state.iterations() * lanes);
+}
 template <class T> void BM_heuristic(benchmark::State& state) {
   alignas(64) float a[lanes], b[lanes], out[lanes];
   for (int i = 0; i < lanes; ++i) a[i] = 0.1f + i, b[i] = 3.f + 0.5f * i;
@@ -138,6 +156,8 @@ BENCHMARK_TEMPLATE(BM_sample_cosine, vfloat);
 BENCHMARK_TEMPLATE(BM_sample_cosine, float);
 BENCHMARK_TEMPLATE(BM_generate, vfloat);
 BENCHMARK_TEMPLATE(BM_generate, float);
+BENCHMARK_TEMPLATE(BM_camera_hits, vfloat);
+BENCHMARK_TEMPLATE(BM_camera_hits, float);
 // Arg: heuristic 0 balance, 1 power, 2 cutoff, 3 maximum
 BENCHMARK_TEMPLATE(BM_heuristic, vfloat)->DenseRange(0, 3);
 BENCHMARK_TEMPLATE(BM_heuristic, float)->DenseRange(0, 3);

@@ -1,14 +1,16 @@
 // Stage 2b, camera hits: turns the camera packets Embree filled into compacted shading
-// points (position, facing normal, albedo, ray offset), adds the radiance of emitters
-// seen directly, and draws the one-sample MIS technique choice.
-// Reads: camera packets, geometry/material/light tables. Writes: shading point arrays,
-// tile radiance. Scalar per lane: it is gathers and compaction, not arithmetic.
+// points (position, facing normal, albedo, ray offset, pixel, lane), adds the radiance
+// of emitters seen directly, and draws the one-sample MIS technique choice.
+// Reads: camera packets, geometry/material/light tables (triangles flattened by
+// build_views). Writes: shading point arrays, tile radiance, rejected_camera. SIMD per
+// lane with compress stores; only texture lookups stay scalar.
 #pragma once
+#include <bit>
+
 #include "tile.h"
+#include "vec.h"
 
 namespace tuile {
-
-inline float luminance(float r, float g, float b) { return 0.2126f * r + 0.7152f * g + 0.0722f * b; }
 
 // Reflectance at a hit: material constant or texture lookup (nearest texel, wrap).
 inline void hit_albedo(const GeomView& G, uint32_t geom, uint32_t prim, float u, float v, float& r, float& g,
@@ -38,127 +40,175 @@ inline void hit_albedo(const GeomView& G, uint32_t geom, uint32_t prim, float u,
 // The light a ray hit, or -1.
 inline int32_t light_of_hit(const GeomView& G, uint32_t geom, uint32_t prim) {
   if (geom == invalid_id) return -1;
-  if (static_cast<int32_t>(geom) < G.mesh_count) {
-    const int32_t* pl = G.prim_light[geom];
-    return pl ? pl[prim] : -1;
-  }
+  if (static_cast<int32_t>(geom) < G.mesh_count) return G.tri_light[G.tri_offset[geom] + static_cast<int32_t>(prim)];
   return G.sphere_light[geom - G.mesh_count];
 }
 
 // Whether a ray from o travelling along d sees the emitting side of light l: one-sided
 // planar sources emit on the side of their normal, spheres outwards (a ray starting
 // inside a sphere light sees no emission, as in pbrt).
+template <class T>
+inline mask_t<T> light_front_lanes(const LightView& L, const i32_t<T>& l, const Vec3<T>& o, const Vec3<T>& d) {
+  const Vec3<T> c = o - gather3(L.p0x, L.p0y, L.p0z, l);
+  const T r = gather(L.e1x, l);
+  const auto sphere = f_mask_from_i(gather(L.type, l) == i32_t<T>(lt_sphere));
+  const auto outside = dot(c, c) > r * r;
+  const auto front = gather(L.two_sided, l) > T(0.f) || dot(d, gather3(L.nx, L.ny, L.nz, l)) < T(0.f);
+  return sel_mask(sphere, outside, front);
+}
 inline bool light_front(const LightView& L, int32_t l, float ox, float oy, float oz, float dx, float dy, float dz) {
-  if (L.type[l] == lt_sphere) {
-    const float cx = ox - L.p0x[l], cy = oy - L.p0y[l], cz = oz - L.p0z[l], r = L.e1x[l];
-    return cx * cx + cy * cy + cz * cz > r * r;
-  }
-  if (L.two_sided[l] > 0.f) return true;
-  return dx * L.nx[l] + dy * L.ny[l] + dz * L.nz[l] < 0.f;
+  return light_front_lanes<float>(L, l, {ox, oy, oz}, {dx, dy, dz});
 }
 
 // Ray offset for a surface point: the per-axis error bound of the point projected on the
 // normal (pbrt-v4's OffsetRayOrigin), never zero so the new ray starts off the plane.
-inline float offset_along_normal(vec3f err, vec3f n) {
-  return std::fabs(n.x) * err.x + std::fabs(n.y) * err.y + std::fabs(n.z) * err.z + 1e-30f;
+template <class T> inline T offset_along_normal(const Vec3<T>& err, const Vec3<T>& n) {
+  return abs(n.x) * err.x + abs(n.y) * err.y + abs(n.z) * err.z + T(1e-30f);
 }
 
-// SIMD half of the camera-hit stage, lanes [i, i + width): hit point, facing normal,
-// material reflectance for every lane, written in lane order to the queue arrays
-// (scratch here). The point o + t d is refined with its error bound in the scalar half.
-template <class T> TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, TileBuffers& tb, int i) {
+// Lanes [i, i + width) of the camera packets: the hits among the first `lanes` become
+// shading points n, n + 1, ... in lane order (n is advanced). A hit with a degenerate
+// normal or distance is rejected (counted, no shading point).
+template <class T, bool Emitters>
+TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int i, int lanes,
+                                           int& n) {
   const RayHit16& p = tb.cam[i / packet_width];
   const int l = i % packet_width;
+  const i32_t<T> lane = i32_t<T>(i) + lane_iota_i32<T>();
   const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(p.geomID + l));
-  const auto hit = f_mask_from_i(geom >= i32_t<T>(0));  // invalid_id reads as -1
+  const auto hit = f_mask_from_i(geom >= i32_t<T>(0) && lane < i32_t<T>(lanes));  // invalid_id reads as -1
   const i32_t<T> gi = max(geom, i32_t<T>(0));
   const T t = load<T>(p.ray.tfar + l);
   const Vec3<T> o = load3<T>(p.ray.org_x + l, p.ray.org_y + l, p.ray.org_z + l);
   const Vec3<T> d = load3<T>(p.ray.dir_x + l, p.ray.dir_y + l, p.ray.dir_z + l);
-  const Vec3<T> x = o + d * t;
   Vec3<T> ng = load3<T>(p.Ng_x + l, p.Ng_y + l, p.Ng_z + l);
   const T len = length(ng);
   const auto ok = hit && len > T(0.f) && is_finite(len) && is_finite(t);
+  tb.rejected_camera += static_cast<uint64_t>(std::popcount(lane_bits(hit && !ok)));
+  const uint32_t keep = lane_bits(ok);
+  if (!keep) return;
   ng = ng * (T(1.f) / sel(ok, len, T(1.f)));
-  ng = sel(dot(ng, d) > T(0.f), -ng, ng);  // face the viewer: diffuse reflection on both sides
-  const i32_t<T> mat = gather(G.geom_material, gi);
-  store3(tb.qx + i, tb.qy + i, tb.qz + i, x);
-  store3(tb.qnx + i, tb.qny + i, tb.qnz + i, ng);
-  store(tb.qar + i, gather(G.mat_r, mat));
-  store(tb.qag + i, gather(G.mat_g, mat));
-  store(tb.qab + i, gather(G.mat_b, mat));
-  store(tb.qdx + i, sel(ok, T(1.f), T(0.f)));
+  // face the viewer: diffuse reflection on both sides. 0 - n, not -n: xsimd 8 negates
+  // AVX-512 lanes as 0 - x, so this keeps +0 components in every build and the reference.
+  ng = sel(dot(ng, d) > T(0.f), Vec3<T>(T(0.f), T(0.f), T(0.f)) - ng, ng);
+
+  // The hit point and its error bound (pbrt-v4): for triangles from the barycentrics,
+  // err_i = gamma(7) sum_k |b_k v_k,i|, so an axis-aligned plane at any distance keeps
+  // an exact coordinate; for spheres reprojected onto the surface, err = gamma(5) |x|.
+  const auto tri_i = i_mask_from_f(ok) && geom < i32_t<T>(G.mesh_count);
+  const auto sphere = ok && !f_mask_from_i(tri_i);
+  const i32_t<T> prim = load_i32<T>(reinterpret_cast<const int32_t*>(p.primID + l));
+  // Coherent camera rays often hit one geometry, even one triangle, in every lane: then
+  // broadcasts of the first hit's data replace the gathers (same values). Lanes without
+  // a triangle read triangle 0.
+  const int k0 = std::countr_zero(keep);
+  const int32_t g0 = static_cast<int32_t>(p.geomID[l + k0]), p0 = static_cast<int32_t>(p.primID[l + k0]);
+  const bool one_geom = all(!ok || f_mask_from_i(geom == i32_t<T>(g0)));
+  const bool one_tri = one_geom && (g0 >= G.mesh_count || all(!ok || f_mask_from_i(prim == i32_t<T>(p0))));
+  const int32_t t0 = g0 < G.mesh_count ? G.tri_offset[g0] + p0 : 0;
+  i32_t<T> tri;
+  Vec3<T> v0, v1, v2;
+  if (one_tri) {
+    const float* P = G.tri_pos + 9 * static_cast<size_t>(t0);
+    tri = i32_t<T>(t0);
+    v0 = {T(P[0]), T(P[1]), T(P[2])};
+    v1 = {T(P[3]), T(P[4]), T(P[5])};
+    v2 = {T(P[6]), T(P[7]), T(P[8])};
+  } else {
+    tri = sel(tri_i, gather(G.tri_offset, gi) + prim, i32_t<T>(0));
+    const i32_t<T> tv = tri * i32_t<T>(9);
+    v0 = gather3(G.tri_pos, G.tri_pos + 1, G.tri_pos + 2, tv);
+    v1 = gather3(G.tri_pos + 3, G.tri_pos + 4, G.tri_pos + 5, tv);
+    v2 = gather3(G.tri_pos + 6, G.tri_pos + 7, G.tri_pos + 8, tv);
+  }
+  const T b1 = load<T>(p.u + l), b2 = load<T>(p.v + l), b0 = T(1.f) - b1 - b2;
+  Vec3<T> x{b0 * v0.x + b1 * v1.x + b2 * v2.x, b0 * v0.y + b1 * v1.y + b2 * v2.y, b0 * v0.z + b1 * v1.z + b2 * v2.z};
+  const T g7(gamma_err(7));
+  Vec3<T> err{g7 * (abs(b0 * v0.x) + abs(b1 * v1.x) + abs(b2 * v2.x)),
+              g7 * (abs(b0 * v0.y) + abs(b1 * v1.y) + abs(b2 * v2.y)),
+              g7 * (abs(b0 * v0.z) + abs(b1 * v1.z) + abs(b2 * v2.z))};
+  if (any(sphere)) {
+    const i32_t<T> s4 = sel(i_mask_from_f(sphere), gi - i32_t<T>(G.mesh_count), i32_t<T>(0)) * i32_t<T>(4);
+    const Vec3<T> c = gather3(G.sphere_center, G.sphere_center + 1, G.sphere_center + 2, s4);
+    Vec3<T> rel = o + d * t - c;
+    rel = rel * (gather(G.sphere_center + 3, s4) / length(rel));
+    const Vec3<T> xs = c + rel;
+    const T g5(gamma_err(5));
+    x = sel(sphere, xs, x);
+    err = sel(sphere, Vec3<T>{g5 * abs(xs.x), g5 * abs(xs.y), g5 * abs(xs.z)}, err);
+  }
+
+  if constexpr (Emitters) {
+    i32_t<T> light = sel(tri_i, one_tri ? i32_t<T>(G.tri_light[t0]) : gather(G.tri_light, tri), i32_t<T>(-1));
+    if (any(sphere)) {
+      const i32_t<T> sl = sel(i_mask_from_f(sphere), gi - i32_t<T>(G.mesh_count), i32_t<T>(0));
+      light = sel(i_mask_from_f(sphere), gather(G.sphere_light, sl), light);
+    }
+    const auto lit = f_mask_from_i(light >= i32_t<T>(0));
+    if (any(lit)) {  // then the light table is not empty
+      const i32_t<T> li = max(light, i32_t<T>(0));
+      const auto emit = lit && light_front_lanes<T>(L, li, o, d);
+      store(tb.Lr + i, sel(emit, load<T>(tb.Lr + i) + gather(L.Lr, li), load<T>(tb.Lr + i)));
+      store(tb.Lg + i, sel(emit, load<T>(tb.Lg + i) + gather(L.Lg, li), load<T>(tb.Lg + i)));
+      store(tb.Lb + i, sel(emit, load<T>(tb.Lb + i) + gather(L.Lb, li), load<T>(tb.Lb + i)));
+    }
+  }
+
+  T ar, ag, ab;
+  if (one_geom) {
+    const int32_t m = G.geom_material[g0];
+    ar = T(G.mat_r[m]);
+    ag = T(G.mat_g[m]);
+    ab = T(G.mat_b[m]);
+  } else {
+    const i32_t<T> mat = gather(G.geom_material, gi);
+    ar = gather(G.mat_r, mat);
+    ag = gather(G.mat_g, mat);
+    ab = gather(G.mat_b, mat);
+  }
+  if (G.has_textures) {
+    if constexpr (std::is_same_v<T, float>) {
+      hit_albedo(G, static_cast<uint32_t>(geom), static_cast<uint32_t>(prim), b1, b2, ar, ag, ab);
+    } else {
+      alignas(64) float r[simd_width], g[simd_width], b[simd_width];
+      ar.store_aligned(r);
+      ag.store_aligned(g);
+      ab.store_aligned(b);
+      for (uint32_t bits = keep; bits; bits &= bits - 1) {
+        const int k = std::countr_zero(bits);
+        hit_albedo(G, p.geomID[l + k], p.primID[l + k], p.u[l + k], p.v[l + k], r[k], g[k], b[k]);
+      }
+      ar = vfloat::load_aligned(r);
+      ag = vfloat::load_aligned(g);
+      ab = vfloat::load_aligned(b);
+    }
+  }
+
+  // compaction: n <= i, so a whole batch written at n stays inside the arrays
+  compress_store(tb.px + n, x.x, keep);
+  compress_store(tb.py + n, x.y, keep);
+  compress_store(tb.pz + n, x.z, keep);
+  compress_store(tb.nx + n, ng.x, keep);
+  compress_store(tb.ny + n, ng.y, keep);
+  compress_store(tb.nz + n, ng.z, keep);
+  compress_store(tb.eps + n, offset_along_normal(err, ng), keep);
+  compress_store(tb.ar + n, ar, keep);
+  compress_store(tb.ag + n, ag, keep);
+  compress_store(tb.ab + n, ab, keep);
+  compress_store(reinterpret_cast<int32_t*>(tb.spix + n), load_i32<T>(reinterpret_cast<const int32_t*>(tb.pixel + i)),
+                 keep);
+  compress_store(tb.slane + n, lane, keep);
+  n += std::popcount(keep);
 }
 
-// Emitters: false when the scene has no area light (no emitter lookups at all).
-template <bool Emitters = true>
+// The whole stage for lanes [0, lanes) of the tile. Emitters: false when the scene has
+// no area light (no emitter lookups at all). T = float is the scalar reference.
+template <bool Emitters = true, class T = vfloat>
 inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& est, uint32_t sample, int lanes,
                         TileBuffers& tb) {
   const int padded_lanes = (lanes + packet_width - 1) / packet_width * packet_width;
-  int i = 0;
-  for (; i < padded_lanes; i += simd_width) camera_hit_lanes<vfloat>(G, tb, i);
   int n = 0;
-  for (i = 0; i < lanes; ++i) {
-    const RayHit16& p = tb.cam[i / packet_width];
-    const int l = i % packet_width;
-    const uint32_t geom = p.geomID[l];
-    if (geom == invalid_id) continue;
-    if (!(tb.qdx[i] > 0.f)) {
-      ++tb.rejected_camera;
-      continue;
-    }
-    if constexpr (Emitters) {
-      const int32_t light = light_of_hit(G, geom, p.primID[l]);
-      if (light >= 0 && light_front(L, light, p.ray.org_x[l], p.ray.org_y[l], p.ray.org_z[l], p.ray.dir_x[l],
-                                    p.ray.dir_y[l], p.ray.dir_z[l])) {
-        tb.Lr[i] += L.Lr[light];
-        tb.Lg[i] += L.Lg[light];
-        tb.Lb[i] += L.Lb[light];
-      }
-    }
-    float r = tb.qar[i], g = tb.qag[i], b = tb.qab[i];
-    if (G.has_textures) hit_albedo(G, geom, p.primID[l], p.u[l], p.v[l], r, g, b);
-    // The hit point and its error bound (pbrt-v4): for triangles from the barycentrics,
-    // err_i = gamma(7) sum_k |b_k v_k,i|, so an axis-aligned plane at any distance keeps
-    // an exact coordinate; for spheres reprojected onto the surface, err = gamma(5) |x|.
-    vec3f x{tb.qx[i], tb.qy[i], tb.qz[i]};
-    const vec3f nrm{tb.qnx[i], tb.qny[i], tb.qnz[i]};
-    vec3f err;
-    if (static_cast<int32_t>(geom) < G.mesh_count) {
-      const uint32_t* tri = G.indices[geom] + 3 * p.primID[l];
-      const float* P = G.positions[geom];
-      const float b1 = p.u[l], b2 = p.v[l], b0 = 1.f - b1 - b2;
-      const float* v0 = P + 3 * tri[0];
-      const float* v1 = P + 3 * tri[1];
-      const float* v2 = P + 3 * tri[2];
-      x = {b0 * v0[0] + b1 * v1[0] + b2 * v2[0], b0 * v0[1] + b1 * v1[1] + b2 * v2[1],
-           b0 * v0[2] + b1 * v1[2] + b2 * v2[2]};
-      const float g7 = gamma_err(7);
-      err = {g7 * (std::fabs(b0 * v0[0]) + std::fabs(b1 * v1[0]) + std::fabs(b2 * v2[0])),
-             g7 * (std::fabs(b0 * v0[1]) + std::fabs(b1 * v1[1]) + std::fabs(b2 * v2[1])),
-             g7 * (std::fabs(b0 * v0[2]) + std::fabs(b1 * v1[2]) + std::fabs(b2 * v2[2]))};
-    } else {
-      const float* c = G.sphere_center + 4 * (geom - G.mesh_count);
-      vec3f rel{x.x - c[0], x.y - c[1], x.z - c[2]};
-      rel = rel * (c[3] / length(rel));
-      x = {c[0] + rel.x, c[1] + rel.y, c[2] + rel.z};
-      const float g5 = gamma_err(5);
-      err = {g5 * std::fabs(x.x), g5 * std::fabs(x.y), g5 * std::fabs(x.z)};
-    }
-    tb.px[n] = x.x;
-    tb.py[n] = x.y;
-    tb.pz[n] = x.z;
-    tb.nx[n] = nrm.x;
-    tb.ny[n] = nrm.y;
-    tb.nz[n] = nrm.z;
-    tb.eps[n] = offset_along_normal(err, nrm);
-    tb.ar[n] = r;
-    tb.ag[n] = g;
-    tb.ab[n] = b;
-    tb.spix[n] = tb.pixel[i];
-    tb.slane[n] = i;
-    ++n;
-  }
+  for (int i = 0; i < padded_lanes; i += lane_traits<T>::width) camera_hit_lanes<T, Emitters>(G, L, tb, i, lanes, n);
   tb.shade_count = n;
   // pad to whole packets with copies of a real point; padding lanes are never active
   const int padded = (n + packet_width - 1) / packet_width * packet_width;

@@ -2,6 +2,7 @@
 // reference) or T = vfloat (one xsimd batch, the width of the build machine).
 // The helpers below give both the same spelling: sel, any, all, gathers, casts.
 #pragma once
+#include <bit>
 #include <cmath>
 #include <cstdint>
 // GCC 12's AVX-512 intrinsic headers warn about their own _mm512_undefined_* values once
@@ -161,6 +162,54 @@ inline vint gather(const int32_t* base, const vint& i) noexcept {
   return vint::load_aligned(out);
 #endif
 }
+
+template <class T> inline i32_t<T> lane_iota_i32() noexcept {
+  if constexpr (std::is_same_v<T, float>) return 0;
+  else {
+    alignas(64) int32_t v[simd_width];
+    for (int i = 0; i < simd_width; ++i) v[i] = i;
+    return vint::load_aligned(v);
+  }
+}
+
+// Bit l set where lane l of the mask is.
+inline uint32_t lane_bits(bool m) noexcept { return m ? 1u : 0u; }
+inline uint32_t lane_bits(const vmask& m) noexcept {
+#if defined(__AVX512F__)
+  return static_cast<__mmask16>(m);
+#elif defined(__AVX__)
+  return static_cast<uint32_t>(_mm256_movemask_ps(m));
+#else
+  return static_cast<uint32_t>(_mm_movemask_ps(m));
+#endif
+}
+
+// Compaction: writes the lanes of v whose bit is set, in lane order, to dst[0..popcount).
+// AVX-512 compresses in a register and stores the whole batch (the memory form of
+// vcompressps is microcoded on Zen 4): dst must have room for a whole batch, and the
+// lanes past popcount are left with garbage.
+inline void compress_store(float* dst, float v, uint32_t bits) noexcept {
+  if (bits) *dst = v;
+}
+inline void compress_store(int32_t* dst, int32_t v, uint32_t bits) noexcept {
+  if (bits) *dst = v;
+}
+#if defined(__AVX512F__)
+inline void compress_store(float* dst, const vfloat& v, uint32_t bits) noexcept {
+  _mm512_storeu_ps(dst, _mm512_maskz_compress_ps(static_cast<__mmask16>(bits), v));
+}
+inline void compress_store(int32_t* dst, const vint& v, uint32_t bits) noexcept {
+  _mm512_storeu_si512(dst, _mm512_maskz_compress_epi32(static_cast<__mmask16>(bits), v));
+}
+#else
+template <class V, class S> inline void compress_store_lanes(S* dst, const V& v, uint32_t bits) noexcept {
+  alignas(64) S tmp[simd_width];
+  v.store_aligned(tmp);
+  for (int k = 0; bits; ++k, bits &= bits - 1) dst[k] = tmp[std::countr_zero(bits)];
+}
+inline void compress_store(float* dst, const vfloat& v, uint32_t bits) noexcept { compress_store_lanes(dst, v, bits); }
+inline void compress_store(int32_t* dst, const vint& v, uint32_t bits) noexcept { compress_store_lanes(dst, v, bits); }
+#endif
 
 inline float finite_or_zero(float x) noexcept { return std::isfinite(x) ? x : 0.f; }
 inline vfloat finite_or_zero(const vfloat& x) noexcept {

@@ -49,7 +49,10 @@ struct GeomView {
   const int32_t* geom_material = nullptr;      // per geomID (meshes then spheres), never -1
   const float* sphere_center = nullptr;        // per sphere: centre xyz and radius
   bool has_textures = false;
-  const int32_t* const* prim_light = nullptr;  // per mesh: light of each triangle or nullptr
+  // Every triangle of every mesh, flattened: triangle tri_offset[geomID] + primID.
+  const int32_t* tri_offset = nullptr;         // per geomID (0 for spheres)
+  const float* tri_pos = nullptr;              // per triangle: v0 v1 v2, xyz each (9 floats)
+  const int32_t* tri_light = nullptr;          // per triangle: light or -1
   const int32_t* sphere_light = nullptr;       // per sphere: light or -1
   const float *mat_r = nullptr, *mat_g = nullptr, *mat_b = nullptr;
   const int32_t* mat_texture = nullptr;
@@ -78,6 +81,12 @@ struct alignas(64) TileBuffers {
   alignas(64) int32_t cam_valid[max_tile_lanes];
   alignas(64) float Lr[max_tile_lanes], Lg[max_tile_lanes], Lb[max_tile_lanes];
   alignas(64) float wsum[max_tile_lanes], wcnt[max_tile_lanes];  // MIS weight of the BSDF technique (AOV)
+
+  // per tile pixel, summed over the tile's samples in double, added to the Film at the end
+  alignas(64) double acc_r[max_tile_lanes], acc_g[max_tile_lanes], acc_b[max_tile_lanes];
+  alignas(64) double acc_rr[max_tile_lanes], acc_gg[max_tile_lanes], acc_bb[max_tile_lanes];  // squares
+  alignas(64) double acc_w[max_tile_lanes], acc_wc[max_tile_lanes];  // wsum, wcnt
+  alignas(64) float acc_max[max_tile_lanes];                          // largest sample luminance
 
   // compacted shading points: the camera hits
   int shade_count = 0;

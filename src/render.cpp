@@ -12,6 +12,7 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "../kernels/accumulate.h"
 #include "../kernels/generate.h"
 #include "../kernels/hit.h"
 #include "../kernels/sample_cosine.h"
@@ -155,10 +156,24 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   L.alias_idx = v.alias_idx.data();
 
   const int32_t default_material = static_cast<int32_t>(scene.materials.size());
+  // Flattened triangles, gathered by the camera-hit stage at 9 * triangle in int32 lanes.
+  size_t tris = 0;
+  for (const Mesh& m : scene.meshes) tris += m.triangle_count();
+  if (9 * (tris + 1) > static_cast<size_t>(INT32_MAX))
+    throw std::runtime_error("scene has " + std::to_string(tris) + " triangles; at most " +
+                             std::to_string(INT32_MAX / 9 - 1) + " are supported");
+  v.tri_pos.reserve(9 * (tris + 1));
+  v.tri_light.reserve(tris + 1);
   for (const Mesh& m : scene.meshes) {
     v.geom_material.push_back(m.material >= 0 ? m.material : default_material);
-
-    v.prim_light.push_back(m.prim_light.empty() ? nullptr : m.prim_light.data());
+    v.tri_offset.push_back(static_cast<int32_t>(v.tri_light.size()));
+    for (size_t t = 0; t < m.triangle_count(); ++t) {
+      for (int k = 0; k < 3; ++k) {
+        const float* p = m.positions.data() + 3 * static_cast<size_t>(m.indices[3 * t + k]);
+        v.tri_pos.insert(v.tri_pos.end(), p, p + 3);
+      }
+      v.tri_light.push_back(m.prim_light.empty() ? -1 : m.prim_light[t]);
+    }
     v.indices.push_back(m.indices.data());
     v.positions.push_back(m.positions.data());
     v.uvs.push_back(m.uvs.empty() ? nullptr : m.uvs.data());
@@ -167,8 +182,11 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     v.geom_material.push_back(s.material >= 0 ? s.material : default_material);
     v.sphere_center.insert(v.sphere_center.end(), {s.center.x, s.center.y, s.center.z, s.radius});
     v.sphere_light.push_back(s.light);
+    v.tri_offset.push_back(0);
   }
   v.sphere_light.push_back(-1);  // never empty
+  v.tri_pos.insert(v.tri_pos.end(), 9, 0.f);  // a spare triangle: never empty
+  v.tri_light.push_back(-1);
   for (const Material& m : scene.materials) {
     v.mat_r.push_back(m.reflectance.r);
     v.mat_g.push_back(m.reflectance.g);
@@ -189,7 +207,9 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   G.mesh_count = static_cast<int32_t>(scene.meshes.size());
   G.geom_material = v.geom_material.data();
   G.sphere_center = v.sphere_center.data();
-  G.prim_light = v.prim_light.data();
+  G.tri_offset = v.tri_offset.data();
+  G.tri_pos = v.tri_pos.data();
+  G.tri_light = v.tri_light.data();
   G.sphere_light = v.sphere_light.data();
   G.mat_r = v.mat_r.data();
   G.mat_g = v.mat_g.data();
@@ -324,6 +344,9 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   }
   const int cam_packets = (lanes + packet_width - 1) / packet_width;
   StageTimer timer(tp, c, tile);
+  timer.start();
+  clear_tile_sums(tb, lanes);
+  timer.stop(Stage::accumulate);
   for (uint32_t s = begin; s < end; ++s) {
     timer.start();
     generate(v.camera, est, s, lanes, tb);
@@ -388,32 +411,34 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
         }
       }
     }
-    // one sample of every pixel of the tile into the film, in double
+    // one sample of every pixel into the tile's double sums
     timer.start();
-    for (int i = 0; i < lanes; ++i) {
-      const size_t pix = tb.pixel[i];
-      double r = tb.Lr[i], g = tb.Lg[i], b = tb.Lb[i];
-      if (!(std::isfinite(r) && std::isfinite(g) && std::isfinite(b))) {
-        ++tb.rejected_camera;
-        r = g = b = 0;
-      }
-      double* sp = &film.sum[3 * pix];
-      double* sq = &film.sum_sq[3 * pix];
-      sp[0] += r;
-      sp[1] += g;
-      sp[2] += b;
-      sq[0] += r * r;
-      sq[1] += g * g;
-      sq[2] += b * b;
-      if (est.aov_mis_weight) {  // no AOV requested: none computed
-        film.w_sum[pix] += tb.wsum[i];
-        film.w_cnt[pix] += tb.wcnt[i];
-      }
-      const float y = luminance(static_cast<float>(r), static_cast<float>(g), static_cast<float>(b));
-      if (y > film.max_sample[pix]) film.max_sample[pix] = y;
-    }
+    accumulate_samples(tb, lanes, est.aov_mis_weight);
     timer.stop(Stage::accumulate);
   }
+  // The tile's sums into the film, once. Each pixel belongs to one tile, so the film
+  // gets the same bits for any thread count and tile order. A fresh film (0) gets the
+  // bits of adding sample by sample; a film that already holds samples (progressive
+  // renders) gets its old sum plus this render's partial sum: other rounding than adding
+  // one sample at a time, equally deterministic.
+  timer.start();
+  for (int i = 0; i < lanes; ++i) {
+    const size_t pix = tb.pixel[i];
+    double* sp = &film.sum[3 * pix];
+    double* sq = &film.sum_sq[3 * pix];
+    sp[0] += tb.acc_r[i];
+    sp[1] += tb.acc_g[i];
+    sp[2] += tb.acc_b[i];
+    sq[0] += tb.acc_rr[i];
+    sq[1] += tb.acc_gg[i];
+    sq[2] += tb.acc_bb[i];
+    if (est.aov_mis_weight) {
+      film.w_sum[pix] += tb.acc_w[i];
+      film.w_cnt[pix] += tb.acc_wc[i];
+    }
+    if (tb.acc_max[i] > film.max_sample[pix]) film.max_sample[pix] = tb.acc_max[i];
+  }
+  timer.stop(Stage::accumulate);
 }
 
 using TileFn = void (*)(const TileContext&, TileBuffers&, ThreadProfile*, int, uint32_t, uint32_t);

@@ -128,7 +128,8 @@ struct SceneViews {
   // geometry
   std::vector<float> sphere_center;
   std::vector<int32_t> geom_material, sphere_light, mat_texture, tex_w, tex_h;
-  std::vector<const int32_t*> prim_light;
+  std::vector<int32_t> tri_offset, tri_light;
+  std::vector<float> tri_pos;
   std::vector<const uint32_t*> indices;
   std::vector<const float*> positions;
   std::vector<const float*> uvs, tex_rgb;

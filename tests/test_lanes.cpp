@@ -1,12 +1,16 @@
 // Every SIMD lane equals the scalar reference, for every stage kernel: the samplers,
-// camera rays, light point sampling and its pdf, the light-sampling stage, the cosine
-// stage and the MIS weight stage (the whole per-lane state they write is compared).
+// camera rays, the camera-hit stage, light point sampling and its pdf, the light-sampling
+// stage, the cosine stage, the MIS weight stage and the film accumulation (the whole
+// per-lane state they write is compared).
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <random>
+#include <set>
 
+#include "../kernels/accumulate.h"
 #include "../kernels/generate.h"
 #include "../kernels/hit.h"
 #include "embree.h"
@@ -21,8 +25,9 @@ using namespace tuile;
 namespace {
 
 // A scene with every light type: triangles, parallelograms (rectangle and sheared),
-// a sphere, point, spot and distant lights.
-Scene all_lights_scene() {
+// a sphere, point, spot and distant lights. Extras (for the camera-hit stage): a
+// textured wall, a plain sphere and a two-sided emitter.
+Scene all_lights_scene(bool extras = false) {
   Scene s;
   s.source = "test:all-lights";
   s.materials.push_back({Rgb{0.7f, 0.5f, 0.3f}, -1, ""});
@@ -62,6 +67,30 @@ Scene all_lights_scene() {
   dist.e1 = normalize(vec3f{0.3f, 1, 0.2f});
   dist.radiance = {1, 1, 1};
   s.lights.push_back(dist);
+  if (extras) {
+    Texture tex;
+    tex.name = "checker";
+    tex.width = tex.height = 4;
+    for (int k = 0; k < 16; ++k) tex.rgb.insert(tex.rgb.end(), {0.2f + 0.05f * k, (k % 3) * 0.4f, ((k / 4 + k) % 2) * 0.9f});
+    s.textures.push_back(tex);
+    s.materials.push_back({Rgb{0.9f, 0.8f, 0.7f}, 0, ""});
+    Mesh wall;
+    wall.name = "wall";
+    wall.material = 1;
+    test::add_quad(wall, {-4, 0, -3}, {8, 0, 0}, {0, 3, 0});
+    wall.uvs = {0, 0, 2.5f, 0, 2.5f, 1.5f, 0, 1.5f};
+    s.meshes.push_back(wall);
+    Sphere plain;
+    plain.center = {-1.2f, 0.5f, 0.5f};
+    plain.radius = 0.5f;
+    s.spheres.push_back(plain);
+    Mesh both;
+    both.name = "two-sided emitter";
+    both.emission = {0.5f, 1, 2};
+    both.two_sided = true;
+    test::add_triangle(both, {1.5f, 0.2f, -1}, {2.5f, 0.2f, -1}, {2, 0.2f, 0});
+    s.meshes.push_back(both);
+  }
   s.camera.width = s.camera.height = 16;
   camera_look_at(s.camera, {0, 2, 4}, {0, 0, 0}, {0, 1, 0});
   finalize_scene(s);
@@ -269,30 +298,124 @@ TEST(Lanes, FusedSobolEqualsTextbookComposition) {
     }
 }
 
+// The whole camera-hit stage (hit points, error offsets, compaction, emitters seen
+// directly, textures, rejections, one-sample choice) against the scalar reference.
 TEST(Lanes, CameraHitsEqualScalar) {
-  Scene s = all_lights_scene();
+  Scene s = all_lights_scene(true);
   SceneViews views = build_views(s, LightPick::power);
+  ASSERT_TRUE(views.geom.has_textures);
+  // the flattened triangle table holds every mesh's vertices and lights
+  for (size_t m = 0; m < s.meshes.size(); ++m)
+    for (size_t t = 0; t < s.meshes[m].triangle_count(); ++t) {
+      const int32_t tri = views.geom.tri_offset[m] + static_cast<int32_t>(t);
+      for (int k = 0; k < 9; ++k)
+        ASSERT_EQ(views.geom.tri_pos[9 * tri + k], s.meshes[m].positions[3 * s.meshes[m].indices[3 * t + k / 3] + k % 3]);
+      ASSERT_EQ(views.geom.tri_light[tri], s.meshes[m].prim_light.empty() ? -1 : s.meshes[m].prim_light[t]);
+    }
   Accel accel(s);
-  auto a = std::make_unique<TileBuffers>();
-  for (int i = 0; i < 256; ++i) {
-    a->fx[i] = static_cast<float>(i % 16);
-    a->fy[i] = static_cast<float>(i / 16);
-    a->pixel[i] = static_cast<uint32_t>(i);
+  for (MisMode mode : {MisMode::multi, MisMode::one})
+    for (int lanes : {256, 250}) {
+      auto a = std::make_unique<TileBuffers>();
+      for (int i = 0; i < 256; ++i) {
+        a->fx[i] = static_cast<float>(i % 16);
+        a->fy[i] = static_cast<float>(i / 16);
+        a->pixel[i] = static_cast<uint32_t>(i);
+      }
+      Estimator est;
+      est.mode = mode;
+      generate(views.camera, est, 0, 256, *a);
+      for (int p = 0; p < 16; ++p) accel.intersect16(a->cam_valid + p * packet_width, a->cam[p], true);
+      // degenerate hits: counted as rejected, no shading point
+      for (int i : {3, 40, 41, 130, 200}) {
+        RayHit16& p = a->cam[i / 16];
+        p.Ng_x[i % 16] = p.Ng_y[i % 16] = p.Ng_z[i % 16] = 0.f;
+      }
+      a->cam[7].ray.tfar[9] = std::numeric_limits<float>::infinity();
+      auto b = std::make_unique<TileBuffers>(*a);
+      camera_hits<true, vfloat>(views.geom, views.lights, est, 0, lanes, *a);
+      camera_hits<true, float>(views.geom, views.lights, est, 0, lanes, *b);
+      auto name = [&] { return std::string(mode == MisMode::one ? "one" : "multi") + " lanes " + std::to_string(lanes); };
+      ASSERT_EQ(a->shade_count, b->shade_count) << name();
+      ASSERT_EQ(a->rejected_camera, b->rejected_camera) << name();
+      EXPECT_GE(a->rejected_camera, 5u) << name();
+      const int n = a->shade_count, padded = (n + packet_width - 1) / packet_width * packet_width;
+      const struct {
+        const char* what;
+        float (TileBuffers::*arr)[max_tile_lanes];
+      } arrays[] = {{"px", &TileBuffers::px}, {"py", &TileBuffers::py}, {"pz", &TileBuffers::pz},
+                    {"nx", &TileBuffers::nx}, {"ny", &TileBuffers::ny}, {"nz", &TileBuffers::nz},
+                    {"eps", &TileBuffers::eps}, {"ar", &TileBuffers::ar}, {"ag", &TileBuffers::ag},
+                    {"ab", &TileBuffers::ab}};
+      for (const auto& f : arrays)
+        expect_same_floats((*a).*f.arr, (*b).*f.arr, padded, [&] { return name() + " " + f.what; });
+      for (int k = 0; k < padded; ++k) {
+        ASSERT_EQ(a->spix[k], b->spix[k]) << name() << " point " << k;
+        ASSERT_EQ(a->slane[k], b->slane[k]) << name() << " point " << k;
+      }
+      expect_same_floats(a->Lr, b->Lr, 256, name);
+      expect_same_floats(a->Lg, b->Lg, 256, name);
+      expect_same_floats(a->Lb, b->Lb, 256, name);
+      if (mode == MisMode::one) {
+        expect_same_floats(a->u0, b->u0, padded, name);
+        expect_same_floats(a->choose_light, b->choose_light, padded, name);
+      }
+      // the scene exercises every path: spheres, emitters seen from the front, textures
+      int hits = 0, spheres = 0, emitted = 0, textured = 0;
+      for (int i = 0; i < lanes; ++i) {
+        const uint32_t g = a->cam[i / 16].geomID[i % 16];
+        hits += g != invalid_id;
+        spheres += g != invalid_id && static_cast<int32_t>(g) >= views.geom.mesh_count;
+        textured += g == 2;
+        emitted += a->Lr[i] > 0.f;
+      }
+      // and both the broadcast path (one triangle per batch) and the gathers
+      int one = 0, mixed = 0;
+      for (int i = 0; i < lanes; i += simd_width) {
+        std::set<std::pair<uint32_t, uint32_t>> tris;
+        for (int k = i; k < i + simd_width; ++k)
+          if (a->cam[k / 16].geomID[k % 16] != invalid_id) tris.insert({a->cam[k / 16].geomID[k % 16], a->cam[k / 16].primID[k % 16]});
+        one += tris.size() == 1;
+        mixed += tris.size() > 1;
+      }
+      EXPECT_GT(one, 0) << name();
+      EXPECT_GT(mixed, 0) << name();
+      EXPECT_EQ(n, hits - static_cast<int>(a->rejected_camera)) << name();
+      EXPECT_GT(hits, 100) << name();
+      EXPECT_GT(spheres, 0) << name();
+      EXPECT_GT(emitted, 0) << name();
+      EXPECT_GT(textured, 0) << name();
+    }
+}
+
+// Film accumulation into the tile's double sums, with non-finite samples and padding.
+TEST(Lanes, AccumulateEqualScalar) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> U(0.f, 4.f);
+  for (int lanes : {256, 250, 7}) {
+    auto a = std::make_unique<TileBuffers>();
+    clear_tile_sums(*a, lanes);
+    auto b = std::make_unique<TileBuffers>(*a);
+    for (int pass = 0; pass < 5; ++pass) {
+      for (int i = 0; i < 256; ++i) {
+        float r = U(rng), g = U(rng), bl = U(rng);
+        if (rng() % 17 == 0) r = std::numeric_limits<float>::quiet_NaN();
+        if (rng() % 23 == 0) bl = -std::numeric_limits<float>::infinity();
+        if (rng() % 5 == 0) g = 0.f;
+        a->Lr[i] = b->Lr[i] = r;
+        a->Lg[i] = b->Lg[i] = g;
+        a->Lb[i] = b->Lb[i] = bl;
+        a->wsum[i] = b->wsum[i] = U(rng);
+        a->wcnt[i] = b->wcnt[i] = static_cast<float>(rng() % 3);
+      }
+      accumulate_samples<vfloat>(*a, lanes, true);
+      accumulate_samples<float>(*b, lanes, true);
+    }
+    ASSERT_EQ(a->rejected_camera, b->rejected_camera) << lanes;
+    EXPECT_GT(a->rejected_camera, 0u) << lanes;
+    for (auto arr : {&TileBuffers::acc_r, &TileBuffers::acc_g, &TileBuffers::acc_b, &TileBuffers::acc_rr,
+                     &TileBuffers::acc_gg, &TileBuffers::acc_bb, &TileBuffers::acc_w, &TileBuffers::acc_wc})
+      for (int i = 0; i < lanes; ++i)
+        ASSERT_TRUE(std::memcmp(&((*a).*arr)[i], &((*b).*arr)[i], sizeof(double)) == 0) << lanes << " lane " << i;
+    expect_same_floats(a->acc_max, b->acc_max, lanes, [&] { return "max lanes " + std::to_string(lanes); });
   }
-  Estimator est;
-  generate(views.camera, est, 0, 256, *a);
-  for (int p = 0; p < 16; ++p) accel.intersect16(a->cam_valid + p * packet_width, a->cam[p], true);
-  auto b = std::make_unique<TileBuffers>(*a);
-  for (int i = 0; i < 256; i += simd_width) camera_hit_lanes<vfloat>(views.geom, *a, i);
-  for (int i = 0; i < 256; ++i) camera_hit_lanes<float>(views.geom, *b, i);
-  int hits = 0;
-  for (int i = 0; i < 256; ++i) {
-    hits += a->cam[i / 16].geomID[i % 16] != invalid_id;
-    ASSERT_EQ(a->qdx[i], b->qdx[i]) << i;
-    if (!(a->qdx[i] > 0.f)) continue;
-    for (auto arr : {&TileBuffers::qx, &TileBuffers::qy, &TileBuffers::qz, &TileBuffers::qnx, &TileBuffers::qny,
-                     &TileBuffers::qnz, &TileBuffers::qar, &TileBuffers::qag, &TileBuffers::qab})
-      ASSERT_EQ(((*a).*arr)[i], ((*b).*arr)[i]) << i;
-  }
-  EXPECT_GT(hits, 100);
 }
