@@ -6,6 +6,7 @@
 #include <cstring>
 #include <memory>
 #include <random>
+#include <vector>
 
 #include "../kernels/generate.h"
 #include "../kernels/hit.h"
@@ -118,6 +119,54 @@ TEST(Lanes, Samplers) {
           ASSERT_LT(u[i], 1.f);
         }
       }
+}
+
+// The SIMD fast path of the hash-based samplers against the scalar reference: random
+// pixels, seeds and pairs, indices across the 32-bit range, counts with a scalar tail.
+TEST(Lanes, SamplerPairsEqualScalarMany) {
+  std::mt19937 rng(7);
+  std::vector<uint32_t> pix(203);
+  std::vector<float> u(pix.size()), v(pix.size());
+  std::vector<uint32_t> indices;
+  for (uint32_t k = 0; k < 70; ++k) indices.push_back(k);
+  for (uint32_t k : {255u, 256u, 1023u, 65535u, 65536u, 0x7fffffffu, 0x80000000u, 0xfffffffeu, 0xffffffffu})
+    indices.push_back(k);
+  for (int k = 0; k < 40; ++k) indices.push_back(static_cast<uint32_t>(rng()));
+  for (int kind : {0, 2})
+    for (int trial = 0; trial < 6; ++trial) {
+      for (auto& p : pix) p = trial < 2 ? static_cast<uint32_t>(&p - pix.data()) + 4096u * trial : static_cast<uint32_t>(rng());
+      const uint32_t seed = trial == 0 ? 0u : static_cast<uint32_t>(rng());
+      for (uint32_t pair : {0u, 1u, 2u, 3u, 4u, 9u, 31u, static_cast<uint32_t>(rng())})
+        for (uint32_t index : indices) {
+          const int count = index % 7 == 5 ? static_cast<int>(index % 61)
+                                           : static_cast<int>(pix.size()) - (index % 3 == 0 ? 0 : static_cast<int>(index % 29));
+          sample_pairs(static_cast<SamplerKind>(kind), seed, pix.data(), index, 64, pair, count, u.data(), v.data());
+          for (int i = 0; i < count; ++i) {
+            float su, sv;
+            sample_pair_scalar(static_cast<SamplerKind>(kind), seed, pix[i], index, 64, pair, su, sv);
+            ASSERT_TRUE(std::memcmp(&u[i], &su, sizeof(float)) == 0 && std::memcmp(&v[i], &sv, sizeof(float)) == 0)
+                << "kind " << kind << " seed " << seed << " pixel " << pix[i] << " index " << index << " pair " << pair;
+          }
+        }
+    }
+}
+
+// The SIMD bit-manipulation helpers equal their scalar definitions on every lane.
+TEST(Lanes, SamplerBitHelpersEqualScalar) {
+  std::mt19937 rng(11);
+  alignas(64) uint32_t in[simd_width], rev[simd_width], rev8[simd_width], sup[simd_width];
+  for (int n = 0; n < 20000; ++n) {
+    for (int l = 0; l < simd_width; ++l) in[l] = n < 64 ? (n < 32 ? 1u << n : ~(1u << (n - 32))) : static_cast<uint32_t>(rng());
+    const vuint x = vuint::load_aligned(in);
+    rng_simd::reverse_bits(x).store_aligned(rev);
+    rng_simd::reverse_bits_shr8(x).store_aligned(rev8);
+    rng_simd::superset_sum(x).store_aligned(sup);
+    for (int l = 0; l < simd_width; ++l) {
+      ASSERT_EQ(rev[l], reverse_bits(in[l])) << in[l];
+      ASSERT_EQ(rev8[l], reverse_bits(in[l]) >> 8) << in[l];
+      ASSERT_EQ(sup[l], reverse_bits(sobol_dim1(in[l]))) << in[l];
+    }
+  }
 }
 
 TEST(Lanes, StagesEqualScalar) {
