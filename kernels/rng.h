@@ -12,8 +12,11 @@
 //    hash-based nested uniform scramble of Burley 2020 ("Practical Hash-based Owen
 //    Scrambling", JCGT 9(4)), with the sample index itself scrambled per pixel and pair
 //    so that pairs are decorrelated (padding).
-// Templated on U = uint32_t (scalar reference) or vuint (one SIMD batch).
+// Templated on U = uint32_t (scalar reference) or vuint (one SIMD batch); sample_pairs
+// runs the same computation rearranged for SIMD (rng_simd below), equal bit for bit.
 #pragma once
+#include <type_traits>
+
 #include "simd.h"
 
 namespace tuile {
@@ -166,27 +169,196 @@ inline void sample_pair_scalar(SamplerKind kind, uint32_t seed, uint32_t pixel, 
   u = v = 0.f;
 }
 
+// SIMD fast path of sample_pairs: the same bits as sample_pair_scalar (tested lane by
+// lane), in fewer instructions.
+namespace rng_simd {
+
+constexpr uint32_t xorshift16(uint32_t x) noexcept { return x ^ (x >> 16); }
+inline vuint xorshift16(const vuint& x) noexcept { return x ^ (x >> 16); }
+
+// hash_u32 = xorshift16(mix(xorshift16(x))), and xorshift16 is a linear involution, so a
+// chain of hashes keeps the value before the last xorshift16 ("pre" value):
+// hash_u32(xorshift16(p) ^ c) = xorshift16(mix(p ^ xorshift16(c))).
+inline vuint mix(vuint x) noexcept {
+  x *= vuint(0x7feb352du);
+  x ^= x >> 15;
+  x *= vuint(0x846ca68bu);
+  return x;
+}
+
+// The GF(2)-affine matrix of a linear map on bytes, in the layout of gf2p8affineqb:
+// output bit r is the parity of the input and byte 7 - r of the matrix.
+template <class F> constexpr uint64_t byte_matrix(F f) noexcept {
+  uint64_t m = 0;
+  for (int r = 0; r < 8; ++r)
+    for (int c = 0; c < 8; ++c)
+      if ((f(1u << c) >> r) & 1u) m |= uint64_t{1} << (8 * (7 - r) + c);
+  return m;
+}
+// reverse_bits within a byte, and the superset sum within a byte (sobol_dim1's first
+// three steps).
+constexpr uint64_t byte_reverse_matrix = byte_matrix([](uint32_t x) {
+  uint32_t r = 0;
+  for (int b = 0; b < 8; ++b) r |= ((x >> b) & 1u) << (7 - b);
+  return r;
+});
+constexpr uint64_t byte_superset_matrix = byte_matrix([](uint32_t x) {
+  x ^= (x >> 1) & 0x55u;
+  x ^= (x >> 2) & 0x33u;
+  x ^= (x >> 4) & 0x0fu;
+  return x;
+});
+
+// With GFNI, bit permutations within bytes are one gf2p8affineqb and byte moves within
+// 32-bit lanes one pshufb. Byte patterns: byte k of `p` is the source byte of output
+// byte k of every 32-bit lane, 0x80 for zero.
+#if defined(__AVX512F__)
+#if defined(__GFNI__) && defined(__AVX512BW__)
+#define TUILE_RNG_GFNI 1
+inline vuint byte_affine(const vuint& x, uint64_t m) noexcept {
+  static_assert(simd_width == 16);
+  return _mm512_gf2p8affine_epi64_epi8(static_cast<__m512i>(x), _mm512_set1_epi64(static_cast<long long>(m)), 0);
+}
+inline vuint byte_shuffle(const vuint& x, uint32_t p) noexcept {
+  const __m128i q = _mm_setr_epi32(static_cast<int>(p), static_cast<int>(p + 0x04040404u),
+                                   static_cast<int>(p + 0x08080808u), static_cast<int>(p + 0x0c0c0c0cu));
+  return _mm512_shuffle_epi8(static_cast<__m512i>(x), _mm512_broadcast_i32x4(q));
+}
+#endif
+#elif defined(__AVX2__)
+#if defined(__GFNI__)
+#define TUILE_RNG_GFNI 1
+inline vuint byte_affine(const vuint& x, uint64_t m) noexcept {
+  static_assert(simd_width == 8);
+  return _mm256_gf2p8affine_epi64_epi8(static_cast<__m256i>(x), _mm256_set1_epi64x(static_cast<long long>(m)), 0);
+}
+inline vuint byte_shuffle(const vuint& x, uint32_t p) noexcept {
+  const __m128i q = _mm_setr_epi32(static_cast<int>(p), static_cast<int>(p + 0x04040404u),
+                                   static_cast<int>(p + 0x08080808u), static_cast<int>(p + 0x0c0c0c0cu));
+  return _mm256_shuffle_epi8(static_cast<__m256i>(x), _mm256_broadcastsi128_si256(q));
+}
+#endif
+#endif
+
+#if defined(TUILE_RNG_GFNI)
+inline vuint reverse_bits(const vuint& x) noexcept { return byte_shuffle(byte_affine(x, byte_reverse_matrix), 0x00010203u); }
+// reverse_bits(x) >> 8
+inline vuint reverse_bits_shr8(const vuint& x) noexcept {
+  return byte_shuffle(byte_affine(x, byte_reverse_matrix), 0x80000102u);
+}
+// The superset sum of sobol_dim1: within bytes, then across the bytes of each lane.
+inline vuint superset_sum(const vuint& x) noexcept {
+  vuint s = byte_affine(x, byte_superset_matrix);
+  s ^= byte_shuffle(s, 0x80038001u);  // (s >> 8) & 0x00ff00ff
+  return s ^ byte_shuffle(s, 0x80800302u);  // s >> 16
+}
+#else
+inline vuint reverse_bits(const vuint& x) noexcept { return tuile::reverse_bits(x); }
+inline vuint reverse_bits_shr8(const vuint& x) noexcept { return tuile::reverse_bits(x) >> 8; }
+inline vuint superset_sum(vuint x) noexcept {
+  x ^= (x >> 1) & vuint(0x55555555u);
+  x ^= (x >> 2) & vuint(0x33333333u);
+  x ^= (x >> 4) & vuint(0x0f0f0f0fu);
+  x ^= (x >> 8) & vuint(0x00ff00ffu);
+  x ^= (x >> 16) & vuint(0x0000ffffu);
+  return x;
+}
+#endif
+
+// A value below 2^24 to a float in [0, 1), as u32_to_unit.
+inline vfloat unit24(const vuint& x) noexcept { return u32_to_f32(x) * vfloat(1.0f / 16777216.0f); }
+
+// The lane-invariant parts of stream_key and of the samplers.
+struct StreamConsts {
+  static constexpr uint32_t g = 0x9e3779b9u, c = 0x7f4a7c15u;  // hash_combine's b * g + c
+  uint32_t ka, kb;  // stream_key's pre value is mix(mix(xorshift16(pixel * g + c) ^ ka) ^ kb)
+  uint32_t index;   // independent: xorshift16(index * g + c); sobol: the first permutation's
+                    // x ^ x * 0x3d20adea of x = reverse_bits(index)
+};
+
+// Each batch is one long chain of dependent multiplies: the functions below run N batches
+// interleaved step by step so that several chains are in flight (8 batches: 1.8x the
+// throughput of one at a time with AVX-512).
+#define TUILE_RNG_EACH _Pragma("GCC unroll 8") for (int k = 0; k < N; ++k)
+
+template <int N> inline void stream_keys(const StreamConsts& sc, const uint32_t* pixel, vuint (&key)[N]) noexcept {
+  TUILE_RNG_EACH {
+    const vuint t = vuint::load_unaligned(pixel + k * simd_width) * vuint(sc.g) + vuint(sc.c);
+    key[k] = mix(xorshift16(t) ^ vuint(sc.ka));
+  }
+  TUILE_RNG_EACH key[k] = mix(key[k] ^ vuint(sc.kb));
+}
+
+template <int N> inline void independent_block(const StreamConsts& sc, const uint32_t* pixel, float* u, float* v) noexcept {
+  vuint h[N];
+  stream_keys<N>(sc, pixel, h);
+  TUILE_RNG_EACH h[k] = mix(h[k] ^ vuint(sc.index));  // hash_combine(key, index)
+  TUILE_RNG_EACH {
+    unit24(xorshift16(h[k]) >> 8).store_unaligned(u + k * simd_width);
+    unit24(xorshift16(mix(h[k] ^ vuint(xorshift16(0x68e31da4u)))) >> 8).store_unaligned(v + k * simd_width);
+  }
+}
+
+// laine_karras_permutation(x, xorshift16(p)) of N batches: the seed's high half is p's.
+template <int N> inline void laine_karras_permutation(vuint (&x)[N], const vuint (&p)[N]) noexcept {
+  TUILE_RNG_EACH x[k] ^= x[k] * vuint(0x3d20adeau);
+  TUILE_RNG_EACH x[k] = (x[k] + (p[k] ^ (p[k] >> 16))) * ((p[k] >> 16) | vuint(1u));
+  TUILE_RNG_EACH x[k] ^= x[k] * vuint(0x05526c56u);
+  TUILE_RNG_EACH x[k] ^= x[k] * vuint(0x53a22864u);
+}
+
+// sobol_pair_bits
+template <int N> inline void sobol_block(const StreamConsts& sc, const uint32_t* pixel, float* u, float* v) noexcept {
+  vuint key[N], x[N], y[N], ku[N], kv[N];
+  stream_keys<N>(sc, pixel, key);
+  // NUS(index, key), its seeds for u and v alongside
+  TUILE_RNG_EACH {
+    const vuint hi = key[k] >> 16;
+    x[k] = (vuint(sc.index) + (key[k] ^ hi)) * (hi | vuint(1u));
+  }
+  TUILE_RNG_EACH {
+    x[k] ^= x[k] * vuint(0x05526c56u);
+    ku[k] = mix(key[k] ^ vuint(xorshift16(0x1b873593u)));
+  }
+  TUILE_RNG_EACH {
+    x[k] = reverse_bits(x[k] ^ x[k] * vuint(0x53a22864u));
+    kv[k] = mix(key[k] ^ vuint(xorshift16(0xcc9e2d51u)));
+  }
+  TUILE_RNG_EACH y[k] = superset_sum(x[k]);
+  laine_karras_permutation(x, ku);
+  laine_karras_permutation(y, kv);
+  TUILE_RNG_EACH unit24(reverse_bits_shr8(x[k])).store_unaligned(u + k * simd_width);
+  TUILE_RNG_EACH unit24(reverse_bits_shr8(y[k])).store_unaligned(v + k * simd_width);
+}
+#undef TUILE_RNG_EACH
+
+// Blocks of N batches while they fit, then N/2, ... 1 for the rest; returns the lanes done.
+template <int N, class Block> inline int run_blocks(int i, int count, const Block& block) noexcept {
+  for (; i + N * simd_width <= count; i += N * simd_width) block(std::integral_constant<int, N>{}, i);
+  if constexpr (N > 1) return run_blocks<N / 2>(i, count, block);
+  else return i;
+}
+
+}  // namespace rng_simd
+
 // One dimension pair for W lanes (pixel per lane, same sample index): SIMD for the
 // hash-based samplers, the scalar reference per lane for stratified.
 inline void sample_pairs(SamplerKind kind, uint32_t seed, const uint32_t* pixel, uint32_t index, uint32_t spp,
                          uint32_t pair, int count, float* u, float* v) noexcept {
+  using namespace rng_simd;
+  using SC = StreamConsts;
   int i = 0;
   if (kind != SamplerKind::stratified) {
-    for (; i + simd_width <= count; i += simd_width) {
-      const vuint key = stream_key<vuint>(seed, vuint::load_unaligned(pixel + i), pair);
-      vfloat fu, fv;
-      if (kind == SamplerKind::independent) {
-        const vuint h = hash_combine(key, vuint(index));
-        fu = u32_to_unit(h);
-        fv = u32_to_unit(hash_u32(h ^ vuint(0x68e31da4u)));
-      } else {
-        vuint bu, bv;
-        sobol_pair_bits(vuint(reverse_bits(index)), key, bu, bv);
-        fu = u32_to_unit(bu);
-        fv = u32_to_unit(bv);
-      }
-      fu.store_unaligned(u + i);
-      fv.store_unaligned(v + i);
+    StreamConsts sc;
+    sc.ka = xorshift16(hash_u32(seed + 0x51ed270bu));
+    sc.kb = xorshift16(hash_u32(pair * 0x2c1b3c6du + 1u) * SC::g + SC::c);
+    if (kind == SamplerKind::independent) {
+      sc.index = xorshift16(index * SC::g + SC::c);
+      i = run_blocks<8>(0, count, [&](auto n, int j) { independent_block<n()>(sc, pixel + j, u + j, v + j); });
+    } else {
+      const uint32_t r = tuile::reverse_bits(index);
+      sc.index = r ^ r * 0x3d20adeau;
+      i = run_blocks<8>(0, count, [&](auto n, int j) { sobol_block<n()>(sc, pixel + j, u + j, v + j); });
     }
   }
   for (; i < count; ++i) sample_pair_scalar(kind, seed, pixel[i], index, spp, pair, u[i], v[i]);

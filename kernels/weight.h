@@ -36,41 +36,60 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
   store(tb.wb + j, w);
 }
 
+// Lanes [k, k + width) of the bounce packets: the rays that hit the front of an emitter
+// join the hit queue at nq, in lane order (compress stores; nq is advanced).
+template <class T> TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int k, int& nq) {
+  const RayHit16& r = tb.bounce[k / packet_width];
+  const int l = k % packet_width;
+  const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(r.geomID + l));
+  const auto traced = load_i32<T>(tb.valid + k) != i32_t<T>(0) && geom >= i32_t<T>(0);  // invalid_id reads as -1
+  const i32_t<T> gi = max(geom, i32_t<T>(0));
+  const auto mesh = traced && geom < i32_t<T>(G.mesh_count);
+  const auto sphere = traced && geom >= i32_t<T>(G.mesh_count);
+  const i32_t<T> prim = load_i32<T>(reinterpret_cast<const int32_t*>(r.primID + l));
+  i32_t<T> light = sel(mesh, gather(G.tri_light, sel(mesh, gather(G.tri_offset, gi) + prim, i32_t<T>(0))), i32_t<T>(-1));
+  if (any(f_mask_from_i(sphere)))
+    light = sel(sphere, gather(G.sphere_light, sel(sphere, gi - i32_t<T>(G.mesh_count), i32_t<T>(0))), light);
+  const auto lit = f_mask_from_i(light >= i32_t<T>(0));
+  if (!any(lit)) return;
+  const i32_t<T> li = max(light, i32_t<T>(0));
+  const Vec3<T> o = load3<T>(r.ray.org_x + l, r.ray.org_y + l, r.ray.org_z + l);
+  const Vec3<T> d = load3<T>(r.ray.dir_x + l, r.ray.dir_y + l, r.ray.dir_z + l);
+  const uint32_t keep = lane_bits(lit && light_front_lanes<T>(L, li, o, d));
+  if (!keep) return;
+  const Vec3<T> n = load3<T>(tb.nx + k, tb.ny + k, tb.nz + k);
+  compress_store(tb.qx + nq, load<T>(tb.px + k), keep);
+  compress_store(tb.qy + nq, load<T>(tb.py + k), keep);
+  compress_store(tb.qz + nq, load<T>(tb.pz + k), keep);
+  compress_store(tb.qnx + nq, n.x, keep);
+  compress_store(tb.qny + nq, n.y, keep);
+  compress_store(tb.qnz + nq, n.z, keep);
+  compress_store(tb.qdx + nq, d.x, keep);
+  compress_store(tb.qdy + nq, d.y, keep);
+  compress_store(tb.qdz + nq, d.z, keep);
+  // distance from x itself (the ray started eps above it along n)
+  compress_store(tb.qdist + nq, load<T>(r.ray.tfar + l) + load<T>(tb.eps + k) * dot(n, d), keep);
+  compress_store(tb.qar + nq, load<T>(tb.ar + k), keep);
+  compress_store(tb.qag + nq, load<T>(tb.ag + k), keep);
+  compress_store(tb.qab + nq, load<T>(tb.ab + k), keep);
+  compress_store(tb.qlight + nq, li, keep);
+  compress_store(tb.qlane + nq, load_i32<T>(tb.slane + k), keep);
+  nq += std::popcount(keep);
+}
+
 // Queues the bounce rays that hit the front of an emitter, weights them, adds them.
+// T = float runs the queue in the scalar reference.
+template <class T = vfloat>
 inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator& est, float n_light, float n_bsdf,
                           TileBuffers& tb) {
   int nq = 0;
-  for (int k = 0; k < tb.shade_count; ++k) {
-    if (!tb.valid[k]) continue;
-    const RayHit16& r = tb.bounce[k / packet_width];
-    const int l = k % packet_width;
-    const int32_t light = light_of_hit(G, r.geomID[l], r.primID[l]);
-    if (light < 0 || !light_front(L, light, r.ray.org_x[l], r.ray.org_y[l], r.ray.org_z[l], r.ray.dir_x[l],
-                                  r.ray.dir_y[l], r.ray.dir_z[l]))
-      continue;
-    tb.qx[nq] = tb.px[k];
-    tb.qy[nq] = tb.py[k];
-    tb.qz[nq] = tb.pz[k];
-    tb.qnx[nq] = tb.nx[k];
-    tb.qny[nq] = tb.ny[k];
-    tb.qnz[nq] = tb.nz[k];
-    tb.qdx[nq] = r.ray.dir_x[l];
-    tb.qdy[nq] = r.ray.dir_y[l];
-    tb.qdz[nq] = r.ray.dir_z[l];
-    // distance from x itself (the ray started eps above it along n)
-    tb.qdist[nq] = r.ray.tfar[l] + tb.eps[k] * (tb.nx[k] * r.ray.dir_x[l] + tb.ny[k] * r.ray.dir_y[l] +
-                                               tb.nz[k] * r.ray.dir_z[l]);
-    tb.qar[nq] = tb.ar[k];
-    tb.qag[nq] = tb.ag[k];
-    tb.qab[nq] = tb.ab[k];
-    tb.qlight[nq] = light;
-    tb.qlane[nq] = tb.slane[k];
-    ++nq;
-  }
+  // padding lanes past shade_count are never valid (sample_cosine)
+  const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
+  for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T>(G, L, tb, k, nq);
   tb.queue_count = nq;
   if (nq == 0) return;
-  const int padded = (nq + simd_width - 1) / simd_width * simd_width;
-  for (int j = nq; j < padded; ++j) {  // padding: a valid light index, no contribution
+  const int qpadded = (nq + simd_width - 1) / simd_width * simd_width;
+  for (int j = nq; j < qpadded; ++j) {  // padding: a valid light index, no contribution
     tb.qx[j] = tb.qy[j] = tb.qz[j] = 0.f;
     tb.qnx[j] = tb.qny[j] = 0.f;
     tb.qnz[j] = 1.f;
@@ -80,7 +99,7 @@ inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator
     tb.qar[j] = tb.qag[j] = tb.qab[j] = 0.f;
     tb.qlight[j] = tb.qlight[0];
   }
-  for (int j = 0; j < padded; j += simd_width) weight_lanes<vfloat>(L, est, n_light, n_bsdf, tb, j);
+  for (int j = 0; j < qpadded; j += simd_width) weight_lanes<vfloat>(L, est, n_light, n_bsdf, tb, j);
   if (est.strategy == Strategy::light) return;
   for (int j = 0; j < nq; ++j) {
     const float r = tb.cr[j], g = tb.cg[j], b = tb.cb[j];

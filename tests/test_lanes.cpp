@@ -9,6 +9,7 @@
 #include <memory>
 #include <random>
 #include <set>
+#include <vector>
 
 #include "../kernels/accumulate.h"
 #include "../kernels/generate.h"
@@ -147,6 +148,54 @@ TEST(Lanes, Samplers) {
           ASSERT_LT(u[i], 1.f);
         }
       }
+}
+
+// The SIMD fast path of the hash-based samplers against the scalar reference: random
+// pixels, seeds and pairs, indices across the 32-bit range, counts with a scalar tail.
+TEST(Lanes, SamplerPairsEqualScalarMany) {
+  std::mt19937 rng(7);
+  std::vector<uint32_t> pix(203);
+  std::vector<float> u(pix.size()), v(pix.size());
+  std::vector<uint32_t> indices;
+  for (uint32_t k = 0; k < 70; ++k) indices.push_back(k);
+  for (uint32_t k : {255u, 256u, 1023u, 65535u, 65536u, 0x7fffffffu, 0x80000000u, 0xfffffffeu, 0xffffffffu})
+    indices.push_back(k);
+  for (int k = 0; k < 40; ++k) indices.push_back(static_cast<uint32_t>(rng()));
+  for (int kind : {0, 2})
+    for (int trial = 0; trial < 6; ++trial) {
+      for (auto& p : pix) p = trial < 2 ? static_cast<uint32_t>(&p - pix.data()) + 4096u * trial : static_cast<uint32_t>(rng());
+      const uint32_t seed = trial == 0 ? 0u : static_cast<uint32_t>(rng());
+      for (uint32_t pair : {0u, 1u, 2u, 3u, 4u, 9u, 31u, static_cast<uint32_t>(rng())})
+        for (uint32_t index : indices) {
+          const int count = index % 7 == 5 ? static_cast<int>(index % 61)
+                                           : static_cast<int>(pix.size()) - (index % 3 == 0 ? 0 : static_cast<int>(index % 29));
+          sample_pairs(static_cast<SamplerKind>(kind), seed, pix.data(), index, 64, pair, count, u.data(), v.data());
+          for (int i = 0; i < count; ++i) {
+            float su, sv;
+            sample_pair_scalar(static_cast<SamplerKind>(kind), seed, pix[i], index, 64, pair, su, sv);
+            ASSERT_TRUE(std::memcmp(&u[i], &su, sizeof(float)) == 0 && std::memcmp(&v[i], &sv, sizeof(float)) == 0)
+                << "kind " << kind << " seed " << seed << " pixel " << pix[i] << " index " << index << " pair " << pair;
+          }
+        }
+    }
+}
+
+// The SIMD bit-manipulation helpers equal their scalar definitions on every lane.
+TEST(Lanes, SamplerBitHelpersEqualScalar) {
+  std::mt19937 rng(11);
+  alignas(64) uint32_t in[simd_width], rev[simd_width], rev8[simd_width], sup[simd_width];
+  for (int n = 0; n < 20000; ++n) {
+    for (int l = 0; l < simd_width; ++l) in[l] = n < 64 ? (n < 32 ? 1u << n : ~(1u << (n - 32))) : static_cast<uint32_t>(rng());
+    const vuint x = vuint::load_aligned(in);
+    rng_simd::reverse_bits(x).store_aligned(rev);
+    rng_simd::reverse_bits_shr8(x).store_aligned(rev8);
+    rng_simd::superset_sum(x).store_aligned(sup);
+    for (int l = 0; l < simd_width; ++l) {
+      ASSERT_EQ(rev[l], reverse_bits(in[l])) << in[l];
+      ASSERT_EQ(rev8[l], reverse_bits(in[l]) >> 8) << in[l];
+      ASSERT_EQ(sup[l], reverse_bits(sobol_dim1(in[l]))) << in[l];
+    }
+  }
 }
 
 TEST(Lanes, StagesEqualScalar) {
@@ -385,6 +434,66 @@ TEST(Lanes, CameraHitsEqualScalar) {
       EXPECT_GT(emitted, 0) << name();
       EXPECT_GT(textured, 0) << name();
     }
+}
+
+// The MIS weight stage on traced bounce rays: the SIMD emitter queue (gathers of the
+// triangle and sphere light tables, front test, compress stores) and the radiance it adds
+// equal the scalar reference, with rays that miss, hit plain surfaces, hit emitters from
+// behind and from the front, triangles, parallelograms and the sphere.
+TEST(Lanes, EmitterQueueEqualScalar) {
+  Scene s = all_lights_scene(true);
+  SceneViews views = build_views(s, LightPick::power);
+  Accel accel(s);
+  std::mt19937 rng(5);
+  int queued = 0;
+  for (Strategy strategy : {Strategy::mis, Strategy::bsdf})
+    for (int count : {200, 256, 13}) {
+      Estimator est;
+      est.strategy = strategy;
+      auto a = std::make_unique<TileBuffers>();
+      fill_shading_points(*a, rng, count);
+      for (int k = 0; k < max_tile_lanes; ++k) {  // points under the sources, facing them
+        a->py[k] = 0.f;
+        a->nx[k] = a->nz[k] = 0.f;
+        a->ny[k] = 1.f;
+      }
+      sample_cosine(est, 0, 2, *a);
+      const int padded = (count + packet_width - 1) / packet_width * packet_width;
+      for (int p = 0; p < padded / packet_width; ++p) accel.intersect16(a->valid + p * packet_width, a->bounce[p], false);
+      std::fill_n(a->Lr, max_tile_lanes, 0.f);
+      std::fill_n(a->Lg, max_tile_lanes, 0.f);
+      std::fill_n(a->Lb, max_tile_lanes, 0.f);
+      auto b = std::make_unique<TileBuffers>(*a);
+      weight_bounce<vfloat>(views.geom, views.lights, est, 1.f, 1.f, *a);
+      weight_bounce<float>(views.geom, views.lights, est, 1.f, 1.f, *b);
+      auto name = [&] { return describe(est) + " count " + std::to_string(count); };
+      ASSERT_EQ(a->queue_count, b->queue_count) << name();
+      const int nq = a->queue_count;
+      queued += nq;
+      for (auto arr : {&TileBuffers::qx, &TileBuffers::qy, &TileBuffers::qz, &TileBuffers::qnx, &TileBuffers::qny,
+                       &TileBuffers::qnz, &TileBuffers::qdx, &TileBuffers::qdy, &TileBuffers::qdz, &TileBuffers::qdist,
+                       &TileBuffers::qar, &TileBuffers::qag, &TileBuffers::qab})
+        expect_same_floats((*a).*arr, (*b).*arr, nq, name);
+      for (int j = 0; j < nq; ++j) {
+        ASSERT_EQ(a->qlight[j], b->qlight[j]) << name() << " entry " << j;
+        ASSERT_EQ(a->qlane[j], b->qlane[j]) << name() << " entry " << j;
+      }
+      expect_same_floats(a->Lr, b->Lr, count, name);
+      expect_same_floats(a->Lg, b->Lg, count, name);
+      expect_same_floats(a->Lb, b->Lb, count, name);
+      // every queued entry is a traced ray that hit the front of an emitter, and every such ray is queued
+      int expected = 0;
+      for (int k = 0; k < count; ++k) {
+        const RayHit16& r = b->bounce[k / packet_width];
+        const int l = k % packet_width;
+        if (!b->valid[k]) continue;
+        const int32_t li = light_of_hit(views.geom, r.geomID[l], r.primID[l]);
+        expected += li >= 0 && light_front(views.lights, li, r.ray.org_x[l], r.ray.org_y[l], r.ray.org_z[l],
+                                           r.ray.dir_x[l], r.ray.dir_y[l], r.ray.dir_z[l]);
+      }
+      EXPECT_EQ(nq, expected) << name();
+    }
+  EXPECT_GT(queued, 20);
 }
 
 // Film accumulation into the tile's double sums, with non-finite samples and padding.
