@@ -353,6 +353,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     timer.stop(Stage::generate);
     timer.start();
     const bool rec = tp && c.profile->record_rays && s == begin;
+    clear_high_vector_registers();
     for (int p = 0; p < cam_packets; ++p) {
       if (rec) record(tp->rays.camera, tb.cam[p], tb.cam_valid + p * packet_width);
       c.accel.intersect16(tb.cam_valid + p * packet_width, tb.cam[p], true);
@@ -374,6 +375,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
           sample_lights<Kinds, Pick>(v.lights, est, pass, s, static_cast<uint32_t>(2 + est.bsdf_samples + 2 * j), tb);
           timer.stop(Stage::sample_lights);
           timer.start();
+          clear_high_vector_registers();
           for (int p = 0; p < packets; ++p) {
             const int32_t* valid = tb.valid + p * packet_width;
             const int active = active_lanes(valid);
@@ -396,6 +398,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
           sample_cosine(est, s, static_cast<uint32_t>(2 + m), tb);
           timer.stop(Stage::sample_cosine);
           timer.start();
+          clear_high_vector_registers();
           for (int p = 0; p < packets; ++p) {
             const int32_t* valid = tb.valid + p * packet_width;
             const int active = active_lanes(valid);
