@@ -138,19 +138,23 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
   for (int p = 0; p < padded / packet_width; ++p) reset_query_fields(tb.shadow[p]);
 }
 
-// After the shadow query: unoccluded lanes add their contribution to their pixel.
-// Branch-free (occlusion is a coin toss per lane): lanes that were not traced carry a zero
-// contribution, and an occluded lane (Embree sets tfar = -inf) adds +0, which changes no
-// sum (the radiance sums start at +0 and never hold -0).
-inline void accumulate_shadow(TileBuffers& tb) {
-  for (int k = 0; k < tb.shade_count; ++k) {
-    const float tfar = tb.shadow[k / packet_width].tfar[k % packet_width];
-    const bool lit = tb.valid[k] && tfar != -INFINITY;
-    const int i = tb.slane[k];
-    tb.Lr[i] += lit ? tb.cr[k] : 0.f;
-    tb.Lg[i] += lit ? tb.cg[k] : 0.f;
-    tb.Lb[i] += lit ? tb.cb[k] : 0.f;
-  }
+// After the shadow query: unoccluded lanes add their contribution to their pixel
+// (gather, add, masked scatter: the shading points of a batch are distinct tile lanes).
+// Lanes that were not traced or were occluded (Embree sets tfar = -inf) add nothing.
+template <class T> inline void accumulate_shadow_lanes(TileBuffers& tb, int k) {
+  const T tfar = load<T>(tb.shadow[k / packet_width].tfar + k % packet_width);
+  const auto lit = f_mask_from_i(load_i32<T>(tb.valid + k) != i32_t<T>(0)) && tfar != T(-INFINITY) &&
+                   T(static_cast<float>(k)) + lane_iota<T>() < T(static_cast<float>(tb.shade_count));
+  if (!any(lit)) return;
+  const i32_t<T> i = max(load_i32<T>(tb.slane + k), i32_t<T>(0));
+  scatter(tb.Lr, i, gather(tb.Lr, i) + load<T>(tb.cr + k), lit);
+  scatter(tb.Lg, i, gather(tb.Lg, i) + load<T>(tb.cg + k), lit);
+  scatter(tb.Lb, i, gather(tb.Lb, i) + load<T>(tb.cb + k), lit);
+}
+
+template <class T = vfloat> inline void accumulate_shadow(TileBuffers& tb) {
+  const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
+  for (int k = 0; k < padded; k += lane_traits<T>::width) accumulate_shadow_lanes<T>(tb, k);
 }
 
 }  // namespace tuile

@@ -146,6 +146,23 @@ inline vfloat gather(const float* base, const vint& i) noexcept {
   return vfloat::load_aligned(out);
 #endif
 }
+// scatter: base[index[i]] = v[i] where m is set (indices distinct)
+inline void scatter(float* base, int32_t i, float v, bool m) noexcept {
+  if (m) base[i] = v;
+}
+inline void scatter(float* base, const vint& i, const vfloat& v, const vmask& m) noexcept {
+#if defined(__AVX512F__)
+  _mm512_mask_i32scatter_ps(base, static_cast<__mmask16>(m), static_cast<__m512i>(i), v, 4);
+#else
+  alignas(64) int32_t idx[simd_width];
+  alignas(64) float val[simd_width], on[simd_width];
+  i.store_aligned(idx);
+  v.store_aligned(val);
+  xsimd::select(m, vfloat(1.f), vfloat(0.f)).store_aligned(on);
+  for (int l = 0; l < simd_width; ++l)
+    if (on[l] != 0.f) base[idx[l]] = val[l];
+#endif
+}
 inline int32_t gather(const int32_t* base, int32_t i) noexcept { return base[i]; }
 inline vint gather(const int32_t* base, const vint& i) noexcept {
 #if defined(__AVX512F__)
