@@ -490,6 +490,15 @@ PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool gene
 
 }  // namespace
 
+// A packet copied with vector loads and stores (a library memcpy may use string stores,
+// which the loads of the next call cannot forward from).
+template <class P> inline void copy_packet(P& dst, const P& src) noexcept {
+  static_assert(sizeof(P) % (sizeof(float) * simd_width) == 0);
+  const float* s = reinterpret_cast<const float*>(&src);
+  float* d = reinterpret_cast<float*>(&dst);
+  for (size_t k = 0; k < sizeof(P) / sizeof(float); k += simd_width) store(d + k, load<vfloat>(s + k));
+}
+
 // Times only the Embree calls (time-stamp counter around each call, converted with the
 // replay's own ticks-per-second), not the copies of the recorded packets and valid masks
 // into local (cached) memory: the sum over threads divided by the thread count.
@@ -508,21 +517,21 @@ double replay_rays(const Accel& accel, const RayRecord& rays, int threads) {
       uint64_t& ticks = call_ticks.local();
       for (size_t i = r.begin(); i < r.end(); ++i) {
         if (i < nc) {
-          hit = rays.camera[i].packet;
+          copy_packet(hit, rays.camera[i].packet);
           std::memcpy(valid, rays.camera[i].valid, sizeof(valid));
           clear_high_vector_registers();
           const uint64_t c0 = __rdtsc();
           accel.intersect16(valid, hit, true);
           ticks += __rdtsc() - c0;
         } else if (i < nc + ns) {
-          ray = rays.shadow[i - nc].packet;
+          copy_packet(ray, rays.shadow[i - nc].packet);
           std::memcpy(valid, rays.shadow[i - nc].valid, sizeof(valid));
           clear_high_vector_registers();
           const uint64_t c0 = __rdtsc();
           accel.occluded16(valid, ray, false);
           ticks += __rdtsc() - c0;
         } else {
-          hit = rays.bounce[i - nc - ns].packet;
+          copy_packet(hit, rays.bounce[i - nc - ns].packet);
           std::memcpy(valid, rays.bounce[i - nc - ns].valid, sizeof(valid));
           clear_high_vector_registers();
           const uint64_t c0 = __rdtsc();
