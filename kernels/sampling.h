@@ -366,11 +366,12 @@ inline SphericalRectangle<T> spherical_rectangle_setup(const Vec3<T>& x, const V
   r.x1 = r.x0 + lx;
   r.y1 = r.y0 + ly;
   const T z2 = r.z0 * r.z0;
-  const T m0 = sqrt(z2 + r.y0 * r.y0), m1 = sqrt(z2 + r.x1 * r.x1);
-  const T m2 = sqrt(z2 + r.y1 * r.y1), m3 = sqrt(z2 + r.x0 * r.x0);
-  const mask_t<T> ok_m = m0 > T(0.f) && m1 > T(0.f) && m2 > T(0.f) && m3 > T(0.f);
-  const T i0 = T(1.f) / sel(ok_m, m0, T(1.f)), i1 = T(1.f) / sel(ok_m, m1, T(1.f));
-  const T i2 = T(1.f) / sel(ok_m, m2, T(1.f)), i3 = T(1.f) / sel(ok_m, m3, T(1.f));
+  // squared lengths m_i^2 of the four edge-plane normals below, and i_i = 1 / m_i
+  const T q0 = z2 + r.y0 * r.y0, q1 = z2 + r.x1 * r.x1, q2 = z2 + r.y1 * r.y1, q3 = z2 + r.x0 * r.x0;
+  const mask_t<T> ok_m = q0 > T(0.f) && q1 > T(0.f) && q2 > T(0.f) && q3 > T(0.f) && is_finite(q0) &&
+                         is_finite(q1) && is_finite(q2) && is_finite(q3);
+  const T i0 = rsqrt_nr(sel(ok_m, q0, T(1.f))), i1 = rsqrt_nr(sel(ok_m, q1, T(1.f)));
+  const T i2 = rsqrt_nr(sel(ok_m, q2, T(1.f))), i3 = rsqrt_nr(sel(ok_m, q3, T(1.f)));
   // Unit normals n0 = (0, z0, -y0)/m0, n1 = (-z0, 0, x1)/m1, n2 = (0, -z0, y1)/m2,
   // n3 = (z0, 0, -x0)/m3; t_i = n_i . n_(i+1) = sin(asin t_i), c_i = cos(asin t_i) >= 0.
   const T t0 = -(r.y0 * i0) * (r.x1 * i1);
@@ -379,7 +380,8 @@ inline SphericalRectangle<T> spherical_rectangle_setup(const Vec3<T>& x, const V
   const T t3 = (r.x0 * i3) * (r.y0 * i0);
   auto cos_of = [](const T& t) {
     const T tc = min(max(t, T(-1.f)), T(1.f));
-    return sqrt((T(1.f) - tc) * (T(1.f) + tc));
+    const T u = (T(1.f) - tc) * (T(1.f) + tc);
+    return sel(u > T(0.f), u * rsqrt_nr(sel(u > T(0.f), u, T(1.f))), T(0.f));
   };
   const T c0 = cos_of(t0), c1 = cos_of(t1), c2 = cos_of(t2), c3 = cos_of(t3);
   // asin t0 + asin t1 and asin t2 + asin t3, each in [-pi, pi], as the arguments of the
@@ -423,27 +425,31 @@ inline mask_t<T> sample_spherical_rectangle(const SphericalRectangle<T>& r, cons
   lane_math::sincos(psi, sp, cp);
   // fu = (cos(au) b0 - b1) / sin(au); cu = sign(fu) / sqrt(fu^2 + b0^2), written without
   // the division by sin(au): cu = sign(N) D / sqrt(N^2 + b0^2 D^2), N = -cos(psi) b0 - b1, D = sin(psi).
+  // Square roots and divisions as rsqrt_nr: this map is the renderer's costliest kernel.
   const T n = -cp * r.b0 - r.b1;
   const T dd = sp;
-  const T q = sqrt(n * n + r.b0 * r.b0 * dd * dd);
-  const T iq = T(1.f) / sel(q > T(0.f), q, T(1.f));
+  const T qq = n * n + r.b0 * r.b0 * dd * dd;  // <= 5: b0, sin, cos in [-1, 1]
+  const T iq = rsqrt_nr(sel(qq > T(0.f), qq, T(1.f)));
   const T cu = min(max(sel(n < T(0.f), -dd, dd) * iq, T(-1.f)), T(1.f));
-  const T sq = sqrt(max(T(1.f) - cu * cu, T(1e-12f)));
-  const T xu = min(max(-(cu * r.z0) / sq, r.x0), r.x1);
-  const T dist2 = xu * xu + r.z0 * r.z0;
-  const T dist = sqrt(dist2);
-  const T h0 = r.y0 / sqrt(dist2 + r.y0 * r.y0);
-  const T h1 = r.y1 / sqrt(dist2 + r.y1 * r.y1);
+  const T xu = min(max(-(cu * r.z0) * rsqrt_nr(max(T(1.f) - cu * cu, T(1e-12f))), r.x0), r.x1);
+  const T dist2 = xu * xu + r.z0 * r.z0;  // > 0 wherever r.valid (z0 < 0)
+  const mask_t<T> ok_d = dist2 > T(0.f) && is_finite(dist2);
+  const T dist2s = sel(ok_d, dist2, T(1.f));
+  const T dist = dist2s * rsqrt_nr(dist2s);
+  const T h0 = r.y0 * rsqrt_nr(dist2s + r.y0 * r.y0);
+  const T h1 = r.y1 * rsqrt_nr(dist2s + r.y1 * r.y1);
   const T hv = h0 + u2 * (h1 - h0);
   const T hv2 = hv * hv;
   const mask_t<T> inner = hv2 < T(1.f - 1e-6f);
-  const T yv = sel(inner, hv * dist / sqrt(sel(inner, T(1.f) - hv2, T(1.f))), r.y1);
+  const T yv = sel(inner, hv * dist * rsqrt_nr(sel(inner, T(1.f) - hv2, T(1.f))), r.y1);
   const T yc = min(max(yv, r.y0), r.y1);
   const Vec3<T> v = r.ex * xu + r.ey * yc + r.ez * r.z0;
   // |v| from the local coordinates (the frame is orthonormal)
-  const T len = sqrt(dist2 + yc * yc);
-  const mask_t<T> ok = len > T(0.f) && is_finite(len);
-  dir = sel(ok, v * (T(1.f) / sel(ok, len, T(1.f))), -r.ez);
+  const T len2 = dist2s + yc * yc;
+  const T il = rsqrt_nr(len2);
+  const T len = len2 * il;
+  const mask_t<T> ok = ok_d && len > T(0.f) && is_finite(len) && is_finite(il);
+  dir = sel(ok, v * il, -r.ez);
   dist_y = sel(ok, len, T(0.f));
   const mask_t<T> valid = r.valid && ok && finite3(dir);
   dir = sel(valid, dir, Vec3<T>(T(0.f), T(0.f), T(1.f)));

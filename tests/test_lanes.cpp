@@ -541,3 +541,29 @@ TEST(Lanes, AccumulateEqualScalar) {
     expect_same_floats(a->acc_max, b->acc_max, lanes, [&] { return "max lanes " + std::to_string(lanes); });
   }
 }
+
+// rcp_nr / rsqrt_nr (hardware estimate + one Newton step): within 2 ulps of the correctly
+// rounded 1/x and 1/sqrt(x) from the smallest normal float to 1e37, and every SIMD lane
+// equal to the scalar function.
+TEST(Lanes, ReciprocalEstimatesWithin2Ulps) {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> E(-125.f, 122.f);
+  std::uniform_real_distribution<float> M(1.f, 2.f);
+  alignas(64) float x[simd_width], r[simd_width], s[simd_width];
+  double worst_r = 0, worst_s = 0;
+  for (int it = 0; it < 20000; ++it) {
+    for (int l = 0; l < simd_width; ++l) x[l] = std::ldexp(M(rng), static_cast<int>(E(rng)));
+    store(r, rcp_nr(load<vfloat>(x)));
+    store(s, rsqrt_nr(load<vfloat>(x)));
+    for (int l = 0; l < simd_width; ++l) {
+      const float rs = rcp_nr(x[l]), ss = rsqrt_nr(x[l]);
+      ASSERT_EQ(std::memcmp(&rs, r + l, 4), 0) << x[l];
+      ASSERT_EQ(std::memcmp(&ss, s + l, 4), 0) << x[l];
+      const float er = 1.f / x[l], es = static_cast<float>(1.0 / std::sqrt(static_cast<double>(x[l])));
+      worst_r = std::max(worst_r, std::fabs(double(rs) - er) / (std::nextafter(er, INFINITY) - er));
+      worst_s = std::max(worst_s, std::fabs(double(ss) - es) / (std::nextafter(es, INFINITY) - es));
+    }
+  }
+  EXPECT_LE(worst_r, 2.0);
+  EXPECT_LE(worst_s, 2.0);
+}
