@@ -505,8 +505,9 @@ template <class T> inline mask_t<T> parallelogram_is_rectangle(const Vec3<T>& e1
   return abs(dot(e1, e2)) <= T(rectangle_orthogonality_tolerance) * length(e1) * length(e2);
 }
 
-// Single entry points for parallelogram emitters: Urena where the edges are orthogonal,
-// two triangles otherwise. The renderer's MIS evaluates pdf_parallelogram_sa (same rule).
+// Standalone entry points for a parallelogram given only its edges: Urena where the edges
+// are orthogonal, two triangles otherwise. The renderer applies the same rule through its
+// per-source constants instead (LightGeom::rect from parallelogram_is_rectangle, lights.h).
 template <class T>
 inline T parallelogram_solid_angle(const Vec3<T>& x, const Vec3<T>& p0, const Vec3<T>& e1, const Vec3<T>& e2) noexcept {
   const mask_t<T> rect = parallelogram_is_rectangle(e1, e2);

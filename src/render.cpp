@@ -515,29 +515,19 @@ double replay_rays(const Accel& accel, const RayRecord& rays, int threads) {
       Ray16 ray;
       alignas(64) int32_t valid[packet_width];
       uint64_t& ticks = call_ticks.local();
+      // copies the recorded packet and mask to local memory, then times the call alone
+      auto timed = [&](auto& local, const auto& rec, auto&& call) {
+        copy_packet(local, rec.packet);
+        std::memcpy(valid, rec.valid, sizeof(valid));
+        clear_high_vector_registers();
+        const uint64_t c0 = __rdtsc();
+        call();
+        ticks += __rdtsc() - c0;
+      };
       for (size_t i = r.begin(); i < r.end(); ++i) {
-        if (i < nc) {
-          copy_packet(hit, rays.camera[i].packet);
-          std::memcpy(valid, rays.camera[i].valid, sizeof(valid));
-          clear_high_vector_registers();
-          const uint64_t c0 = __rdtsc();
-          accel.intersect16(valid, hit, true);
-          ticks += __rdtsc() - c0;
-        } else if (i < nc + ns) {
-          copy_packet(ray, rays.shadow[i - nc].packet);
-          std::memcpy(valid, rays.shadow[i - nc].valid, sizeof(valid));
-          clear_high_vector_registers();
-          const uint64_t c0 = __rdtsc();
-          accel.occluded16(valid, ray, false);
-          ticks += __rdtsc() - c0;
-        } else {
-          copy_packet(hit, rays.bounce[i - nc - ns].packet);
-          std::memcpy(valid, rays.bounce[i - nc - ns].valid, sizeof(valid));
-          clear_high_vector_registers();
-          const uint64_t c0 = __rdtsc();
-          accel.intersect16(valid, hit, false);
-          ticks += __rdtsc() - c0;
-        }
+        if (i < nc) timed(hit, rays.camera[i], [&] { accel.intersect16(valid, hit, true); });
+        else if (i < nc + ns) timed(ray, rays.shadow[i - nc], [&] { accel.occluded16(valid, ray, false); });
+        else timed(hit, rays.bounce[i - nc - ns], [&] { accel.intersect16(valid, hit, false); });
       }
     });
   });
