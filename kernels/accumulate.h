@@ -1,5 +1,5 @@
 // Stage 6, accumulate: one sample of every pixel of the tile into the tile's double sums
-// (radiance, its square, the BSDF MIS weight AOV, largest sample luminance). A sample
+// (camera-visible emission plus the shading point's sum, its square, the BSDF MIS weight AOV, largest sample luminance). A sample
 // with a non-finite channel counts as rejected and adds 0. run_tile zeroes the sums at
 // tile start and adds them into the Film once, after the tile's last sample.
 // Reads the tile radiance (and wsum/wcnt with the AOV); writes the tile sums,
@@ -53,6 +53,15 @@ inline void add_sq_f64(double* dst, double* sq, const vfloat& v) noexcept {
 // Lanes [i, i + width) of the tile; lanes from `lanes` on are padding (never counted).
 template <class T> TUILE_FLATTEN inline void accumulate_lanes(TileBuffers& tb, int i, int lanes, bool aov) {
   T r = load<T>(tb.Lr + i), g = load<T>(tb.Lg + i), b = load<T>(tb.Lb + i);
+  // plus what the techniques added to the lanes' shading points: camera_hits compacted
+  // them in lane order, so an expand reads them back
+  const uint32_t shaded = lane_bits(f_mask_from_i(load_i32<T>(tb.shade_of + i) >= i32_t<T>(0)));
+  if (shaded) {
+    const int32_t first = tb.shade_of[i + std::countr_zero(shaded)];
+    r = r + expand_load<T>(tb.Sr + first, shaded);
+    g = g + expand_load<T>(tb.Sg + first, shaded);
+    b = b + expand_load<T>(tb.Sb + first, shaded);
+  }
   const auto finite = is_finite(r) && is_finite(g) && is_finite(b);
   const auto live = f_mask_from_i(i32_t<T>(i) + lane_iota_i32<T>() < i32_t<T>(lanes));
   tb.rejected_camera += static_cast<uint64_t>(std::popcount(lane_bits(live && !finite)));

@@ -5,6 +5,7 @@
 // build_views). Writes: shading point arrays, tile radiance, rejected_camera. SIMD per
 // lane with compress stores; only texture lookups stay scalar.
 #pragma once
+#include <algorithm>
 #include <bit>
 
 #include "tile.h"
@@ -86,6 +87,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   const auto ok = hit && len > T(0.f) && is_finite(len) && is_finite(t);
   tb.rejected_camera += static_cast<uint64_t>(std::popcount(lane_bits(hit && !ok)));
   const uint32_t keep = lane_bits(ok);
+  store(tb.shade_of + i, expand_index<T>(n, keep));
   if (!keep) return;
   ng = ng * (T(1.f) / sel(ok, len, T(1.f)));
   // face the viewer: diffuse reflection on both sides. 0 - n, not -n: xsimd 8 negates
@@ -221,6 +223,9 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
     tb.spix[k] = n > 0 ? tb.spix[0] : 0u;
     tb.slane[k] = -1;
   }
+  std::fill_n(tb.Sr, padded, 0.f);
+  std::fill_n(tb.Sg, padded, 0.f);
+  std::fill_n(tb.Sb, padded, 0.f);
   if (est.one_sample()) {
     sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, 1, padded, tb.u0, tb.u1);
     const float c = est.one_sample_light_prob();

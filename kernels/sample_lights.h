@@ -138,18 +138,15 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
   for (int p = 0; p < padded / packet_width; ++p) reset_query_fields(tb.shadow[p]);
 }
 
-// After the shadow query: unoccluded lanes add their contribution to their pixel
-// (gather, add, masked scatter: the shading points of a batch are distinct tile lanes).
-// Lanes that were not traced or were occluded (Embree sets tfar = -inf) add nothing.
+// After the shadow query: unoccluded lanes add their contribution to their shading
+// point's sum (accumulate adds it to the pixel). Lanes that were not traced or were
+// occluded (Embree sets tfar = -inf) add nothing.
 template <class T> inline void accumulate_shadow_lanes(TileBuffers& tb, int k) {
   const T tfar = load<T>(tb.shadow[k / packet_width].tfar + k % packet_width);
-  const auto lit = f_mask_from_i(load_i32<T>(tb.valid + k) != i32_t<T>(0)) && tfar != T(-INFINITY) &&
-                   T(static_cast<float>(k)) + lane_iota<T>() < T(static_cast<float>(tb.shade_count));
-  if (!any(lit)) return;
-  const i32_t<T> i = max(load_i32<T>(tb.slane + k), i32_t<T>(0));
-  scatter(tb.Lr, i, gather(tb.Lr, i) + load<T>(tb.cr + k), lit);
-  scatter(tb.Lg, i, gather(tb.Lg, i) + load<T>(tb.cg + k), lit);
-  scatter(tb.Lb, i, gather(tb.Lb, i) + load<T>(tb.cb + k), lit);
+  const auto lit = f_mask_from_i(load_i32<T>(tb.valid + k) != i32_t<T>(0)) && tfar != T(-INFINITY);
+  store(tb.Sr + k, load<T>(tb.Sr + k) + sel(lit, load<T>(tb.cr + k), T(0.f)));
+  store(tb.Sg + k, load<T>(tb.Sg + k) + sel(lit, load<T>(tb.cg + k), T(0.f)));
+  store(tb.Sb + k, load<T>(tb.Sb + k) + sel(lit, load<T>(tb.cb + k), T(0.f)));
 }
 
 template <class T = vfloat> inline void accumulate_shadow(TileBuffers& tb) {

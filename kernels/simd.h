@@ -228,6 +228,34 @@ inline void compress_store(float* dst, const vfloat& v, uint32_t bits) noexcept 
 inline void compress_store(int32_t* dst, const vint& v, uint32_t bits) noexcept { compress_store_lanes(dst, v, bits); }
 #endif
 
+// The inverse of compress_store: lane l of the result is the next value of src[0..) where
+// bit l is set, 0 where it is not (reads popcount(bits) values).
+// expand_index: lane l is first + (number of set bits below l) where bit l is set, else -1.
+template <class T> inline T expand_load(const float* src, uint32_t bits) noexcept;
+template <class T> inline i32_t<T> expand_index(int32_t first, uint32_t bits) noexcept;
+template <> inline float expand_load<float>(const float* src, uint32_t bits) noexcept { return bits ? *src : 0.f; }
+template <> inline int32_t expand_index<float>(int32_t first, uint32_t bits) noexcept { return bits ? first : -1; }
+#if defined(__AVX512F__)
+template <> inline vfloat expand_load<vfloat>(const float* src, uint32_t bits) noexcept {
+  return _mm512_maskz_expandloadu_ps(static_cast<__mmask16>(bits), src);
+}
+template <> inline vint expand_index<vfloat>(int32_t first, uint32_t bits) noexcept {
+  return _mm512_mask_expand_epi32(_mm512_set1_epi32(-1), static_cast<__mmask16>(bits),
+                                  _mm512_add_epi32(_mm512_set1_epi32(first), lane_iota_i32<vfloat>()));
+}
+#else
+template <> inline vfloat expand_load<vfloat>(const float* src, uint32_t bits) noexcept {
+  alignas(64) float tmp[simd_width];
+  for (int l = 0, k = 0; l < simd_width; ++l) tmp[l] = (bits >> l) & 1u ? src[k++] : 0.f;
+  return vfloat::load_aligned(tmp);
+}
+template <> inline vint expand_index<vfloat>(int32_t first, uint32_t bits) noexcept {
+  alignas(64) int32_t tmp[simd_width];
+  for (int l = 0, k = first; l < simd_width; ++l) tmp[l] = (bits >> l) & 1u ? k++ : -1;
+  return vint::load_aligned(tmp);
+}
+#endif
+
 inline float finite_or_zero(float x) noexcept { return std::isfinite(x) ? x : 0.f; }
 inline vfloat finite_or_zero(const vfloat& x) noexcept {
   return xsimd::select(xsimd::abs(x) <= vfloat(3.4028234e38f), x, vfloat(0.f));

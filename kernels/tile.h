@@ -79,6 +79,7 @@ struct alignas(64) TileBuffers {
   alignas(64) float fx[max_tile_lanes], fy[max_tile_lanes];  // pixel corner
   alignas(64) uint32_t pixel[max_tile_lanes];                 // global pixel id (rng key)
   alignas(64) int32_t cam_valid[max_tile_lanes];
+  alignas(64) int32_t shade_of[max_tile_lanes];  // the lane's shading point, -1 without one
   alignas(64) float Lr[max_tile_lanes], Lg[max_tile_lanes], Lb[max_tile_lanes];
   alignas(64) float wsum[max_tile_lanes], wcnt[max_tile_lanes];  // MIS weight of the BSDF technique (AOV)
 
@@ -97,6 +98,9 @@ struct alignas(64) TileBuffers {
   alignas(64) uint32_t spix[max_tile_lanes];              // global pixel id
   alignas(64) int32_t slane[max_tile_lanes];              // tile lane
   alignas(64) float choose_light[max_tile_lanes];         // one-sample MIS: 1 = light technique
+  // radiance the light and BSDF techniques add to each shading point in this sample
+  // (summed into its pixel by accumulate, through shade_of)
+  alignas(64) float Sr[max_tile_lanes], Sg[max_tile_lanes], Sb[max_tile_lanes];
 
   // per technique sample (over shading points)
   alignas(64) float u0[max_tile_lanes], u1[max_tile_lanes], u2[max_tile_lanes], u3[max_tile_lanes];
@@ -112,7 +116,8 @@ struct alignas(64) TileBuffers {
   alignas(64) float qdx[max_tile_lanes], qdy[max_tile_lanes], qdz[max_tile_lanes];
   alignas(64) float qdist[max_tile_lanes];
   alignas(64) float qar[max_tile_lanes], qag[max_tile_lanes], qab[max_tile_lanes];
-  alignas(64) int32_t qlight[max_tile_lanes], qlane[max_tile_lanes];
+  alignas(64) int32_t qlight[max_tile_lanes];
+  alignas(64) int32_t qpoint[max_tile_lanes];  // the entry's shading point
 
   // statistics
   uint64_t rejected_light = 0, rejected_bsdf = 0, rejected_camera = 0;

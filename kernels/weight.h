@@ -1,5 +1,5 @@
 // Stage 5, MIS weight: bounce rays that hit the front of an emitter get the weight of
-// the BSDF technique and add rho L_e w_bsdf / n_bsdf to their pixel (cosine sampling of a
+// the BSDF technique and add rho L_e w_bsdf / n_bsdf to their shading point (cosine sampling of a
 // Lambertian BSDF makes f cos / p = rho). The light technique's density for the same
 // direction (pick probability times the point density in solid angle, under the same
 // fallback rule as sampling) enters q_light. Also records w_bsdf for the mis_weight AOV.
@@ -73,7 +73,7 @@ template <class T> TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView&
   compress_store(tb.qag + nq, load<T>(tb.ag + k), keep);
   compress_store(tb.qab + nq, load<T>(tb.ab + k), keep);
   compress_store(tb.qlight + nq, li, keep);
-  compress_store(tb.qlane + nq, load_i32<T>(tb.slane + k), keep);
+  compress_store(tb.qpoint + nq, i32_t<T>(k) + lane_iota_i32<T>(), keep);
   nq += std::popcount(keep);
 }
 
@@ -107,11 +107,12 @@ inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator
       ++tb.rejected_bsdf;
       continue;
     }
-    const int i = tb.qlane[j];
-    tb.Lr[i] += r;
-    tb.Lg[i] += g;
-    tb.Lb[i] += b;
+    const int k = tb.qpoint[j];
+    tb.Sr[k] += r;
+    tb.Sg[k] += g;
+    tb.Sb[k] += b;
     if (est.aov_mis_weight) {
+      const int i = tb.slane[k];
       tb.wsum[i] += tb.wb[j];
       tb.wcnt[i] += 1.f;
     }

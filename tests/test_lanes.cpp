@@ -260,15 +260,20 @@ TEST(Lanes, StagesEqualScalar) {
           for (int k = 0; k < n; k += 3) a->shadow[k / packet_width].tfar[k % packet_width] = -INFINITY;
           for (int k = 0; k < n; ++k) b->shadow[k / packet_width].tfar[k % packet_width] = a->shadow[k / packet_width].tfar[k % packet_width];
           for (TileBuffers* t : {a.get(), b.get()}) {
-            std::fill_n(t->Lr, max_tile_lanes, 0.25f);
-            std::fill_n(t->Lg, max_tile_lanes, 0.f);
-            std::fill_n(t->Lb, max_tile_lanes, 1.f);
+            std::fill_n(t->Sr, max_tile_lanes, 0.25f);
+            std::fill_n(t->Sg, max_tile_lanes, 0.f);
+            std::fill_n(t->Sb, max_tile_lanes, 1.f);
           }
           accumulate_shadow<vfloat>(*a);
           accumulate_shadow<float>(*b);
-          expect_same_floats(a->Lr, b->Lr, max_tile_lanes, name);
-          expect_same_floats(a->Lg, b->Lg, max_tile_lanes, name);
-          expect_same_floats(a->Lb, b->Lb, max_tile_lanes, name);
+          expect_same_floats(a->Sr, b->Sr, max_tile_lanes, name);
+          expect_same_floats(a->Sg, b->Sg, max_tile_lanes, name);
+          expect_same_floats(a->Sb, b->Sb, max_tile_lanes, name);
+          // an occluded lane adds nothing, a lit one its contribution
+          for (int k = 0; k < n; ++k) {
+            const bool lit = a->valid[k] && k % 3 != 0;
+            ASSERT_EQ(a->Sr[k], lit ? 0.25f + a->cr[k] : 0.25f) << name() << " lane " << k;
+          }
           // cosine stage
           for (int k = 0; k < n; k += simd_width) sample_cosine_lanes<vfloat>(est, *a, k);
           for (int k = 0; k < n; ++k) sample_cosine_lanes<float>(est, *b, k);
@@ -414,6 +419,14 @@ TEST(Lanes, CameraHitsEqualScalar) {
         ASSERT_EQ(a->spix[k], b->spix[k]) << name() << " point " << k;
         ASSERT_EQ(a->slane[k], b->slane[k]) << name() << " point " << k;
       }
+      // shade_of inverts the compaction: lane i has point k exactly where slane[k] == i
+      for (int i = 0; i < 256; ++i) {
+        ASSERT_EQ(a->shade_of[i], b->shade_of[i]) << name() << " lane " << i;
+        if (a->shade_of[i] >= 0) {
+          ASSERT_EQ(a->slane[a->shade_of[i]], i) << name() << " lane " << i;
+        }
+      }
+      for (int k = 0; k < n; ++k) ASSERT_EQ(a->shade_of[a->slane[k]], k) << name() << " point " << k;
       expect_same_floats(a->Lr, b->Lr, 256, name);
       expect_same_floats(a->Lg, b->Lg, 256, name);
       expect_same_floats(a->Lb, b->Lb, 256, name);
@@ -473,9 +486,9 @@ TEST(Lanes, EmitterQueueEqualScalar) {
       sample_cosine(est, 0, 2, *a);
       const int padded = (count + packet_width - 1) / packet_width * packet_width;
       for (int p = 0; p < padded / packet_width; ++p) accel.intersect16(a->valid + p * packet_width, a->bounce[p], false);
-      std::fill_n(a->Lr, max_tile_lanes, 0.f);
-      std::fill_n(a->Lg, max_tile_lanes, 0.f);
-      std::fill_n(a->Lb, max_tile_lanes, 0.f);
+      std::fill_n(a->Sr, max_tile_lanes, 0.f);
+      std::fill_n(a->Sg, max_tile_lanes, 0.f);
+      std::fill_n(a->Sb, max_tile_lanes, 0.f);
       auto b = std::make_unique<TileBuffers>(*a);
       weight_bounce<vfloat>(views.geom, views.lights, est, 1.f, 1.f, *a);
       weight_bounce<float>(views.geom, views.lights, est, 1.f, 1.f, *b);
@@ -489,11 +502,11 @@ TEST(Lanes, EmitterQueueEqualScalar) {
         expect_same_floats((*a).*arr, (*b).*arr, nq, name);
       for (int j = 0; j < nq; ++j) {
         ASSERT_EQ(a->qlight[j], b->qlight[j]) << name() << " entry " << j;
-        ASSERT_EQ(a->qlane[j], b->qlane[j]) << name() << " entry " << j;
+        ASSERT_EQ(a->qpoint[j], b->qpoint[j]) << name() << " entry " << j;
       }
-      expect_same_floats(a->Lr, b->Lr, count, name);
-      expect_same_floats(a->Lg, b->Lg, count, name);
-      expect_same_floats(a->Lb, b->Lb, count, name);
+      expect_same_floats(a->Sr, b->Sr, count, name);
+      expect_same_floats(a->Sg, b->Sg, count, name);
+      expect_same_floats(a->Sb, b->Sb, count, name);
       // every queued entry is a traced ray that hit the front of an emitter, and every such ray is queued
       int expected = 0;
       for (int k = 0; k < count; ++k) {
@@ -528,6 +541,13 @@ TEST(Lanes, AccumulateEqualScalar) {
         a->Lb[i] = b->Lb[i] = bl;
         a->wsum[i] = b->wsum[i] = U(rng);
         a->wcnt[i] = b->wcnt[i] = static_cast<float>(rng() % 3);
+      }
+      // shading points of some lanes, compacted in lane order, with their sums
+      for (int i = 0, k = 0; i < 256; ++i) {
+        a->shade_of[i] = b->shade_of[i] = rng() % 4 == 0 ? -1 : k++;
+        a->Sr[i] = b->Sr[i] = U(rng);
+        a->Sg[i] = b->Sg[i] = U(rng);
+        a->Sb[i] = b->Sb[i] = U(rng);
       }
       accumulate_samples<vfloat>(*a, lanes, true);
       accumulate_samples<float>(*b, lanes, true);
