@@ -118,10 +118,15 @@ struct alignas(64) TileBuffers {
   alignas(64) float qar[max_tile_lanes], qag[max_tile_lanes], qab[max_tile_lanes];
   alignas(64) int32_t qlight[max_tile_lanes];
   alignas(64) int32_t qpoint[max_tile_lanes];  // the entry's shading point
+  // the bounce ray's origin and its distance to the emitter (for the visibility ray when
+  // bounce rays see only the emitters), and 1 / 0 for a visible / occluded emitter
+  alignas(64) float qox[max_tile_lanes], qoy[max_tile_lanes], qoz[max_tile_lanes], qt[max_tile_lanes];
+  alignas(64) float qvis[max_tile_lanes];
+  alignas(64) int32_t qvalid[max_tile_lanes];
 
   // statistics
   uint64_t rejected_light = 0, rejected_bsdf = 0, rejected_camera = 0;
-  uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0;
+  uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0, rays_bounce_visibility = 0;
 };
 
 // pbrt-v4's gamma(n) = n u / (1 - n u), u = 2^-24: bounds on floating-point error.

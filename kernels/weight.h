@@ -14,7 +14,8 @@ template <class T>
 TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est, float n_light, float n_bsdf, TileBuffers& tb,
                          int j) {
   constexpr float inv_pi = 0.318309886f;
-  const auto live = (T(static_cast<float>(j)) + lane_iota<T>()) < T(static_cast<float>(tb.queue_count));
+  const auto live =
+      (T(static_cast<float>(j)) + lane_iota<T>()) < T(static_cast<float>(tb.queue_count)) && load<T>(tb.qvis + j) > T(0.f);
   const i32_t<T> idx = load_i32<T>(tb.qlight + j);
   const Vec3<T> x = load3<T>(tb.qx + j, tb.qy + j, tb.qz + j);
   const Vec3<T> n = load3<T>(tb.qnx + j, tb.qny + j, tb.qnz + j);
@@ -74,21 +75,22 @@ template <class T> TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView&
   compress_store(tb.qab + nq, load<T>(tb.ab + k), keep);
   compress_store(tb.qlight + nq, li, keep);
   compress_store(tb.qpoint + nq, i32_t<T>(k) + lane_iota_i32<T>(), keep);
+  compress_store(tb.qox + nq, o.x, keep);
+  compress_store(tb.qoy + nq, o.y, keep);
+  compress_store(tb.qoz + nq, o.z, keep);
+  compress_store(tb.qt + nq, load<T>(r.ray.tfar + l), keep);
   nq += std::popcount(keep);
 }
 
-// Queues the bounce rays that hit the front of an emitter, weights them, adds them.
-// T = float runs the queue in the scalar reference.
-template <class T = vfloat>
-inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator& est, float n_light, float n_bsdf,
-                          TileBuffers& tb) {
+// Queues the bounce rays that hit the front of an emitter (tb.queue_count entries, all
+// visible until bounce_visibility says otherwise). T = float: the scalar reference.
+template <class T = vfloat> inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers& tb) {
   int nq = 0;
   // padding lanes past shade_count are never valid (sample_cosine)
   const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
   for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T>(G, L, tb, k, nq);
   tb.queue_count = nq;
-  if (nq == 0) return;
-  const int qpadded = (nq + simd_width - 1) / simd_width * simd_width;
+  const int qpadded = (nq + packet_width - 1) / packet_width * packet_width;
   for (int j = nq; j < qpadded; ++j) {  // padding: a valid light index, no contribution
     tb.qx[j] = tb.qy[j] = tb.qz[j] = 0.f;
     tb.qnx[j] = tb.qny[j] = 0.f;
@@ -97,11 +99,52 @@ inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator
     tb.qdz[j] = 1.f;
     tb.qdist[j] = 1.f;
     tb.qar[j] = tb.qag[j] = tb.qab[j] = 0.f;
-    tb.qlight[j] = tb.qlight[0];
+    tb.qlight[j] = nq > 0 ? tb.qlight[0] : 0;
+    tb.qpoint[j] = 0;
+    tb.qox[j] = tb.qoy[j] = tb.qoz[j] = 0.f;
+    tb.qt[j] = 1.f;
   }
+  std::fill_n(tb.qvis, qpadded, 1.f);
+}
+
+// When bounce rays were traced against the emitters only, the emitter a ray reached is
+// what it sees only if nothing of the scene lies in between: the visibility rays of the
+// queue (tb.shadow packets, tb.qvalid), from the bounce ray's origin along its direction,
+// stopping 2^-12 of the distance short of the emitter as shadow rays do, so that both
+// techniques test visibility the same way. Returns the number of packets.
+inline int bounce_visibility_rays(TileBuffers& tb) {
+  const int qpadded = (tb.queue_count + packet_width - 1) / packet_width * packet_width;
+  for (int j = 0; j < qpadded; j += simd_width) {
+    store_field(tb.shadow, &Ray16::org_x, j, load<vfloat>(tb.qox + j));
+    store_field(tb.shadow, &Ray16::org_y, j, load<vfloat>(tb.qoy + j));
+    store_field(tb.shadow, &Ray16::org_z, j, load<vfloat>(tb.qoz + j));
+    store_field(tb.shadow, &Ray16::dir_x, j, load<vfloat>(tb.qdx + j));
+    store_field(tb.shadow, &Ray16::dir_y, j, load<vfloat>(tb.qdy + j));
+    store_field(tb.shadow, &Ray16::dir_z, j, load<vfloat>(tb.qdz + j));
+    store_field(tb.shadow, &Ray16::tnear, j, vfloat(0.f));
+    store_field(tb.shadow, &Ray16::tfar, j, load<vfloat>(tb.qt + j) * vfloat(1.f - 1.f / 4096.f));
+    store_field(tb.shadow, &Ray16::time, j, vfloat(0.f));
+    store_valid(tb.qvalid + j, (vfloat(static_cast<float>(j)) + lane_iota<vfloat>()) < vfloat(static_cast<float>(tb.queue_count)));
+  }
+  for (int p = 0; p < qpadded / packet_width; ++p) reset_query_fields(tb.shadow[p]);
+  return qpadded / packet_width;
+}
+
+// After the visibility query: occluded entries (Embree sets tfar = -inf) see nothing.
+inline void read_bounce_visibility(TileBuffers& tb) {
+  for (int j = 0; j < tb.queue_count; ++j)
+    tb.qvis[j] = tb.shadow[j / packet_width].tfar[j % packet_width] == -INFINITY ? 0.f : 1.f;
+}
+
+// Weights the visible entries of the queue and adds them to their shading points.
+inline void weight_queue(const LightView& L, const Estimator& est, float n_light, float n_bsdf, TileBuffers& tb) {
+  const int nq = tb.queue_count;
+  if (nq == 0) return;
+  const int qpadded = (nq + simd_width - 1) / simd_width * simd_width;
   for (int j = 0; j < qpadded; j += simd_width) weight_lanes<vfloat>(L, est, n_light, n_bsdf, tb, j);
   if (est.strategy == Strategy::light) return;
   for (int j = 0; j < nq; ++j) {
+    if (!(tb.qvis[j] > 0.f)) continue;
     const float r = tb.cr[j], g = tb.cg[j], b = tb.cb[j];
     if (!(std::isfinite(r) && std::isfinite(g) && std::isfinite(b))) {
       ++tb.rejected_bsdf;
@@ -117,6 +160,15 @@ inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator
       tb.wcnt[i] += 1.f;
     }
   }
+}
+
+// Queues the bounce rays that hit the front of an emitter, weights them, adds them
+// (bounce rays traced against the whole scene: every queued emitter is visible).
+template <class T = vfloat>
+inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator& est, float n_light, float n_bsdf,
+                          TileBuffers& tb) {
+  queue_bounce_hits<T>(G, L, tb);
+  weight_queue(L, est, n_light, n_bsdf, tb);
 }
 
 }  // namespace tuile

@@ -34,6 +34,10 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
   app.add_option("--pipeline", f.pipeline,
                  "auto (specialised to the scene's features) | general (every stage, the reference)")
       ->capture_default_str();
+  app.add_option("--bounce-rays", f.bounce_rays,
+                 "scene (nearest hit in the whole scene) | emitters (nearest emitter, then an occlusion ray to it) | "
+                 "auto (emitters when they are at most half of the primitives)")
+      ->capture_default_str();
   app.add_flag("--quiet", f.quiet, "no progress or summary on stderr");
   app.add_flag("--stats", f.stats, "print rejected samples, worst accident and mean variance");
 }
@@ -81,6 +85,7 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
     scene.camera.width = w;
     scene.camera.height = h;
   }
+  o.bounce = parse_bounce_trace(f.bounce_rays);
   if (f.pipeline == "general") o.general_pipeline = true;
   else if (f.pipeline != "auto") throw std::invalid_argument("--pipeline '" + f.pipeline + "': expected auto or general");
   size_t start = 0;

@@ -18,7 +18,9 @@ static_assert(offsetof(Ray16, flags) == offsetof(RTCRay16, flags));
 struct Accel::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
+  RTCScene emitters = nullptr;
   std::string error;
+  RTCScene of(Target t) const { return t == Target::emitters ? emitters : scene; }
 };
 
 static void error_callback(void* user, RTCError code, const char* str) {
@@ -32,35 +34,50 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
   if (!impl_->device) throw SceneError("Embree: cannot create a device (config '" + options.device_config + "')");
   rtcSetDeviceErrorFunction(impl_->device, error_callback, impl_.get());
   impl_->scene = rtcNewScene(impl_->device);
-  rtcSetSceneFlags(impl_->scene, options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
-  rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_MEDIUM);
+  impl_->emitters = rtcNewScene(impl_->device);
+  for (RTCScene sc : {impl_->scene, impl_->emitters}) {
+    rtcSetSceneFlags(sc, options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
+    rtcSetSceneBuildQuality(sc, RTC_BUILD_QUALITY_MEDIUM);
+  }
 
+  // Each emitter is a second geometry object on the same shared buffers, attached to the
+  // emitters' scene under the same ID.
   unsigned id = 0;
   for (const Mesh& m : scene.meshes) {
-    RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    const size_t nv = m.positions.size() / 3, nt = m.triangle_count();
-    // Shared buffers: Embree reads the scene's own arrays (it may read 4 bytes past the
-    // last vertex; finalize_scene pads positions for that), no copy.
-    rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, m.positions.data(), 0,
-                               3 * sizeof(float), nv);
-    rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.indices.data(), 0,
-                               3 * sizeof(uint32_t), nt);
-    rtcCommitGeometry(g);
-    rtcAttachGeometryByID(impl_->scene, g, id++);
-    rtcReleaseGeometry(g);
+    for (RTCScene sc : {impl_->scene, impl_->emitters}) {
+      if (sc == impl_->emitters && !m.emissive()) continue;
+      RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      const size_t nv = m.positions.size() / 3, nt = m.triangle_count();
+      // Shared buffers: Embree reads the scene's own arrays (it may read 4 bytes past the
+      // last vertex; finalize_scene pads positions for that), no copy.
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, m.positions.data(), 0,
+                                 3 * sizeof(float), nv);
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.indices.data(), 0,
+                                 3 * sizeof(uint32_t), nt);
+      rtcCommitGeometry(g);
+      rtcAttachGeometryByID(sc, g, id);
+      rtcReleaseGeometry(g);
+    }
+    ++id;
   }
   for (const Sphere& s : scene.spheres) {
-    RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
-    auto* v = static_cast<float*>(
-        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
-    v[0] = s.center.x;
-    v[1] = s.center.y;
-    v[2] = s.center.z;
-    v[3] = s.radius;
-    rtcCommitGeometry(g);
-    rtcAttachGeometryByID(impl_->scene, g, id++);
-    rtcReleaseGeometry(g);
+    const bool emissive = s.emission.r > 0 || s.emission.g > 0 || s.emission.b > 0;
+    for (RTCScene sc : {impl_->scene, impl_->emitters}) {
+      if (sc == impl_->emitters && !emissive) continue;
+      RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+      auto* v = static_cast<float*>(
+          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
+      v[0] = s.center.x;
+      v[1] = s.center.y;
+      v[2] = s.center.z;
+      v[3] = s.radius;
+      rtcCommitGeometry(g);
+      rtcAttachGeometryByID(sc, g, id);
+      rtcReleaseGeometry(g);
+    }
+    ++id;
   }
+  rtcCommitScene(impl_->emitters);
   rtcCommitScene(impl_->scene);
   if (!impl_->error.empty()) throw SceneError(impl_->error);
   build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -68,14 +85,15 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
 
 Accel::~Accel() {
   if (impl_->scene) rtcReleaseScene(impl_->scene);
+  if (impl_->emitters) rtcReleaseScene(impl_->emitters);
   if (impl_->device) rtcReleaseDevice(impl_->device);
 }
 
-void Accel::intersect16(const int32_t* valid, RayHit16& packet, bool coherent) const noexcept {
+void Accel::intersect16(const int32_t* valid, RayHit16& packet, bool coherent, Target target) const noexcept {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-  rtcIntersect16(valid, impl_->scene, &ctx, reinterpret_cast<RTCRayHit16*>(&packet));
+  rtcIntersect16(valid, impl_->of(target), &ctx, reinterpret_cast<RTCRayHit16*>(&packet));
 }
 
 void Accel::occluded16(const int32_t* valid, Ray16& packet, bool coherent) const noexcept {
@@ -99,12 +117,12 @@ static RTCRayHitNp to_np(Accel::StreamRays& r) {
   return np;
 }
 
-void Accel::intersect_stream(StreamRays& r, unsigned n, bool coherent) const noexcept {
+void Accel::intersect_stream(StreamRays& r, unsigned n, bool coherent, Target target) const noexcept {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
   RTCRayHitNp np = to_np(r);
-  rtcIntersectNp(impl_->scene, &ctx, &np, n);
+  rtcIntersectNp(impl_->of(target), &ctx, &np, n);
 }
 
 void Accel::occluded_stream(StreamRays& r, unsigned n, bool coherent) const noexcept {

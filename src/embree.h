@@ -15,17 +15,23 @@ struct EmbreeOptions {
   std::string device_config;  // e.g. "max_isa=avx2"
 };
 
+// Which BVH a query runs against: the whole scene, or only its emissive meshes and
+// spheres (the same geomIDs and primIDs; empty when the scene has no emitter).
+enum class Target { scene, emitters };
+
 class Accel {
  public:
-  // Builds the BVH over every mesh and sphere of the scene. geomID == mesh index for
-  // meshes, meshes.size() + i for sphere i. Throws SceneError if Embree fails.
+  // Builds the BVHs over every mesh and sphere of the scene and over its emitters.
+  // geomID == mesh index for meshes, meshes.size() + i for sphere i, in both. Throws
+  // SceneError if Embree fails.
   Accel(const Scene& scene, const EmbreeOptions& options = {});
   ~Accel();
   Accel(const Accel&) = delete;
   Accel& operator=(const Accel&) = delete;
 
   // valid[i] = -1 for active lanes, 0 for inactive (Embree's convention).
-  void intersect16(const int32_t* valid, RayHit16& packet, bool coherent) const noexcept;
+  void intersect16(const int32_t* valid, RayHit16& packet, bool coherent,
+                   Target target = Target::scene) const noexcept;
   void occluded16(const int32_t* valid, Ray16& packet, bool coherent) const noexcept;
   void intersect1(RayHit16& packet, int lane) const noexcept;  // reference path for tests
   // The same rays through Embree's stream API (rtcIntersectNp / rtcOccludedNp on
@@ -36,7 +42,7 @@ class Accel {
     float *Ng_x, *Ng_y, *Ng_z, *u, *v;
     uint32_t *primID, *geomID, *instID;
   };
-  void intersect_stream(StreamRays& rays, unsigned n, bool coherent) const noexcept;
+  void intersect_stream(StreamRays& rays, unsigned n, bool coherent, Target target = Target::scene) const noexcept;
   void occluded_stream(StreamRays& rays, unsigned n, bool coherent) const noexcept;
   double build_seconds() const { return build_seconds_; }
 

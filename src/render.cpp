@@ -249,6 +249,17 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   if (!(opt_.est.mis.alpha >= 0 && opt_.est.mis.alpha <= 1)) throw std::invalid_argument("--alpha must be in [0, 1]");
   opt_.est.aov_mis_weight = opt_.est.aov_mis_weight || opt_.aov_mis_weight;
   *views_ = build_views(scene, opt_.est.pick);
+  if (opt_.bounce == BounceTrace::automatic) {
+    size_t all = scene.spheres.size(), emitting = 0;
+    for (const Mesh& m : scene.meshes) {
+      all += m.triangle_count();
+      if (m.emissive()) emitting += m.triangle_count();
+    }
+    for (const Sphere& sp : scene.spheres) emitting += sp.emission.r > 0 || sp.emission.g > 0 || sp.emission.b > 0;
+    bounce_emitters_ = 2 * emitting <= all;
+  } else {
+    bounce_emitters_ = opt_.bounce == BounceTrace::emitters;
+  }
 }
 
 Renderer::~Renderer() = default;
@@ -273,6 +284,7 @@ struct TileContext {
   int tile_size, tiles_x, width, height;
   int light_passes, bsdf_passes, S;
   float n_light, n_bsdf;
+  bool bounce_emitters;   // bounce rays against the emitters, then visibility rays
   Profile* profile;       // null when not profiling
   uint64_t origin_ticks;
 };
@@ -399,17 +411,33 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
           timer.stop(Stage::sample_cosine);
           timer.start();
           clear_high_vector_registers();
+          const Target target = c.bounce_emitters ? Target::emitters : Target::scene;
           for (int p = 0; p < packets; ++p) {
             const int32_t* valid = tb.valid + p * packet_width;
             const int active = active_lanes(valid);
             if (!active) continue;
             if (rec) record(tp->rays.bounce, tb.bounce[p], valid);
-            c.accel.intersect16(valid, tb.bounce[p], false);
+            c.accel.intersect16(valid, tb.bounce[p], false, target);
             tb.rays_bounce += static_cast<uint64_t>(active);
           }
           timer.stop(Stage::intersect_bounce);
           timer.start();
-          weight_bounce(v.geom, v.lights, est, c.n_light, c.n_bsdf, tb);
+          queue_bounce_hits(v.geom, v.lights, tb);
+          if (c.bounce_emitters && tb.queue_count > 0) {
+            const int qpackets = bounce_visibility_rays(tb);
+            timer.stop(Stage::mis_weight);
+            timer.start();
+            clear_high_vector_registers();
+            for (int p = 0; p < qpackets; ++p) {
+              if (rec) record(tp->rays.shadow, tb.shadow[p], tb.qvalid + p * packet_width);
+              c.accel.occluded16(tb.qvalid + p * packet_width, tb.shadow[p], false);
+            }
+            tb.rays_bounce_visibility += static_cast<uint64_t>(tb.queue_count);
+            timer.stop(Stage::intersect_bounce);
+            timer.start();
+            read_bounce_visibility(tb);
+          }
+          weight_queue(v.lights, est, c.n_light, c.n_bsdf, tb);
           timer.stop(Stage::mis_weight);
         }
       }
@@ -527,7 +555,10 @@ double replay_rays(const Accel& accel, const RayRecord& rays, int threads) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
         if (i < nc) timed(hit, rays.camera[i], [&] { accel.intersect16(valid, hit, true); });
         else if (i < nc + ns) timed(ray, rays.shadow[i - nc], [&] { accel.occluded16(valid, ray, false); });
-        else timed(hit, rays.bounce[i - nc - ns], [&] { accel.intersect16(valid, hit, false); });
+        else
+          timed(hit, rays.bounce[i - nc - ns], [&] {
+            accel.intersect16(valid, hit, false, rays.bounce_emitters ? Target::emitters : Target::scene);
+          });
       }
     });
   });
@@ -546,14 +577,16 @@ double replay_rays_stream(const Accel& accel, const RayRecord& rays, int threads
     std::vector<uint32_t> u[6];
     unsigned n = 0;
     bool occluded = false, coherent = false;
+    Target target = Target::scene;
   };
   std::vector<Stream> streams;
   constexpr size_t per_stream = max_tile_lanes / packet_width;  // packets of one tile
-  auto build = [&](const auto& packets, bool occluded, bool coherent) {
+  auto build = [&](const auto& packets, bool occluded, bool coherent, Target target) {
     for (size_t start = 0; start < packets.size(); start += per_stream) {
       Stream st;
       st.occluded = occluded;
       st.coherent = coherent;
+      st.target = target;
       for (size_t p = start; p < std::min(packets.size(), start + per_stream); ++p) {
         const auto& rec = packets[p];
         const Ray16* r;
@@ -575,9 +608,9 @@ double replay_rays_stream(const Accel& accel, const RayRecord& rays, int threads
       streams.push_back(std::move(st));
     }
   };
-  build(rays.camera, false, true);
-  build(rays.shadow, true, false);
-  build(rays.bounce, false, false);
+  build(rays.camera, false, true, Target::scene);
+  build(rays.shadow, true, false, Target::scene);
+  build(rays.bounce, false, false, rays.bounce_emitters ? Target::emitters : Target::scene);
   const auto t0 = clock_type::now();
   tbb::task_arena arena(threads > 0 ? threads : tbb::this_task_arena::max_concurrency());
   arena.execute([&] {
@@ -589,7 +622,7 @@ double replay_rays_stream(const Accel& accel, const RayRecord& rays, int threads
                              st.u[1].data(),  st.u[2].data(),  st.f[9].data(),  st.f[10].data(), st.f[11].data(),
                              st.f[12].data(), st.f[13].data(), st.u[3].data(),  st.u[4].data(),  st.u[5].data()};
         if (st.occluded) accel.occluded_stream(sr, st.n, st.coherent);
-        else accel.intersect_stream(sr, st.n, st.coherent);
+        else accel.intersect_stream(sr, st.n, st.coherent, st.target);
       }
     });
   });
@@ -624,6 +657,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
                 v.lights.count,
                 one ? c_l : static_cast<float>(est.light_samples),
                 one ? 1.f - c_l : static_cast<float>(est.bsdf_samples),
+                bounce_emitters_,
                 profile,
                 __rdtsc()};
   std::string why;
@@ -655,6 +689,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
     st.rays_camera += p->rays_camera;
     st.rays_shadow += p->rays_shadow;
     st.rays_bounce += p->rays_bounce;
+    st.rays_bounce_visibility += p->rays_bounce_visibility;
     st.rejected_camera += p->rejected_camera;
     st.rejected_light += p->rejected_light;
     st.rejected_bsdf += p->rejected_bsdf;
@@ -676,6 +711,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
       append(profile->rays.camera, tp.rays.camera);
       append(profile->rays.shadow, tp.rays.shadow);
       append(profile->rays.bounce, tp.rays.bounce);
+      profile->rays.bounce_emitters = bounce_emitters_;
       ++tid;
     }
   }
@@ -717,6 +753,13 @@ MisMode parse_mis_mode(const std::string& s) {
   if (s == "one") return MisMode::one;
   throw std::invalid_argument("unknown MIS mode '" + s + "' (expected multi or one)");
 }
+BounceTrace parse_bounce_trace(const std::string& s) {
+  if (s == "auto") return BounceTrace::automatic;
+  if (s == "scene") return BounceTrace::scene;
+  if (s == "emitters") return BounceTrace::emitters;
+  throw std::invalid_argument("unknown bounce-rays mode '" + s + "' (expected auto, scene or emitters)");
+}
+
 SamplerKind parse_sampler(const std::string& s) {
   if (s == "independent") return SamplerKind::independent;
   if (s == "stratified") return SamplerKind::stratified;

@@ -12,8 +12,16 @@
 
 namespace tuile {
 
+// What a BSDF (bounce) ray is traced against. scene: its nearest hit in the whole scene.
+// emitters: its nearest emitter, then, for the rays that reach the front of one, an
+// occlusion ray up to it (2^-12 short, as shadow rays): the same estimator, with far
+// fewer nodes visited where the emitters are a small part of the scene. automatic:
+// emitters where they are at most half of the scene's primitives.
+enum class BounceTrace : int { automatic = 0, scene = 1, emitters = 2 };
+
 struct RenderOptions {
   Estimator est;
+  BounceTrace bounce = BounceTrace::automatic;
   int threads = 0;    // 0 = all cores
   int tile = 16;      // 16 or 32 (any 1..32 accepted)
   bool aov_variance = false;
@@ -50,7 +58,8 @@ template <class P> struct RecordedPacket {
 // The packets one pass traces, in order (profile --roofline).
 struct RayRecord {
   std::vector<RecordedPacket<RayHit16>> camera, bounce;
-  std::vector<RecordedPacket<Ray16>> shadow;
+  std::vector<RecordedPacket<Ray16>> shadow;  // shadow rays and bounce visibility rays
+  bool bounce_emitters = false;               // bounce rays were traced against the emitters
 };
 
 // Filled by Renderer::render when given: time per stage summed over threads, and
@@ -93,6 +102,7 @@ struct RenderStats {
   double seconds = 0;
   uint64_t samples = 0;  // camera samples
   uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0;
+  uint64_t rays_bounce_visibility = 0;  // occlusion rays of bounce rays that reached an emitter
   uint64_t rejected_camera = 0, rejected_light = 0, rejected_bsdf = 0;
   double worst_ratio = 0;  // largest single-sample luminance relative to its pixel mean
   std::string pipeline;
@@ -103,6 +113,7 @@ struct RenderStats {
     rays_camera += o.rays_camera;
     rays_shadow += o.rays_shadow;
     rays_bounce += o.rays_bounce;
+    rays_bounce_visibility += o.rays_bounce_visibility;
     rejected_camera += o.rejected_camera;
     rejected_light += o.rejected_light;
     rejected_bsdf += o.rejected_bsdf;
@@ -150,6 +161,8 @@ class Renderer {
   RenderStats render(Film& film, uint32_t begin, uint32_t end, Profile* profile = nullptr);
   // The pipeline this scene and estimator select, and why.
   std::string pipeline_name(std::string* why = nullptr) const;
+  // Whether bounce rays run against the emitters (BounceTrace resolved for this scene).
+  bool bounce_emitters() const { return bounce_emitters_; }
   const RenderOptions& options() const { return opt_; }
 
  private:
@@ -157,6 +170,7 @@ class Renderer {
   const Accel& accel_;
   RenderOptions opt_;
   std::unique_ptr<SceneViews> views_;
+  bool bounce_emitters_ = false;
 };
 
 // Parses the names used on the command line and in scene files; throw std::invalid_argument.
@@ -166,6 +180,7 @@ LightPoint parse_light_point(const std::string& s);
 Heuristic parse_heuristic(const std::string& s);
 MisMode parse_mis_mode(const std::string& s);
 SamplerKind parse_sampler(const std::string& s);
+BounceTrace parse_bounce_trace(const std::string& s);
 std::string describe(const Estimator& e);
 
 }  // namespace tuile
