@@ -683,6 +683,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
   st.seconds = std::chrono::duration<double>(clock_type::now() - t0).count();
   const double sec_per_tick = st.seconds / static_cast<double>(std::max<uint64_t>(1, __rdtsc() - ticks0));
   st.pipeline = pipe.name;
+  st.bounce_emitters = bounce_emitters_;
   film.samples += end - begin;
   st.samples = static_cast<uint64_t>(end - begin) * static_cast<uint64_t>(cam.width) * cam.height;
   for (auto& p : buffers) {

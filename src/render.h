@@ -106,6 +106,7 @@ struct RenderStats {
   uint64_t rejected_camera = 0, rejected_light = 0, rejected_bsdf = 0;
   double worst_ratio = 0;  // largest single-sample luminance relative to its pixel mean
   std::string pipeline;
+  bool bounce_emitters = false;  // bounce rays were traced against the emitters only
   // Adds the counters of another render (seconds and samples included).
   void add_counts(const RenderStats& o) {
     seconds += o.seconds;

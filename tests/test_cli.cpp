@@ -76,7 +76,8 @@ TEST(Cli, BadInputIsAClearErrorWithExitOne) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("/nonexistent/scene.pbrt"), std::string::npos) << r.out;
   for (const char* args : {"--res 0x10", "--res 100000x100000", "--beta nan", "--strategy maybe", "--spp 0",
-                           "--light-samples 0", "--threads -1", "--aov unknown", "--pipeline fast"}) {
+                           "--light-samples 0", "--threads -1", "--aov unknown", "--pipeline fast",
+                           "--bounce-rays nearest"}) {
     r = run(std::string("render built-in:cornell --quiet -o ") + tmp("cli_x.exr") + " " + args);
     EXPECT_EQ(r.code, 1) << args << ": " << r.out;
     EXPECT_NE(r.out.find("error"), std::string::npos) << args << ": " << r.out;
@@ -88,8 +89,13 @@ TEST(Cli, InfoNamesThePipeline) {
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("pipeline: area/mis/pick"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("lights: 101"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("bounce rays: against the whole scene"), std::string::npos) << r.out;
   const CmdResult g = run("info built-in:two-panels --pipeline general");
   EXPECT_NE(g.out.find("pipeline: general"), std::string::npos) << g.out;
+  const CmdResult c = run("info built-in:cornell");
+  EXPECT_NE(c.out.find("bounce rays: against the emitters"), std::string::npos) << c.out;
+  const CmdResult f = run("info built-in:cornell --bounce-rays scene");
+  EXPECT_NE(f.out.find("bounce rays: against the whole scene"), std::string::npos) << f.out;
 }
 
 TEST(Cli, BenchJsonSchema) {

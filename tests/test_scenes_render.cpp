@@ -104,3 +104,38 @@ TEST(SceneRender, CornellBoxMatchesHighSampleReference) {
   EXPECT_LT(std::fabs(d) / std::sqrt(var), 3.0);
   EXPECT_LT(worst, 4.5);
 }
+
+// The shared scenes with their bounce rays traced against the emitters alone (then an
+// occlusion ray to the emitter) and against the whole scene: the same image. Where an
+// occluder lies within 2^-12 of an emitter's distance the two visibility tests may
+// differ, so the test allows a pixel value in 10^4 to differ; the images' means agree
+// to 1e-4 relative.
+TEST(SceneRender, SharedScenesBounceRaysAgainstEmitters) {
+  const fs::path dir = TUILE_SHARED_SCENES;
+  if (!fs::exists(dir)) GTEST_SKIP() << "../shared/scenes is absent: shared-scene renders skipped";
+  for (const char* name : {"cornell-box", "veach-mis", "staircase2", "kitchen"}) {
+    const fs::path f = dir / name / "scene-v4.pbrt";
+    if (!fs::exists(f)) continue;
+    SCOPED_TRACE(f.string());
+    Scene s = load_scene(f.string());
+    s.camera.width = 64;
+    s.camera.height = 48;
+    RenderOptions o;
+    o.est.spp = 4;
+    o.est.seed = 9;
+    RenderOptions oe = o;
+    o.bounce = BounceTrace::scene;
+    oe.bounce = BounceTrace::emitters;
+    const RenderResult a = render_scene(s, o), b = render_scene(s, oe);
+    size_t differ = 0;
+    double sa = 0, sb = 0;
+    for (size_t i = 0; i < a.mean.size(); ++i) {
+      differ += a.mean[i] != b.mean[i];
+      sa += a.mean[i];
+      sb += b.mean[i];
+    }
+    EXPECT_LE(differ, a.mean.size() / 10000) << name;
+    EXPECT_LE(std::fabs(sa - sb), 1e-4 * sa) << name;
+    EXPECT_GT(b.stats.rays_bounce_visibility, 0u) << name;
+  }
+}
