@@ -79,6 +79,41 @@ template <class T> void BM_sample_lights(benchmark::State& state) {
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }
+// The parts of the light kernel on the same lanes: Urena's map alone (setup and sample)
+// and the whole point sampler (map, fallback rule, area fallback).
+template <class T> void BM_rectangle_map(benchmark::State& state) {
+  Fixture f;
+  const LightGeom<T> g = broadcast_light<T>(f.views.lights, 0);
+  constexpr int w = lane_traits<T>::width;
+  for (auto _ : state) {
+    for (int k = 0; k < lanes; k += w) {
+      const Vec3<T> x = load3<T>(f.tb->px + k, f.tb->py + k, f.tb->pz + k);
+      const SphericalRectangle<T> r =
+          spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
+      Vec3<T> d;
+      T t;
+      sample_spherical_rectangle(r, load<T>(f.tb->u2 + k), load<T>(f.tb->u3 + k), d, t);
+      store(f.tb->cr + k, d.x + d.y + d.z + t + r.omega);
+    }
+    benchmark::DoNotOptimize(f.tb->cr[0]);
+  }
+  state.SetItemsProcessed(state.iterations() * lanes);
+}
+template <class T> void BM_light_point(benchmark::State& state) {
+  Fixture f;
+  const LightGeom<T> g = broadcast_light<T>(f.views.lights, 0);
+  constexpr int w = lane_traits<T>::width;
+  for (auto _ : state) {
+    for (int k = 0; k < lanes; k += w) {
+      const Vec3<T> x = load3<T>(f.tb->px + k, f.tb->py + k, f.tb->pz + k);
+      const LightPointSample<T> s = sample_light_point<kind_area>(LightPoint::solid_angle, g, x,
+                                                                   load<T>(f.tb->u2 + k), load<T>(f.tb->u3 + k));
+      store(f.tb->cr + k, s.wi.x + s.wi.y + s.wi.z + s.dist + s.pdf_sa);
+    }
+    benchmark::DoNotOptimize(f.tb->cr[0]);
+  }
+  state.SetItemsProcessed(state.iterations() * lanes);
+}
 template <class T> void BM_sample_cosine(benchmark::State& state) {
   Fixture f;
   constexpr int w = lane_traits<T>::width;
@@ -150,6 +185,10 @@ void BM_sampler(benchmark::State& state) {
 BENCHMARK_TEMPLATE(BM_sample_lights, vfloat)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_sample_lights, vfloat2)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_sample_lights, float)->Arg(0)->Arg(1);
+BENCHMARK_TEMPLATE(BM_rectangle_map, vfloat);
+BENCHMARK_TEMPLATE(BM_rectangle_map, vfloat2);
+BENCHMARK_TEMPLATE(BM_light_point, vfloat);
+BENCHMARK_TEMPLATE(BM_light_point, vfloat2);
 BENCHMARK_TEMPLATE(BM_mis_weight, vfloat)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_mis_weight, float)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_sample_cosine, vfloat);

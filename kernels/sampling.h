@@ -64,18 +64,18 @@ namespace lane_math {
 template <class T> inline void sincos_reduced(const T& x, T& s, T& c) noexcept {
   const T x2 = x * x;
   T ps = T(-2.5052108385441718775e-8f);
-  ps = ps * x2 + T(2.7557319223985890653e-6f);
-  ps = ps * x2 + T(-1.9841269841269841270e-4f);
-  ps = ps * x2 + T(8.3333333333333333333e-3f);
-  ps = ps * x2 + T(-1.6666666666666666667e-1f);
-  s = x + x * x2 * ps;
+  ps = mul_add(ps, x2, T(2.7557319223985890653e-6f));
+  ps = mul_add(ps, x2, T(-1.9841269841269841270e-4f));
+  ps = mul_add(ps, x2, T(8.3333333333333333333e-3f));
+  ps = mul_add(ps, x2, T(-1.6666666666666666667e-1f));
+  s = mul_add(x * x2, ps, x);
   T pc = T(2.0876756987868098979e-9f);
-  pc = pc * x2 + T(-2.7557319223985890653e-7f);
-  pc = pc * x2 + T(2.4801587301587301587e-5f);
-  pc = pc * x2 + T(-1.3888888888888888889e-3f);
-  pc = pc * x2 + T(4.1666666666666666667e-2f);
-  pc = pc * x2 + T(-0.5f);
-  c = T(1.f) + x2 * pc;
+  pc = mul_add(pc, x2, T(-2.7557319223985890653e-7f));
+  pc = mul_add(pc, x2, T(2.4801587301587301587e-5f));
+  pc = mul_add(pc, x2, T(-1.3888888888888888889e-3f));
+  pc = mul_add(pc, x2, T(4.1666666666666666667e-2f));
+  pc = mul_add(pc, x2, T(-0.5f));
+  c = mul_add(x2, pc, T(1.f));
 }
 
 // Rotate (s, c) = (sin r, cos r) by q quarter turns, q an integer-valued float.
@@ -108,14 +108,14 @@ template <class T> inline void sincos_2pi(const T& u, T& s, T& c) noexcept {
 template <class T> inline T atan_reduced(const T& z) noexcept {
   const T z2 = z * z;
   T p = T(1.f / 17.f);
-  p = p * z2 - T(1.f / 15.f);
-  p = p * z2 + T(1.f / 13.f);
-  p = p * z2 - T(1.f / 11.f);
-  p = p * z2 + T(1.f / 9.f);
-  p = p * z2 - T(1.f / 7.f);
-  p = p * z2 + T(1.f / 5.f);
-  p = p * z2 - T(1.f / 3.f);
-  return z + z * z2 * p;
+  p = mul_add(p, z2, T(-1.f / 15.f));
+  p = mul_add(p, z2, T(1.f / 13.f));
+  p = mul_add(p, z2, T(-1.f / 11.f));
+  p = mul_add(p, z2, T(1.f / 9.f));
+  p = mul_add(p, z2, T(-1.f / 7.f));
+  p = mul_add(p, z2, T(1.f / 5.f));
+  p = mul_add(p, z2, T(-1.f / 3.f));
+  return mul_add(z * z2, p, z);
 }
 
 // atan2(y, x) in [-pi, pi]; 0 for (0, 0).

@@ -20,9 +20,14 @@ template <class T> inline Vec3<T> operator*(const Vec3<T>& a, const T& s) { retu
 template <class T> inline Vec3<T> operator*(const T& s, const Vec3<T>& a) { return {a.x * s, a.y * s, a.z * s}; }
 template <class T> inline Vec3<T> operator*(const Vec3<T>& a, const Vec3<T>& b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
 template <class T> inline Vec3<T> operator/(const Vec3<T>& a, const T& s) { return {a.x / s, a.y / s, a.z / s}; }
-template <class T> inline T dot(const Vec3<T>& a, const Vec3<T>& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+// With fused multiply-adds (mul_add: the same bits in every lane and the reference).
+template <class T> inline T dot(const Vec3<T>& a, const Vec3<T>& b) {
+  return mul_add(a.x, b.x, mul_add(a.y, b.y, a.z * b.z));
+}
+// Each component as a product minus a product with one fused step; the rounding of the
+// other product stays (Kahan's exact difference of products costs two more operations).
 template <class T> inline Vec3<T> cross(const Vec3<T>& a, const Vec3<T>& b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+  return {mul_add(a.y, b.z, -(a.z * b.y)), mul_add(a.z, b.x, -(a.x * b.z)), mul_add(a.x, b.y, -(a.y * b.x))};
 }
 template <class T> inline T length_sq(const Vec3<T>& a) { return dot(a, a); }
 template <class T> inline T length(const Vec3<T>& a) { return sqrt(dot(a, a)); }

@@ -781,9 +781,11 @@ MapError rect_map_error(double s) {
       sample_spherical_rectangle(vec3f(0, 0, 0), to_f(p.p0), to_f(p.e1), to_f(p.e2), u1, u2, d, pdf);
       double S;
       const D3 q = ref_urena(kOrigin, p.p0, p.e1, p.e2, u1, u2, S);
-      double s1, t1, s2, t2;
-      plane_coords(kOrigin, to_d(d), p.p0, p.e1, p.e2, s1, t1);
-      plane_coords(kOrigin, q, p.p0, p.e1, p.e2, s2, t2);
+      double s1 = 0, t1 = 0, s2 = 0, t2 = 0;
+      if (!plane_coords(kOrigin, to_d(d), p.p0, p.e1, p.e2, s1, t1) || !plane_coords(kOrigin, q, p.p0, p.e1, p.e2, s2, t2)) {
+        e.pos_max = INFINITY;  // a direction that misses the source's plane fails the caller's bound
+        continue;
+      }
       const double err = len(p.e1 * (s1 - s2) + p.e2 * (t1 - t2)) / size;
       e.pos_max = std::max(e.pos_max, err);
       e.pos_mean += err / (n * n);
@@ -805,10 +807,12 @@ MapError tri_map_error(double s) {
       float pdf;
       sample_spherical_triangle(vec3f(0, 0, 0), to_f(t.a), to_f(t.b), to_f(t.c), u1, u2, d, pdf);
       const D3 q = ref_arvo(kOrigin, t.a, t.b, t.c, u1, u2);
-      double s1, t1, s2, t2;
+      double s1 = 0, t1 = 0, s2 = 0, t2 = 0;
       const D3 e1 = t.b - t.a, e2 = t.c - t.a;
-      plane_coords(kOrigin, to_d(d), t.a, e1, e2, s1, t1);
-      plane_coords(kOrigin, q, t.a, e1, e2, s2, t2);
+      if (!plane_coords(kOrigin, to_d(d), t.a, e1, e2, s1, t1) || !plane_coords(kOrigin, q, t.a, e1, e2, s2, t2)) {
+        e.pos_max = INFINITY;  // a direction that misses the source's plane fails the caller's bound
+        continue;
+      }
       const double err = len(e1 * (s1 - s2) + e2 * (t1 - t2)) / size;
       e.pos_max = std::max(e.pos_max, err);
       e.pos_mean += err / (n * n);
