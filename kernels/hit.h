@@ -83,13 +83,13 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   const Vec3<T> o = load3<T>(p.ray.org_x + l, p.ray.org_y + l, p.ray.org_z + l);
   const Vec3<T> d = load3<T>(p.ray.dir_x + l, p.ray.dir_y + l, p.ray.dir_z + l);
   Vec3<T> ng = load3<T>(p.Ng_x + l, p.Ng_y + l, p.Ng_z + l);
-  const T len = length(ng);
-  const auto ok = hit && len > T(0.f) && is_finite(len) && is_finite(t);
+  const T len2 = dot(ng, ng);
+  const auto ok = hit && len2 > T(0.f) && is_finite(len2) && is_finite(t);
   tb.rejected_camera += static_cast<uint64_t>(std::popcount(lane_bits(hit && !ok)));
   const uint32_t keep = lane_bits(ok);
   store(tb.shade_of + i, expand_index<T>(n, keep));
   if (!keep) return;
-  ng = ng * (T(1.f) / sel(ok, len, T(1.f)));
+  ng = ng * rsqrt_nr(sel(ok, len2, T(1.f)));
   // face the viewer: diffuse reflection on both sides. 0 - n, not -n: xsimd 8 negates
   // AVX-512 lanes as 0 - x, so this keeps +0 components in every build and the reference.
   ng = sel(dot(ng, d) > T(0.f), Vec3<T>(T(0.f), T(0.f), T(0.f)) - ng, ng);

@@ -67,7 +67,7 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   }
   const T denom = T(pass.n_light) * sel(s.is_delta, pick, pdf_l);
   const auto ok = active && s.valid && front && cos_x > T(0.f) && denom > T(0.f) && w > T(0.f);
-  const T factor = sel(ok, w * cos_x * T(inv_pi) / sel(ok, denom, T(1.f)) * s.scale, T(0.f));
+  const T factor = sel(ok, w * cos_x * T(inv_pi) * rcp_nr(sel(ok, denom, T(1.f))) * s.scale, T(0.f));
   const T c_r = load<T>(tb.ar + k) * Le_r * factor;
   const T c_g = load<T>(tb.ag + k) * Le_g * factor;
   const T c_b = load<T>(tb.ab + k) * Le_b * factor;
@@ -103,8 +103,10 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   const T eps_y = abs(ny.x) * err_y.x + abs(ny.y) * err_y.y + abs(ny.z) * err_y.z;
   const Vec3<T> target = y + ny * eps_y;
   const Vec3<T> to = target - org;
-  const T len = length(to);
-  const Vec3<T> dir = sel(is_dist || !(len > T(0.f)), s.wi, to * (T(1.f) / sel(len > T(0.f), len, T(1.f))));
+  const T len2 = dot(to, to);
+  const T ilen = rsqrt_nr(sel(len2 > T(0.f), len2, T(1.f)));
+  const T len = len2 * ilen;
+  const Vec3<T> dir = sel(is_dist || !(len > T(0.f)), s.wi, to * ilen);
   const T tfar = sel(is_dist, T(3.0e38f), len * T(1.f - 1.f / 4096.f));
   // Embree does not skip non-finite rays: a lane whose ray is not finite is dropped
   const auto ray_ok = is_finite(dir.x) && is_finite(dir.y) && is_finite(dir.z) && is_finite(tfar) &&

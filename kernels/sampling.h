@@ -175,7 +175,7 @@ template <class T> inline Vec3<T> sample_cosine_hemisphere(const T& u1, const T&
   const T num = sel(a_major, b, a);
   const T den = sel(r == T(0.f), T(1.f), r);
   T s, c;
-  lane_math::sincos_reduced(T(0.785398163397448309616f) * (num / den), s, c);
+  lane_math::sincos_reduced(T(0.785398163397448309616f) * (num * rcp_nr(den)), s, c);
   // a major: phi = t; b major: phi = pi/2 - t, so cos and sin swap.
   const T x = r * sel(a_major, c, s);
   const T y = r * sel(a_major, s, c);
