@@ -99,40 +99,6 @@ template <class T> void BM_rectangle_map(benchmark::State& state) {
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }
-// The same map in two passes over the lanes (setup of every lane, then every map), the
-// rectangle kept in SoA scratch arrays between them.
-template <class T> void BM_rectangle_map_fission(benchmark::State& state) {
-  Fixture f;
-  const LightGeom<T> g = broadcast_light<T>(f.views.lights, 0);
-  constexpr int w = lane_traits<T>::width;
-  static float buf[18][lanes];
-  for (auto _ : state) {
-    for (int k = 0; k < lanes; k += w) {
-      const Vec3<T> x = load3<T>(f.tb->px + k, f.tb->py + k, f.tb->pz + k);
-      const SphericalRectangle<T> r =
-          spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
-      const T v[18] = {r.ex.x, r.ex.y, r.ex.z, r.ey.x, r.ey.y, r.ey.z, r.ez.x, r.ez.y, r.ez.z,
-                       r.x0,   r.x1,   r.y0,   r.y1,   r.z0,   r.b0,   r.b1,   r.k_sin_off, r.omega};
-      for (int i = 0; i < 18; ++i) store(buf[i] + k, v[i]);
-    }
-    for (int k = 0; k < lanes; k += w) {
-      SphericalRectangle<T> r;
-      r.ex = load3<T>(buf[0] + k, buf[1] + k, buf[2] + k);
-      r.ey = load3<T>(buf[3] + k, buf[4] + k, buf[5] + k);
-      r.ez = load3<T>(buf[6] + k, buf[7] + k, buf[8] + k);
-      r.x0 = load<T>(buf[9] + k); r.x1 = load<T>(buf[10] + k); r.y0 = load<T>(buf[11] + k);
-      r.y1 = load<T>(buf[12] + k); r.z0 = load<T>(buf[13] + k); r.b0 = load<T>(buf[14] + k);
-      r.b1 = load<T>(buf[15] + k); r.k_sin_off = load<T>(buf[16] + k); r.omega = load<T>(buf[17] + k);
-      r.valid = r.omega > T(0.f);
-      Vec3<T> d;
-      T t;
-      sample_spherical_rectangle(r, load<T>(f.tb->u2 + k), load<T>(f.tb->u3 + k), d, t);
-      store(f.tb->cr + k, d.x + d.y + d.z + t + r.omega);
-    }
-    benchmark::DoNotOptimize(f.tb->cr[0]);
-  }
-  state.SetItemsProcessed(state.iterations() * lanes);
-}
 template <class T> void BM_light_point(benchmark::State& state) {
   Fixture f;
   const LightGeom<T> g = broadcast_light<T>(f.views.lights, 0);
@@ -221,8 +187,6 @@ BENCHMARK_TEMPLATE(BM_sample_lights, vfloat2)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_sample_lights, float)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_rectangle_map, vfloat);
 BENCHMARK_TEMPLATE(BM_rectangle_map, vfloat2);
-BENCHMARK_TEMPLATE(BM_rectangle_map_fission, vfloat);
-BENCHMARK_TEMPLATE(BM_rectangle_map_fission, vfloat2);
 BENCHMARK_TEMPLATE(BM_light_point, vfloat);
 BENCHMARK_TEMPLATE(BM_light_point, vfloat2);
 BENCHMARK_TEMPLATE(BM_mis_weight, vfloat)->Arg(0)->Arg(1);

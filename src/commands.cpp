@@ -299,7 +299,8 @@ int run_profile(const ProfileFlags& f) {
     double rays = 0;
     if (s == Stage::intersect_camera) rays = static_cast<double>(st.rays_camera);
     if (s == Stage::intersect_shadow) rays = static_cast<double>(st.rays_shadow);
-    if (s == Stage::intersect_bounce) rays = static_cast<double>(st.rays_bounce);
+    // bounce rays and, when they run against the emitters, their visibility rays
+    if (s == Stage::intersect_bounce) rays = static_cast<double>(st.rays_bounce + st.rays_bounce_visibility);
     row(stage_name(s), prof.stage_seconds[k], rays);
   }
   row("scheduling", std::max(0.0, thread_seconds - stage_total), 0);
