@@ -77,6 +77,25 @@ template <class I> inline auto gather_light(const LightView& L, const I& idx) {
   return g;
 }
 
+// The fields a rectangle source needs (no type or rectangle flag: they are known).
+template <class I> inline auto gather_rect_light(const LightView& L, const I& idx) {
+  using T = decltype(gather(L.area, idx));
+  LightGeom<T> g;
+  g.type = i32_t<T>(lt_parallelogram);
+  g.p0 = gather3(L.p0x, L.p0y, L.p0z, idx);
+  g.e1 = gather3(L.e1x, L.e1y, L.e1z, idx);
+  g.e2 = gather3(L.e2x, L.e2y, L.e2z, idx);
+  g.n = gather3(L.nx, L.ny, L.nz, idx);
+  g.area = gather(L.area, idx);
+  g.two_sided = gather(L.two_sided, idx);
+  g.len1 = gather(L.len1, idx);
+  g.len2 = gather(L.len2, idx);
+  g.inv_len1 = gather(L.inv_len1, idx);
+  g.inv_len2 = gather(L.inv_len2, idx);
+  g.rect = T(1.f);
+  return g;
+}
+
 template <class T> inline LightGeom<T> broadcast_light(const LightView& L, int32_t i) {
   LightGeom<T> g;
   g.type = i32_t<T>(L.type[i]);
@@ -158,6 +177,16 @@ template <class T> inline mask_t<T> use_solid_angle(const LightGeom<T>& g, const
          (is_sph && omega > T(0.f));
 }
 
+// use_solid_angle where every lane's source is a rectangle (the same values).
+template <class T> inline mask_t<T> use_solid_angle_rect(const LightGeom<T>& g, const Vec3<T>& x, T omega) {
+  const auto rect_ok = omega >= T(min_sa_sample_omega) && omega < T(6.2831853f) && is_finite(omega);
+  const Vec3<T> to_c = g.p0 + (g.e1 + g.e2) * T(0.5f) - x;
+  const T h = dot(to_c, g.n);
+  const T r = T(grazing_plane_ratio);
+  const auto grazing = h * h < r * r * length_sq(to_c) && omega < T(grazing_max_omega);
+  return rect_ok && !grazing;
+}
+
 // Density in solid angle at x of reaching the source at distance dist along wi when the
 // point is drawn uniformly by area: d^2 / (cos theta_y A); 0 from behind a one-sided source.
 template <class T> inline T pdf_area_as_solid_angle(const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist) {
@@ -194,7 +223,9 @@ inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T
 
 // Which kinds of source a pipeline can meet (DESIGN.md: leave out what a scene does not
 // need): the code for the other kind is removed at compile time.
-inline constexpr unsigned kind_area = 1, kind_delta = 2, kind_all = 3;
+// kind_rects (with kind_area alone): every source is a rectangle, so the light stage runs
+// Urena's map without dispatching on the kind of source (the same values as kind_area).
+inline constexpr unsigned kind_area = 1, kind_delta = 2, kind_all = 3, kind_rects = 4;
 
 // A sampled point on a source. wi is the unit direction from x, dist the distance
 // (infinite for distant lights), pdf_sa its density (0 for delta lights, which are
@@ -206,6 +237,47 @@ template <class T> struct LightPointSample {
   mask_t<T> valid, is_delta;
 };
 
+// sample_light_point where every lane's source is a rectangle: the same steps and values
+// without the dispatch on the kind of source.
+template <class T>
+inline LightPointSample<T> sample_rectangle_point(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, T u1,
+                                                  T u2) {
+  LightPointSample<T> s;
+  s.is_delta = T(0.f) > T(1.f);
+  s.scale = T(1.f);
+  Vec3<T> wi(T(0.f), T(0.f), T(1.f));
+  T dist(0.f), pdf(0.f);
+  auto valid = s.is_delta, use_sa = s.is_delta;
+  if (mode == LightPoint::solid_angle) {
+    const SphericalRectangle<T> r =
+        spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
+    Vec3<T> dir;
+    T t_sa;
+    const auto ok = sample_spherical_rectangle(r, u1, u2, dir, t_sa);
+    use_sa = use_solid_angle_rect(g, x, r.omega);
+    wi = sel(use_sa, dir, wi);
+    dist = sel(use_sa, t_sa, dist);
+    pdf = sel(use_sa && r.omega > T(0.f), T(1.f) / sel(r.omega > T(0.f), r.omega, T(1.f)), pdf);
+    valid = use_sa && ok && t_sa > T(0.f);
+  }
+  const auto by_area = !use_sa;
+  if (any(by_area)) {
+    const Vec3<T> y = g.p0 + g.e1 * u1 + g.e2 * u2;
+    const Vec3<T> d = y - x;
+    const T da = sqrt(length_sq(d));
+    const Vec3<T> wa = d * (T(1.f) / sel(da > T(0.f), da, T(1.f)));
+    wi = sel(by_area, wa, wi);
+    dist = sel(by_area, da, dist);
+    pdf = sel(by_area, pdf_area_as_solid_angle(g, x, wa, da), pdf);
+    valid = sel_mask(by_area, da > T(0.f), valid);
+  }
+  s.wi = wi;
+  s.dist = dist;
+  s.pdf_sa = finite_or_zero(pdf);
+  s.valid = valid && s.pdf_sa > T(0.f) && is_finite(dist);
+  return s;
+}
+
 // In solid-angle mode the spherical maps run first: their Omega decides (use_solid_angle)
 // which lanes keep them, and only the lanes that fall back draw a point by area. The pdf
 // is always the one of the strategy that produced the sample, as pdf_light_point_sa
@@ -213,6 +285,7 @@ template <class T> struct LightPointSample {
 template <unsigned Kinds = kind_all, class T>
 inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, T u1,
                                               T u2) {
+  if constexpr ((Kinds & kind_rects) != 0) return sample_rectangle_point(mode, g, x, u1, u2);
   LightPointSample<T> s;
   const auto is_tri = type_is<T>(g.type, lt_triangle);
   const auto is_par = type_is<T>(g.type, lt_parallelogram);

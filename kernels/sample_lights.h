@@ -37,7 +37,8 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
     i32_t<T> idx;
     if (pass.fixed_light >= 0) idx = i32_t<T>(pass.fixed_light);
     else idx = pick_light(L, load<T>(tb.u0 + k));
-    g = gather_light(L, idx);
+    if constexpr ((Kinds & kind_rects) != 0) g = gather_rect_light(L, idx);
+    else g = gather_light(L, idx);
     pick = gather(L.pick_pdf, idx);
     Le_r = gather(L.Lr, idx);
     Le_g = gather(L.Lg, idx);
@@ -53,8 +54,9 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   const LightPointSample<T> s =
       sample_light_point<Kinds>(est.point, g, x, load<T>(tb.u2 + k), load<T>(tb.u3 + k));
 
+  constexpr bool rects = (Kinds & kind_rects) != 0;
   const T cos_x = dot(n, s.wi);
-  const auto planar = type_is<T>(g.type, lt_triangle) || type_is<T>(g.type, lt_parallelogram);
+  const auto planar = rects ? mask_t<T>(true) : type_is<T>(g.type, lt_triangle) || type_is<T>(g.type, lt_parallelogram);
   const auto front = !planar || g.two_sided > T(0.f) || dot(x - g.p0, g.n) > T(0.f);
   const T pdf_l = pick * s.pdf_sa;
   T w(1.f);
@@ -84,8 +86,8 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   // origin would meet the source's plane early. Embree's packet t is good to ~1e-5
   // relative (measured), so the ray stops 2^-12 of its length short.
   const Vec3<T> org = x + n * eps;
-  const auto is_dist = type_is<T>(g.type, lt_distant);
-  const auto is_sph = type_is<T>(g.type, lt_sphere);
+  const auto is_dist = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_distant);
+  const auto is_sph = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_sphere);
   const Vec3<T> y = x + s.wi * sel(is_dist, T(0.f), s.dist);
   // error bound of the light point, per axis (it is p0 + u e1 + v e2, or x + t wi)
   const T g7 = T(gamma_err(7));
@@ -93,7 +95,7 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
                       g7 * (abs(g.p0.y) + abs(g.e1.y) + abs(g.e2.y) + abs(y.y)),
                       g7 * (abs(g.p0.z) + abs(g.e1.z) + abs(g.e2.z) + abs(y.z))};
   Vec3<T> ny = sel(dot(g.n, s.wi) > T(0.f), -g.n, g.n);  // planar normal facing x
-  if (any(is_sph)) {  // outward normal; a point at the centre of a tiny sphere falls back to -wi
+  if (!rects && any(is_sph)) {  // outward normal; a point at the centre of a tiny sphere falls back to -wi
     const Vec3<T> rel = y - g.p0;
     const T rl = length(rel);
     const auto good = rl > T(0.f) && is_finite(rl);

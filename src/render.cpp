@@ -111,6 +111,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     v.inv_len1.push_back(g.inv_len1); v.inv_len2.push_back(g.inv_len2);
     v.rect.push_back(g.rect);
     (is_delta(l.type) ? v.has_delta : v.has_area) = true;
+    v.all_rects = v.all_rects && l.type == LightType::parallelogram && g.rect > 0.5f;
   }
   // pick distribution
   v.pick_pdf.assign(n, 0.f);
@@ -511,6 +512,16 @@ PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool gene
   if (!area) {  // only delta lights: no BSDF rays, no MIS, no emitter lookups
     return pick ? PipelineEntry{"delta/light/pick", tile_fn<kind_delta, true, false, true, false>()}
                 : PipelineEntry{"delta/light/single", tile_fn<kind_delta, true, false, false, false>()};
+  }
+  if (!delta && v.all_rects) {  // rectangles only: no dispatch on the kind of source
+    constexpr unsigned R = kind_area | kind_rects;
+    if (light && bsdf)
+      return pick ? PipelineEntry{"rect/mis/pick", tile_fn<R, true, true, true, true>()}
+                  : PipelineEntry{"rect/mis/single", tile_fn<R, true, true, false, true>()};
+    if (light)
+      return pick ? PipelineEntry{"rect/light/pick", tile_fn<R, true, false, true, true>()}
+                  : PipelineEntry{"rect/light/single", tile_fn<R, true, false, false, true>()};
+    return {"rect/bsdf", tile_fn<R, false, true, false, true>()};
   }
   if (!delta) {
     if (light && bsdf)

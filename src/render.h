@@ -149,6 +149,7 @@ struct SceneViews {
   GeomView geom;
   CameraView camera;
   bool has_area = false, has_delta = false;
+  bool all_rects = true;  // every source is a rectangle (Urena's map, no type dispatch)
 };
 
 

@@ -87,7 +87,7 @@ TEST(Cli, BadInputIsAClearErrorWithExitOne) {
 TEST(Cli, InfoNamesThePipeline) {
   const CmdResult r = run("info built-in:two-panels");
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("pipeline: area/mis/pick"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("pipeline: rect/mis/pick"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("lights: 101"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("bounce rays: against the whole scene"), std::string::npos) << r.out;
   const CmdResult g = run("info built-in:two-panels --pipeline general");

@@ -198,6 +198,65 @@ TEST(Lanes, SamplerBitHelpersEqualScalar) {
   }
 }
 
+// The light stage of rectangle-only scenes (kind_rects: no dispatch on the kind of source)
+// equals the general stage and its own scalar reference, lane for lane, in every lane type.
+TEST(Lanes, RectangleLightStageEqualsGeneral) {
+  Scene s = builtin_scene("two-panels");
+  finalize_scene(s);
+  std::mt19937 rng(5);
+  constexpr unsigned R = kind_area | kind_rects;
+  for (LightPick pick : {LightPick::all, LightPick::power})
+    for (LightPoint point : {LightPoint::area, LightPoint::solid_angle})
+      for (MisMode mode : {MisMode::multi, MisMode::one}) {
+        SceneViews views = build_views(s, pick);
+        ASSERT_TRUE(views.all_rects);
+        Estimator est;
+        est.pick = pick;
+        est.point = point;
+        est.mode = mode;
+        auto a = std::make_unique<TileBuffers>();
+        fill_shading_points(*a, rng, 200);
+        for (int k = 0; k < max_tile_lanes; ++k) a->py[k] *= 0.8f;  // some points in the sources' plane
+        auto b = std::make_unique<TileBuffers>(*a), c = std::make_unique<TileBuffers>(*a),
+             d = std::make_unique<TileBuffers>(*a);
+        const int n = 208;
+        auto name = [&] { return describe(est); };
+        LightPass pass;
+        pass.fixed_light = pick == LightPick::all ? 37 : -1;
+        const bool fixed = pass.fixed_light >= 0;
+        for (int k = 0; k < n; k += simd_width) sample_lights_lanes<vfloat>(views.lights, est, pass, *a, k);
+        for (int k = 0; k < n; ++k) {
+          if (fixed) sample_lights_lanes<float, R, false>(views.lights, est, pass, *b, k);
+          else sample_lights_lanes<float, R, true>(views.lights, est, pass, *b, k);
+        }
+        for (int k = 0; k < n; k += simd_width) {
+          if (fixed) sample_lights_lanes<vfloat, R, false>(views.lights, est, pass, *c, k);
+          else sample_lights_lanes<vfloat, R, true>(views.lights, est, pass, *c, k);
+        }
+        for (int k = 0; k < n; k += 2 * simd_width) {
+          if (fixed) sample_lights_lanes<vfloat2, R, false>(views.lights, est, pass, *d, k);
+          else sample_lights_lanes<vfloat2, R, true>(views.lights, est, pass, *d, k);
+        }
+        int lit = 0;
+        for (const TileBuffers* t : {b.get(), c.get(), d.get()}) {
+          expect_same_floats(t->cr, a->cr, n, name);
+          expect_same_floats(t->cb, a->cb, n, name);
+          for (int k = 0; k < n; ++k) {
+            ASSERT_EQ(t->valid[k], a->valid[k]) << name() << " lane " << k;
+            if (!a->valid[k]) continue;
+            const Ray16 &rt = t->shadow[k / packet_width], &ra = a->shadow[k / packet_width];
+            const int l = k % packet_width;
+            expect_same_floats(&rt.org_y[l], &ra.org_y[l], 1, name);
+            expect_same_floats(&rt.dir_x[l], &ra.dir_x[l], 1, name);
+            expect_same_floats(&rt.dir_z[l], &ra.dir_z[l], 1, name);
+            expect_same_floats(&rt.tfar[l], &ra.tfar[l], 1, name);
+            lit += t == b.get();
+          }
+        }
+        EXPECT_GT(lit, 20) << name();
+      }
+}
+
 TEST(Lanes, StagesEqualScalar) {
   Scene s = all_lights_scene();
   ASSERT_EQ(s.lights.size(), 7u);
