@@ -221,6 +221,17 @@ inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T
   return pdf_light_point_sa(mode, g, x, wi, dist, mode == LightPoint::area ? T(0.f) : light_solid_angle(g, x));
 }
 
+// pdf_light_point_sa where every lane's source is a rectangle (the same values).
+template <class T>
+inline T pdf_rectangle_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist) {
+  if (mode == LightPoint::area) return finite_or_zero(pdf_area_as_solid_angle(g, x, wi, dist));
+  const T omega = spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2).omega;
+  const auto safe = use_solid_angle_rect(g, x, omega);
+  T pdf = sel(omega > T(0.f), T(1.f) / sel(omega > T(0.f), omega, T(1.f)), T(0.f));
+  if (!all(safe)) pdf = sel(safe, pdf, pdf_area_as_solid_angle(g, x, wi, dist));
+  return finite_or_zero(pdf);
+}
+
 // Which kinds of source a pipeline can meet (DESIGN.md: leave out what a scene does not
 // need): the code for the other kind is removed at compile time.
 // kind_rects (with kind_area alone): every source is a rectangle, so the light stage runs

@@ -10,7 +10,8 @@
 namespace tuile {
 
 // Lanes [j, j + width) of the hit queue.
-template <class T>
+// Kinds with kind_rects: every source is a rectangle (the same values without dispatch).
+template <class T, unsigned Kinds = kind_all>
 TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est, float n_light, float n_bsdf, TileBuffers& tb,
                          int j) {
   constexpr float inv_pi = 0.318309886f;
@@ -21,8 +22,10 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
   const Vec3<T> n = load3<T>(tb.qnx + j, tb.qny + j, tb.qnz + j);
   const Vec3<T> wi = load3<T>(tb.qdx + j, tb.qdy + j, tb.qdz + j);
   const T dist = load<T>(tb.qdist + j);
-  const LightGeom<T> g = gather_light(L, idx);
-  const T pdf_l = gather(L.pick_pdf, idx) * pdf_light_point_sa(est.point, g, x, wi, dist);
+  T pdf_point;
+  if constexpr ((Kinds & kind_rects) != 0) pdf_point = pdf_rectangle_point_sa(est.point, gather_rect_light(L, idx), x, wi, dist);
+  else pdf_point = pdf_light_point_sa(est.point, gather_light(L, idx), x, wi, dist);
+  const T pdf_l = gather(L.pick_pdf, idx) * pdf_point;
   T w(1.f);
   if (est.strategy == Strategy::mis) {
     const T q_b = T(n_bsdf) * dot(n, wi) * T(inv_pi);
@@ -137,11 +140,12 @@ inline void read_bounce_visibility(TileBuffers& tb) {
 }
 
 // Weights the visible entries of the queue and adds them to their shading points.
+template <unsigned Kinds = kind_all>
 inline void weight_queue(const LightView& L, const Estimator& est, float n_light, float n_bsdf, TileBuffers& tb) {
   const int nq = tb.queue_count;
   if (nq == 0) return;
   const int qpadded = (nq + simd_width - 1) / simd_width * simd_width;
-  for (int j = 0; j < qpadded; j += simd_width) weight_lanes<vfloat>(L, est, n_light, n_bsdf, tb, j);
+  for (int j = 0; j < qpadded; j += simd_width) weight_lanes<vfloat, Kinds>(L, est, n_light, n_bsdf, tb, j);
   if (est.strategy == Strategy::light) return;
   for (int j = 0; j < nq; ++j) {
     if (!(tb.qvis[j] > 0.f)) continue;

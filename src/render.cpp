@@ -450,7 +450,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
             timer.start();
             read_bounce_visibility(tb);
           }
-          weight_queue(v.lights, est, c.n_light, c.n_bsdf, tb);
+          weight_queue<Kinds>(v.lights, est, c.n_light, c.n_bsdf, tb);
           timer.stop(Stage::mis_weight);
         }
       }

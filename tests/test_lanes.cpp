@@ -198,9 +198,9 @@ TEST(Lanes, SamplerBitHelpersEqualScalar) {
   }
 }
 
-// The light stage of rectangle-only scenes (kind_rects: no dispatch on the kind of source)
-// equals the general stage and its own scalar reference, lane for lane, in every lane type.
-TEST(Lanes, RectangleLightStageEqualsGeneral) {
+// The light and MIS weight stages of rectangle-only scenes (kind_rects: no dispatch on the
+// kind of source) equal the general stages and their own scalar reference, lane for lane.
+TEST(Lanes, RectangleStagesEqualGeneral) {
   Scene s = builtin_scene("two-panels");
   finalize_scene(s);
   std::mt19937 rng(5);
@@ -254,6 +254,35 @@ TEST(Lanes, RectangleLightStageEqualsGeneral) {
           }
         }
         EXPECT_GT(lit, 20) << name();
+        // the MIS weight of hits of every source, on a synthetic queue
+        for (Strategy strategy : {Strategy::light, Strategy::bsdf, Strategy::mis}) {
+          est.strategy = strategy;
+          a->queue_count = n - 3;
+          for (int j = 0; j < n; ++j) {
+            a->qlight[j] = static_cast<int32_t>(rng() % 101);
+            a->qx[j] = a->px[j];
+            a->qy[j] = 0.f;
+            a->qz[j] = a->pz[j];
+            a->qnx[j] = a->qnz[j] = 0.f;
+            a->qny[j] = 1.f;
+            const vec3f dq = normalize(vec3f{a->u0[j] - 0.5f, 1.f, a->u1[j] - 0.5f});
+            a->qdx[j] = dq.x;
+            a->qdy[j] = dq.y;
+            a->qdz[j] = dq.z;
+            a->qdist[j] = 0.8f / dq.y;
+            a->qar[j] = a->qag[j] = a->qab[j] = 0.5f;
+            a->qvis[j] = 1.f;
+          }
+          *b = *a;
+          *c = *a;
+          for (int j = 0; j < n; j += simd_width) weight_lanes<vfloat>(views.lights, est, 1.f, 1.f, *a, j);
+          for (int j = 0; j < n; j += simd_width) weight_lanes<vfloat, R>(views.lights, est, 1.f, 1.f, *b, j);
+          for (int j = 0; j < n; ++j) weight_lanes<float, R>(views.lights, est, 1.f, 1.f, *c, j);
+          for (const TileBuffers* t : {b.get(), c.get()}) {
+            expect_same_floats(t->cr, a->cr, n, name);
+            expect_same_floats(t->wb, a->wb, n, name);
+          }
+        }
       }
 }
 
