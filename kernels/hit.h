@@ -13,15 +13,15 @@
 
 namespace tuile {
 
-// Reflectance at a hit: material constant or texture lookup (nearest texel, wrap).
-inline void hit_albedo(const GeomView& G, uint32_t geom, uint32_t prim, float u, float v, float& r, float& g,
-                       float& b) {
-  const int32_t m = G.geom_material[geom];  // never -1: build_views appends a default material
-  r = G.mat_r[m];
-  g = G.mat_g[m];
-  b = G.mat_b[m];
-  const int32_t t = G.mat_texture[m];
-  if (t < 0 || static_cast<int32_t>(geom) >= G.mesh_count || !G.uvs[geom]) return;
+// The texture of a hit's material, or -1 (spheres and meshes without uv have none).
+inline int32_t hit_texture(const GeomView& G, uint32_t geom) {
+  const int32_t t = G.mat_texture[G.geom_material[geom]];  // never -1 material: build_views appends a default
+  if (t < 0 || static_cast<int32_t>(geom) >= G.mesh_count || !G.uvs[geom]) return -1;
+  return t;
+}
+
+// The texel (nearest, wrap) of texture t at barycentrics (u, v) of triangle prim.
+inline const float* hit_texel(const GeomView& G, int32_t t, uint32_t geom, uint32_t prim, float u, float v) {
   const uint32_t* idx = G.indices[geom] + 3 * prim;
   const float* uv = G.uvs[geom];
   const float w0 = 1.f - u - v;
@@ -32,10 +32,30 @@ inline void hit_albedo(const GeomView& G, uint32_t geom, uint32_t prim, float u,
   const int w = G.tex_w[t], h = G.tex_h[t];
   const int x = std::min(w - 1, std::max(0, static_cast<int>(s * static_cast<float>(w))));
   const int y = std::min(h - 1, std::max(0, static_cast<int>((1.f - q) * static_cast<float>(h))));
-  const float* texel = G.tex_rgb[t] + 3 * (static_cast<size_t>(y) * w + x);
-  r *= texel[0];
-  g *= texel[1];
-  b *= texel[2];
+  return G.tex_rgb[t] + 3 * (static_cast<size_t>(y) * w + x);
+}
+
+// Texels in three passes over the tile's textured shading points, each prefetching what the
+// next reads (vertex indices, then uv, then the texel), so that the cache misses of a
+// large scene overlap instead of following one another.
+inline void apply_texels(const GeomView& G, TileBuffers& tb) {
+  const int nt = tb.tex_count;
+  for (int j = 0; j < nt; ++j) {
+    const uint32_t* idx = G.indices[tb.tex_geom[j]] + 3 * tb.tex_prim[j];
+    const float* uv = G.uvs[tb.tex_geom[j]];
+    for (int c = 0; c < 3; ++c) __builtin_prefetch(uv + 2 * idx[c]);
+  }
+  for (int j = 0; j < nt; ++j) {
+    tb.texel[j] = hit_texel(G, tb.tex_id[j], tb.tex_geom[j], tb.tex_prim[j], tb.tex_u[j], tb.tex_v[j]);
+    __builtin_prefetch(tb.texel[j]);
+  }
+  for (int j = 0; j < nt; ++j) {
+    const int k = tb.tex_point[j];
+    const float* t = tb.texel[j];
+    tb.ar[k] *= t[0];
+    tb.ag[k] *= t[1];
+    tb.ab[k] *= t[2];
+  }
 }
 
 // The light a ray hit, or -1.
@@ -168,21 +188,23 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     ag = gather(G.mat_g, mat);
     ab = gather(G.mat_b, mat);
   }
+  // Textured points are only listed here (their vertex indices prefetched); camera_hits
+  // applies the texels once every batch of the tile is done (apply_texels).
   if (G.has_textures) {
-    if constexpr (std::is_same_v<T, float>) {
-      hit_albedo(G, static_cast<uint32_t>(geom), static_cast<uint32_t>(prim), b1, b2, ar, ag, ab);
-    } else {
-      alignas(64) float r[simd_width], g[simd_width], b[simd_width];
-      ar.store_aligned(r);
-      ag.store_aligned(g);
-      ab.store_aligned(b);
-      for (uint32_t bits = keep; bits; bits &= bits - 1) {
-        const int k = std::countr_zero(bits);
-        hit_albedo(G, p.geomID[l + k], p.primID[l + k], p.u[l + k], p.v[l + k], r[k], g[k], b[k]);
-      }
-      ar = vfloat::load_aligned(r);
-      ag = vfloat::load_aligned(g);
-      ab = vfloat::load_aligned(b);
+    int m = n;
+    for (uint32_t bits = keep; bits; bits &= bits - 1, ++m) {
+      const int k = std::countr_zero(bits);
+      const uint32_t geom = p.geomID[l + k], prim = p.primID[l + k];
+      const int32_t t = hit_texture(G, geom);
+      if (t < 0) continue;
+      __builtin_prefetch(G.indices[geom] + 3 * prim);
+      const int j = tb.tex_count++;
+      tb.tex_point[j] = m;
+      tb.tex_id[j] = t;
+      tb.tex_geom[j] = geom;
+      tb.tex_prim[j] = prim;
+      tb.tex_u[j] = p.u[l + k];
+      tb.tex_v[j] = p.v[l + k];
     }
   }
 
@@ -210,8 +232,10 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
                         TileBuffers& tb) {
   const int padded_lanes = (lanes + packet_width - 1) / packet_width * packet_width;
   int n = 0;
+  tb.tex_count = 0;
   for (int i = 0; i < padded_lanes; i += lane_traits<T>::width) camera_hit_lanes<T, Emitters>(G, L, tb, i, lanes, n);
   tb.shade_count = n;
+  if (G.has_textures) apply_texels(G, tb);
   // pad to whole packets with copies of a real point; padding lanes are never active
   const int padded = (n + packet_width - 1) / packet_width * packet_width;
   for (int k = n; k < padded; ++k) {

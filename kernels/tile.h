@@ -98,6 +98,12 @@ struct alignas(64) TileBuffers {
   alignas(64) uint32_t spix[max_tile_lanes];              // global pixel id
   alignas(64) int32_t slane[max_tile_lanes];              // tile lane
   alignas(64) float choose_light[max_tile_lanes];         // one-sample MIS: 1 = light technique
+  // camera hits: the textured shading points (point, texture, triangle, barycentrics, texel)
+  int tex_count = 0;
+  alignas(64) int32_t tex_point[max_tile_lanes], tex_id[max_tile_lanes];
+  alignas(64) uint32_t tex_geom[max_tile_lanes], tex_prim[max_tile_lanes];
+  alignas(64) float tex_u[max_tile_lanes], tex_v[max_tile_lanes];
+  alignas(64) const float* texel[max_tile_lanes];
   // radiance the light and BSDF techniques add to each shading point in this sample
   // (summed into its pixel by accumulate, through shade_of)
   alignas(64) float Sr[max_tile_lanes], Sg[max_tile_lanes], Sb[max_tile_lanes];

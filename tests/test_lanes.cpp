@@ -4,6 +4,8 @@
 // per-lane state they write is compared).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <memory>
@@ -547,6 +549,32 @@ TEST(Lanes, CameraHitsEqualScalar) {
       EXPECT_GT(spheres, 0) << name();
       EXPECT_GT(emitted, 0) << name();
       EXPECT_GT(textured, 0) << name();
+      // each textured point's albedo is its material's times the texel its uv falls in
+      // (nearest, wrap; the wall's uv are (0, 0) (2.5, 0) (2.5, 1.5) (0, 1.5))
+      const Texture& tex = s.textures[0];
+      int checked = 0;
+      for (int k = 0; k < n; ++k) {
+        const int i = a->slane[k];
+        const RayHit16& p = a->cam[i / 16];
+        if (p.geomID[i % 16] != 2) continue;
+        const uint32_t* idx = &s.meshes[2].indices[3 * p.primID[i % 16]];
+        const float bu = p.u[i % 16], bv = p.v[i % 16];
+        float uu = 0, vv = 0;
+        const float w[3] = {1.f - bu - bv, bu, bv};
+        for (int c = 0; c < 3; ++c) {
+          uu += w[c] * s.meshes[2].uvs[2 * idx[c]];
+          vv += w[c] * s.meshes[2].uvs[2 * idx[c] + 1];
+        }
+        uu -= std::floor(uu);
+        vv -= std::floor(vv);
+        const int tx = std::clamp(static_cast<int>(uu * 4), 0, 3), ty = std::clamp(static_cast<int>((1 - vv) * 4), 0, 3);
+        const float* texel = &tex.rgb[3 * (ty * 4 + tx)];
+        EXPECT_NEAR(a->ar[k], 0.9f * texel[0], 1e-6f) << name() << " point " << k;
+        EXPECT_NEAR(a->ag[k], 0.8f * texel[1], 1e-6f) << name() << " point " << k;
+        EXPECT_NEAR(a->ab[k], 0.7f * texel[2], 1e-6f) << name() << " point " << k;
+        ++checked;
+      }
+      EXPECT_GT(checked, 0) << name();
     }
 }
 
