@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 
 #include "render_util.h"
@@ -103,6 +104,41 @@ TEST(SceneRender, CornellBoxMatchesHighSampleReference) {
     }
   EXPECT_LT(std::fabs(d) / std::sqrt(var), 3.0);
   EXPECT_LT(worst, 4.5);
+}
+
+// Every project scene (stress cases included: a point next to a light, grazing and tiny
+// sources, far origins, degenerate triangles) gives the same image with its bounce rays
+// traced against the emitters alone and then an occlusion ray as against the whole scene:
+// bit for bit, but for at most one scene with a rounding-level difference.
+TEST(SceneRender, ProjectScenesBounceRaysAgainstEmitters) {
+  const auto files = pbrt_files(fs::path(TUILE_SOURCE_DIR) / "scenes");
+  ASSERT_GE(files.size(), 10u);
+  size_t exact = 0;
+  for (const fs::path& f : files) {
+    SCOPED_TRACE(f.string());
+    Scene s = load_scene(f.string());
+    s.camera.width = 48;
+    s.camera.height = 32;
+    RenderOptions o;
+    o.est.spp = 4;
+    RenderOptions oe = o;
+    o.bounce = BounceTrace::scene;
+    oe.bounce = BounceTrace::emitters;
+    const RenderResult a = render_scene(s, o), b = render_scene(s, oe);
+    ASSERT_EQ(a.mean.size(), b.mean.size());
+    size_t differ = 0;
+    double worst = 0;
+    for (size_t i = 0; i < a.mean.size(); ++i) {
+      differ += a.mean[i] != b.mean[i];
+      worst = std::max(worst, std::fabs(double(a.mean[i]) - b.mean[i]) / (std::fabs(double(a.mean[i])) + 1e-3));
+    }
+    // far-origin (coordinates near 1e5, distances good to ~1%) may differ by a rounding of
+    // one bounce hit's distance: measured, 3 of 4608 values, by 0.7% at most
+    EXPECT_LE(differ, a.mean.size() / 1000);
+    EXPECT_LE(worst, 0.02);
+    exact += differ == 0;
+  }
+  EXPECT_GE(exact + 1, files.size());
 }
 
 // The shared scenes with their bounce rays traced against the emitters alone (then an
