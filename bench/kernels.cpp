@@ -79,6 +79,19 @@ template <class T> void BM_sample_lights(benchmark::State& state) {
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }
+// The rectangle-only light stage as the renderer runs it (two batches per call), with the
+// source broadcast (one light) or gathered per lane (picked with the alias table).
+template <bool Pick> void BM_sample_lights_rect(benchmark::State& state) {
+  Fixture f;
+  LightPass pass;
+  pass.fixed_light = Pick ? -1 : 0;
+  for (auto _ : state) {
+    for (int k = 0; k < lanes; k += 2 * simd_width)
+      sample_lights_lanes<vfloat2, kind_area | kind_rects, Pick>(f.views.lights, f.est, pass, *f.tb, k);
+    benchmark::DoNotOptimize(f.tb->cr[0]);
+  }
+  state.SetItemsProcessed(state.iterations() * lanes);
+}
 // The parts of the light kernel on the same lanes: Urena's map alone (setup and sample)
 // and the whole point sampler (map, fallback rule, area fallback).
 template <class T> void BM_rectangle_map(benchmark::State& state) {
@@ -185,6 +198,8 @@ void BM_sampler(benchmark::State& state) {
 BENCHMARK_TEMPLATE(BM_sample_lights, vfloat)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_sample_lights, vfloat2)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_sample_lights, float)->Arg(0)->Arg(1);
+BENCHMARK_TEMPLATE(BM_sample_lights_rect, false);
+BENCHMARK_TEMPLATE(BM_sample_lights_rect, true);
 BENCHMARK_TEMPLATE(BM_rectangle_map, vfloat);
 BENCHMARK_TEMPLATE(BM_rectangle_map, vfloat2);
 BENCHMARK_TEMPLATE(BM_light_point, vfloat);

@@ -7,6 +7,7 @@
 #pragma once
 #include <algorithm>
 #include <bit>
+#include <type_traits>
 
 #include "tile.h"
 #include "vec.h"
@@ -68,13 +69,16 @@ inline int32_t light_of_hit(const GeomView& G, uint32_t geom, uint32_t prim) {
 // Whether a ray from o travelling along d sees the emitting side of light l: one-sided
 // planar sources emit on the side of their normal, spheres outwards (a ray starting
 // inside a sphere light sees no emission, as in pbrt).
-template <class T>
+template <class T, bool Small = false>
 inline mask_t<T> light_front_lanes(const LightView& L, const i32_t<T>& l, const Vec3<T>& o, const Vec3<T>& d) {
-  const Vec3<T> c = o - gather3(L.p0x, L.p0y, L.p0z, l);
-  const T r = gather(L.e1x, l);
-  const auto sphere = f_mask_from_i(gather(L.type, l) == i32_t<T>(lt_sphere));
+  if constexpr (!Small && !std::is_same_v<T, float>)
+    if (L.small) return light_front_lanes<T, true>(L, l, o, d);  // permutes of the small tables
+  const Vec3<T> c = o - Vec3<T>{lget<Small>(L.p0x, l), lget<Small>(L.p0y, l), lget<Small>(L.p0z, l)};
+  const T r = lget<Small>(L.e1x, l);
+  const auto sphere = f_mask_from_i(lget<Small>(L.type, l) == i32_t<T>(lt_sphere));
   const auto outside = dot(c, c) > r * r;
-  const auto front = gather(L.two_sided, l) > T(0.f) || dot(d, gather3(L.nx, L.ny, L.nz, l)) < T(0.f);
+  const auto front = lget<Small>(L.two_sided, l) > T(0.f) ||
+                     dot(d, Vec3<T>{lget<Small>(L.nx, l), lget<Small>(L.ny, l), lget<Small>(L.nz, l)}) < T(0.f);
   return sel_mask(sphere, outside, front);
 }
 inline bool light_front(const LightView& L, int32_t l, float ox, float oy, float oz, float dx, float dy, float dz) {
@@ -170,9 +174,10 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     if (any(lit)) {  // then the light table is not empty
       const i32_t<T> li = max(light, i32_t<T>(0));
       const auto emit = lit && light_front_lanes<T>(L, li, o, d);
-      store(tb.Lr + i, sel(emit, load<T>(tb.Lr + i) + gather(L.Lr, li), load<T>(tb.Lr + i)));
-      store(tb.Lg + i, sel(emit, load<T>(tb.Lg + i) + gather(L.Lg, li), load<T>(tb.Lg + i)));
-      store(tb.Lb + i, sel(emit, load<T>(tb.Lb + i) + gather(L.Lb, li), load<T>(tb.Lb + i)));
+      const bool small = L.small;
+      store(tb.Lr + i, sel(emit, load<T>(tb.Lr + i) + (small ? lookup_small(L.Lr, li) : gather(L.Lr, li)), load<T>(tb.Lr + i)));
+      store(tb.Lg + i, sel(emit, load<T>(tb.Lg + i) + (small ? lookup_small(L.Lg, li) : gather(L.Lg, li)), load<T>(tb.Lg + i)));
+      store(tb.Lb + i, sel(emit, load<T>(tb.Lb + i) + (small ? lookup_small(L.Lb, li) : gather(L.Lb, li)), load<T>(tb.Lb + i)));
     }
   }
 

@@ -23,6 +23,7 @@ inline constexpr int32_t lt_triangle = 0, lt_parallelogram = 1, lt_sphere = 2, l
 
 struct LightView {
   int32_t count = 0;
+  bool small = false;  // count <= small_table_size, arrays padded to it: lookup_small reads them
   const int32_t* type = nullptr;
   const float *p0x = nullptr, *p0y = nullptr, *p0z = nullptr;
   const float *e1x = nullptr, *e1y = nullptr, *e1z = nullptr;
@@ -39,14 +40,21 @@ struct LightView {
   const int32_t* alias_idx = nullptr;
 };
 
+// A table read per lane: a gather, or with Small (tables padded to small_table_size) two
+// vector loads and a permute.
+template <bool Small, class Base, class I> inline auto lget(const Base* base, const I& i) {
+  if constexpr (Small) return lookup_small(base, i);
+  else return gather(base, i);
+}
+
 // Picks a source with the alias table: one uniform number, O(1).
-template <class T> inline i32_t<T> pick_light(const LightView& L, T u) {
+template <class T, bool Small = false> inline i32_t<T> pick_light(const LightView& L, T u) {
   const T scaled = u * T(static_cast<float>(L.count));
   i32_t<T> i = to_i32(scaled);
   i = min(i, i32_t<T>(L.count - 1));
   const T frac = scaled - to_f32(i);
-  const T prob = gather(L.alias_prob, i);
-  const i32_t<T> alt = gather(L.alias_idx, i);
+  const T prob = lget<Small>(L.alias_prob, i);
+  const i32_t<T> alt = lget<Small>(L.alias_idx, i);
   if constexpr (std::is_same_v<T, float>) return frac < prob ? i : alt;
   else return sel(i_mask_from_f(frac < prob), i, alt);
 }
@@ -59,39 +67,39 @@ template <class T> struct LightGeom {
   T len1, len2, inv_len1, inv_len2, rect;  // light_geom_derive
 };
 
-template <class I> inline auto gather_light(const LightView& L, const I& idx) {
+template <bool Small = false, class I> inline auto gather_light(const LightView& L, const I& idx) {
   using T = decltype(gather(L.area, idx));
   LightGeom<T> g;
-  g.type = gather(L.type, idx);
-  g.p0 = gather3(L.p0x, L.p0y, L.p0z, idx);
-  g.e1 = gather3(L.e1x, L.e1y, L.e1z, idx);
-  g.e2 = gather3(L.e2x, L.e2y, L.e2z, idx);
-  g.n = gather3(L.nx, L.ny, L.nz, idx);
-  g.area = gather(L.area, idx);
-  g.two_sided = gather(L.two_sided, idx);
-  g.len1 = gather(L.len1, idx);
-  g.len2 = gather(L.len2, idx);
-  g.inv_len1 = gather(L.inv_len1, idx);
-  g.inv_len2 = gather(L.inv_len2, idx);
-  g.rect = gather(L.rect, idx);
+  g.type = lget<Small>(L.type, idx);
+  g.p0 = {lget<Small>(L.p0x, idx), lget<Small>(L.p0y, idx), lget<Small>(L.p0z, idx)};
+  g.e1 = {lget<Small>(L.e1x, idx), lget<Small>(L.e1y, idx), lget<Small>(L.e1z, idx)};
+  g.e2 = {lget<Small>(L.e2x, idx), lget<Small>(L.e2y, idx), lget<Small>(L.e2z, idx)};
+  g.n = {lget<Small>(L.nx, idx), lget<Small>(L.ny, idx), lget<Small>(L.nz, idx)};
+  g.area = lget<Small>(L.area, idx);
+  g.two_sided = lget<Small>(L.two_sided, idx);
+  g.len1 = lget<Small>(L.len1, idx);
+  g.len2 = lget<Small>(L.len2, idx);
+  g.inv_len1 = lget<Small>(L.inv_len1, idx);
+  g.inv_len2 = lget<Small>(L.inv_len2, idx);
+  g.rect = lget<Small>(L.rect, idx);
   return g;
 }
 
 // The fields a rectangle source needs (no type or rectangle flag: they are known).
-template <class I> inline auto gather_rect_light(const LightView& L, const I& idx) {
+template <bool Small = false, class I> inline auto gather_rect_light(const LightView& L, const I& idx) {
   using T = decltype(gather(L.area, idx));
   LightGeom<T> g;
   g.type = i32_t<T>(lt_parallelogram);
-  g.p0 = gather3(L.p0x, L.p0y, L.p0z, idx);
-  g.e1 = gather3(L.e1x, L.e1y, L.e1z, idx);
-  g.e2 = gather3(L.e2x, L.e2y, L.e2z, idx);
-  g.n = gather3(L.nx, L.ny, L.nz, idx);
-  g.area = gather(L.area, idx);
-  g.two_sided = gather(L.two_sided, idx);
-  g.len1 = gather(L.len1, idx);
-  g.len2 = gather(L.len2, idx);
-  g.inv_len1 = gather(L.inv_len1, idx);
-  g.inv_len2 = gather(L.inv_len2, idx);
+  g.p0 = {lget<Small>(L.p0x, idx), lget<Small>(L.p0y, idx), lget<Small>(L.p0z, idx)};
+  g.e1 = {lget<Small>(L.e1x, idx), lget<Small>(L.e1y, idx), lget<Small>(L.e1z, idx)};
+  g.e2 = {lget<Small>(L.e2x, idx), lget<Small>(L.e2y, idx), lget<Small>(L.e2z, idx)};
+  g.n = {lget<Small>(L.nx, idx), lget<Small>(L.ny, idx), lget<Small>(L.nz, idx)};
+  g.area = lget<Small>(L.area, idx);
+  g.two_sided = lget<Small>(L.two_sided, idx);
+  g.len1 = lget<Small>(L.len1, idx);
+  g.len2 = lget<Small>(L.len2, idx);
+  g.inv_len1 = lget<Small>(L.inv_len1, idx);
+  g.inv_len2 = lget<Small>(L.inv_len2, idx);
   g.rect = T(1.f);
   return g;
 }

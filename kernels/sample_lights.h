@@ -8,6 +8,7 @@
 // q = c p (one-sample, c = choice probability, then n_light = c). Delta lights: w = 1.
 #pragma once
 #include <algorithm>
+#include <type_traits>
 
 #include "tile.h"
 
@@ -34,15 +35,21 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   LightGeom<T> g;
   T pick, Le_r, Le_g, Le_b;
   if constexpr (Pick) {
-    i32_t<T> idx;
-    if (pass.fixed_light >= 0) idx = i32_t<T>(pass.fixed_light);
-    else idx = pick_light(L, load<T>(tb.u0 + k));
-    if constexpr ((Kinds & kind_rects) != 0) g = gather_rect_light(L, idx);
-    else g = gather_light(L, idx);
-    pick = gather(L.pick_pdf, idx);
-    Le_r = gather(L.Lr, idx);
-    Le_g = gather(L.Lg, idx);
-    Le_b = gather(L.Lb, idx);
+    // per-lane sources: gathers, or permutes of small tables (the same values)
+    auto fetch = [&](auto small) {
+      constexpr bool S = decltype(small)::value;
+      i32_t<T> idx;
+      if (pass.fixed_light >= 0) idx = i32_t<T>(pass.fixed_light);
+      else idx = pick_light<T, S>(L, load<T>(tb.u0 + k));
+      if constexpr ((Kinds & kind_rects) != 0) g = gather_rect_light<S>(L, idx);
+      else g = gather_light<S>(L, idx);
+      pick = lget<S>(L.pick_pdf, idx);
+      Le_r = lget<S>(L.Lr, idx);
+      Le_g = lget<S>(L.Lg, idx);
+      Le_b = lget<S>(L.Lb, idx);
+    };
+    if (L.small) fetch(std::true_type{});
+    else fetch(std::false_type{});
   } else {  // every lane samples the same source: broadcasts, no gathers
     const int32_t li = pass.fixed_light;
     g = broadcast_light<T>(L, li);

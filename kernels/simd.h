@@ -200,6 +200,23 @@ inline vint gather(const int32_t* base, const vint& i) noexcept {
 #endif
 }
 
+// Lookups in a table of at most small_table_size entries whose array is padded to that
+// size: two vector loads and a permute instead of a gather (the same values).
+inline constexpr int small_table_size = 32;
+inline float lookup_small(const float* base, int32_t i) noexcept { return base[i]; }
+inline int32_t lookup_small(const int32_t* base, int32_t i) noexcept { return base[i]; }
+#if defined(__AVX512F__)
+inline vfloat lookup_small(const float* base, const vint& i) noexcept {
+  return _mm512_permutex2var_ps(_mm512_loadu_ps(base), i, _mm512_loadu_ps(base + 16));
+}
+inline vint lookup_small(const int32_t* base, const vint& i) noexcept {
+  return _mm512_permutex2var_epi32(_mm512_loadu_si512(base), i, _mm512_loadu_si512(base + 16));
+}
+#else
+inline vfloat lookup_small(const float* base, const vint& i) noexcept { return gather(base, i); }
+inline vint lookup_small(const int32_t* base, const vint& i) noexcept { return gather(base, i); }
+#endif
+
 template <class T> inline i32_t<T> lane_iota_i32() noexcept {
   if constexpr (std::is_same_v<T, float>) return 0;
   else {
@@ -442,6 +459,12 @@ inline void store(int32_t* p, const vint2& v) noexcept {
 }
 inline vfloat2 gather(const float* base, const vint2& i) noexcept { return {gather(base, i.a), gather(base, i.b)}; }
 inline vint2 gather(const int32_t* base, const vint2& i) noexcept { return {gather(base, i.a), gather(base, i.b)}; }
+inline vfloat2 lookup_small(const float* base, const vint2& i) noexcept {
+  return {lookup_small(base, i.a), lookup_small(base, i.b)};
+}
+inline vint2 lookup_small(const int32_t* base, const vint2& i) noexcept {
+  return {lookup_small(base, i.a), lookup_small(base, i.b)};
+}
 
 // Lane-type generic forms of what differs between float, vfloat and vfloat2.
 template <class T> inline T load(const float* p) noexcept {

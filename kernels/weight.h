@@ -22,10 +22,21 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
   const Vec3<T> n = load3<T>(tb.qnx + j, tb.qny + j, tb.qnz + j);
   const Vec3<T> wi = load3<T>(tb.qdx + j, tb.qdy + j, tb.qdz + j);
   const T dist = load<T>(tb.qdist + j);
-  T pdf_point;
-  if constexpr ((Kinds & kind_rects) != 0) pdf_point = pdf_rectangle_point_sa(est.point, gather_rect_light(L, idx), x, wi, dist);
-  else pdf_point = pdf_light_point_sa(est.point, gather_light(L, idx), x, wi, dist);
-  const T pdf_l = gather(L.pick_pdf, idx) * pdf_point;
+  // gathers, or permutes of small tables (the same values)
+  T pdf_point, pick, Le_r, Le_g, Le_b;
+  auto fetch = [&](auto small) {
+    constexpr bool S = decltype(small)::value;
+    if constexpr ((Kinds & kind_rects) != 0)
+      pdf_point = pdf_rectangle_point_sa(est.point, gather_rect_light<S>(L, idx), x, wi, dist);
+    else pdf_point = pdf_light_point_sa(est.point, gather_light<S>(L, idx), x, wi, dist);
+    pick = lget<S>(L.pick_pdf, idx);
+    Le_r = lget<S>(L.Lr, idx);
+    Le_g = lget<S>(L.Lg, idx);
+    Le_b = lget<S>(L.Lb, idx);
+  };
+  if (L.small) fetch(std::true_type{});
+  else fetch(std::false_type{});
+  const T pdf_l = pick * pdf_point;
   T w(1.f);
   if (est.strategy == Strategy::mis) {
     const T q_b = T(n_bsdf) * dot(n, wi) * T(inv_pi);
@@ -34,9 +45,9 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
     w = T(0.f);  // the general pipeline traces BSDF rays even when they must not count
   }
   const T factor = sel(live, w / T(n_bsdf), T(0.f));
-  store(tb.cr + j, load<T>(tb.qar + j) * gather(L.Lr, idx) * factor);
-  store(tb.cg + j, load<T>(tb.qag + j) * gather(L.Lg, idx) * factor);
-  store(tb.cb + j, load<T>(tb.qab + j) * gather(L.Lb, idx) * factor);
+  store(tb.cr + j, load<T>(tb.qar + j) * Le_r * factor);
+  store(tb.cg + j, load<T>(tb.qag + j) * Le_g * factor);
+  store(tb.cb + j, load<T>(tb.qab + j) * Le_b * factor);
   store(tb.wb + j, w);
 }
 
