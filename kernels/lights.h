@@ -67,10 +67,8 @@ template <class T> struct LightGeom {
   T len1, len2, inv_len1, inv_len2, rect;  // light_geom_derive
 };
 
-template <bool Small = false, class I> inline auto gather_light(const LightView& L, const I& idx) {
-  using T = decltype(gather(L.area, idx));
-  LightGeom<T> g;
-  g.type = lget<Small>(L.type, idx);
+// The fields every planar source has (gather_light adds the kind and the rectangle flag).
+template <bool Small, class I, class T> inline void gather_planar_fields(const LightView& L, const I& idx, LightGeom<T>& g) {
   g.p0 = {lget<Small>(L.p0x, idx), lget<Small>(L.p0y, idx), lget<Small>(L.p0z, idx)};
   g.e1 = {lget<Small>(L.e1x, idx), lget<Small>(L.e1y, idx), lget<Small>(L.e1z, idx)};
   g.e2 = {lget<Small>(L.e2x, idx), lget<Small>(L.e2y, idx), lget<Small>(L.e2z, idx)};
@@ -81,6 +79,13 @@ template <bool Small = false, class I> inline auto gather_light(const LightView&
   g.len2 = lget<Small>(L.len2, idx);
   g.inv_len1 = lget<Small>(L.inv_len1, idx);
   g.inv_len2 = lget<Small>(L.inv_len2, idx);
+}
+
+template <bool Small = false, class I> inline auto gather_light(const LightView& L, const I& idx) {
+  using T = decltype(gather(L.area, idx));
+  LightGeom<T> g;
+  g.type = lget<Small>(L.type, idx);
+  gather_planar_fields<Small>(L, idx, g);
   g.rect = lget<Small>(L.rect, idx);
   return g;
 }
@@ -90,18 +95,18 @@ template <bool Small = false, class I> inline auto gather_rect_light(const Light
   using T = decltype(gather(L.area, idx));
   LightGeom<T> g;
   g.type = i32_t<T>(lt_parallelogram);
-  g.p0 = {lget<Small>(L.p0x, idx), lget<Small>(L.p0y, idx), lget<Small>(L.p0z, idx)};
-  g.e1 = {lget<Small>(L.e1x, idx), lget<Small>(L.e1y, idx), lget<Small>(L.e1z, idx)};
-  g.e2 = {lget<Small>(L.e2x, idx), lget<Small>(L.e2y, idx), lget<Small>(L.e2z, idx)};
-  g.n = {lget<Small>(L.nx, idx), lget<Small>(L.ny, idx), lget<Small>(L.nz, idx)};
-  g.area = lget<Small>(L.area, idx);
-  g.two_sided = lget<Small>(L.two_sided, idx);
-  g.len1 = lget<Small>(L.len1, idx);
-  g.len2 = lget<Small>(L.len2, idx);
-  g.inv_len1 = lget<Small>(L.inv_len1, idx);
-  g.inv_len2 = lget<Small>(L.inv_len2, idx);
+  gather_planar_fields<Small>(L, idx, g);
   g.rect = T(1.f);
   return g;
+}
+
+// A source's pick probability and radiance per lane.
+template <bool Small, class I, class T>
+inline void gather_pick_radiance(const LightView& L, const I& idx, T& pick, T& r, T& g, T& b) {
+  pick = lget<Small>(L.pick_pdf, idx);
+  r = lget<Small>(L.Lr, idx);
+  g = lget<Small>(L.Lg, idx);
+  b = lget<Small>(L.Lb, idx);
 }
 
 template <class T> inline LightGeom<T> broadcast_light(const LightView& L, int32_t i) {

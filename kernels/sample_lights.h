@@ -43,10 +43,7 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
       else idx = pick_light<T, S>(L, load<T>(tb.u0 + k));
       if constexpr ((Kinds & kind_rects) != 0) g = gather_rect_light<S>(L, idx);
       else g = gather_light<S>(L, idx);
-      pick = lget<S>(L.pick_pdf, idx);
-      Le_r = lget<S>(L.Lr, idx);
-      Le_g = lget<S>(L.Lg, idx);
-      Le_b = lget<S>(L.Lb, idx);
+      gather_pick_radiance<S>(L, idx, pick, Le_r, Le_g, Le_b);
     };
     if (L.small) fetch(std::true_type{});
     else fetch(std::false_type{});

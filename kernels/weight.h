@@ -29,10 +29,7 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
     if constexpr ((Kinds & kind_rects) != 0)
       pdf_point = pdf_rectangle_point_sa(est.point, gather_rect_light<S>(L, idx), x, wi, dist);
     else pdf_point = pdf_light_point_sa(est.point, gather_light<S>(L, idx), x, wi, dist);
-    pick = lget<S>(L.pick_pdf, idx);
-    Le_r = lget<S>(L.Lr, idx);
-    Le_g = lget<S>(L.Lg, idx);
-    Le_b = lget<S>(L.Lb, idx);
+    gather_pick_radiance<S>(L, idx, pick, Le_r, Le_g, Le_b);
   };
   if (L.small) fetch(std::true_type{});
   else fetch(std::false_type{});
