@@ -332,6 +332,57 @@ template <int N> inline void sobol_block(const StreamConsts& sc, const uint32_t*
 }
 #undef TUILE_RNG_EACH
 
+// permute_index for one batch of keys: the same bijection; each lane walks its cycle until
+// its value is in [0, n), finished lanes keep theirs.
+inline vuint permute_index_lanes(uint32_t index, uint32_t n, const vuint& key) noexcept {
+  if (n <= 1) return vuint(0u);
+  uint32_t m = n - 1;
+  m |= m >> 1; m |= m >> 2; m |= m >> 4; m |= m >> 8; m |= m >> 16;
+  const vuint mask(m), k1 = hash_u32(key) | vuint(1u), k2 = hash_u32(key ^ vuint(0xa511e9b3u));
+  vuint i(index);
+  auto todo = i == i;
+  do {
+    vuint y = (i * k1) & mask;
+    y ^= (y & mask) >> 3;
+    y = (y + k2) & mask;
+    y ^= (y >> 5);
+    y = (y * vuint(0x9e3779b1u)) & mask;
+    y ^= y >> 7;
+    i = xsimd::select(todo, y, i);
+    todo = todo && (i >= vuint(n));
+  } while (xsimd::any(todo));
+  return i;
+}
+
+// The stratified sampler for one batch of pixels: the same bits as sample_pair_scalar.
+inline void stratified_batch(uint32_t seed, const uint32_t* pixel, uint32_t index, uint32_t spp, uint32_t pair,
+                             float* u, float* v) noexcept {
+  const vuint key = stream_key<vuint>(seed, vuint::load_unaligned(pixel), pair);
+  const vuint h = hash_combine(key, vuint(index));
+  const vfloat ju = u32_to_unit(h), jv = u32_to_unit(hash_u32(h ^ vuint(0x68e31da4u)));
+  vfloat fu = ju, fv = jv;
+  if (index < spp && spp != 0) {
+    uint32_t side = 1;
+    while ((side + 1) * (side + 1) <= spp) ++side;
+    if (side * side == spp) {
+      // cell / side and cell % side through exact float arithmetic (cell < spp < 2^24)
+      const vfloat cell = u32_to_f32(permute_index_lanes(index, spp, key)), fs(static_cast<float>(side));
+      const vfloat q = xsimd::floor(cell / fs);
+      const vfloat r = cell - q * fs;
+      fu = (r + ju) / fs;
+      fv = (q + jv) / fs;
+    } else {
+      const vfloat fn(static_cast<float>(spp));
+      fu = (u32_to_f32(permute_index_lanes(index, spp, key)) + ju) / fn;
+      fv = (u32_to_f32(permute_index_lanes(index, spp, key ^ vuint(0x85ebca6bu))) + jv) / fn;
+    }
+    fu = xsimd::select(fu < vfloat(1.f), fu, vfloat(0x1.fffffep-1f));
+    fv = xsimd::select(fv < vfloat(1.f), fv, vfloat(0x1.fffffep-1f));
+  }
+  fu.store_unaligned(u);
+  fv.store_unaligned(v);
+}
+
 // Blocks of N batches while they fit, then N/2, ... 1 for the rest; returns the lanes done.
 template <int N, class Block> inline int run_blocks(int i, int count, const Block& block) noexcept {
   for (; i + N * simd_width <= count; i += N * simd_width) block(std::integral_constant<int, N>{}, i);
@@ -360,6 +411,8 @@ inline void sample_pairs(SamplerKind kind, uint32_t seed, const uint32_t* pixel,
       sc.index = r ^ r * 0x3d20adeau;
       i = run_blocks<8>(0, count, [&](auto n, int j) { sobol_block<n()>(sc, pixel + j, u + j, v + j); });
     }
+  } else if (spp < (1u << 24)) {  // stratified: SIMD batches (exact float cell arithmetic below 2^24)
+    for (; i + simd_width <= count; i += simd_width) stratified_batch(seed, pixel + i, index, spp, pair, u + i, v + i);
   }
   for (; i < count; ++i) sample_pair_scalar(kind, seed, pixel[i], index, spp, pair, u[i], v[i]);
 }

@@ -133,23 +133,29 @@ template <class F> void expect_same_floats(const float* a, const float* b, int n
 
 }  // namespace
 
+// Every sampler's SIMD path against the scalar reference, with sample counts that are
+// squares (stratified: an n x n grid), not squares (Latin hypercube), 1, and indices past
+// the planned count; 67 lanes leave a scalar tail.
 TEST(Lanes, Samplers) {
-  uint32_t pix[64];
-  for (int i = 0; i < 64; ++i) pix[i] = static_cast<uint32_t>(i * 131 + 5);
+  uint32_t pix[67];
+  for (int i = 0; i < 67; ++i) pix[i] = static_cast<uint32_t>(i * 131 + 5);
   for (int kind = 0; kind < 3; ++kind)
-    for (uint32_t pair : {0u, 3u, 17u})
-      for (uint32_t idx : {0u, 1u, 15u, 1000u}) {
-        float u[64], v[64];
-        sample_pairs(static_cast<SamplerKind>(kind), 9, pix, idx, 16, pair, 64, u, v);
-        for (int i = 0; i < 64; ++i) {
-          float su, sv;
-          sample_pair_scalar(static_cast<SamplerKind>(kind), 9, pix[i], idx, 16, pair, su, sv);
-          ASSERT_EQ(u[i], su);
-          ASSERT_EQ(v[i], sv);
-          ASSERT_GE(u[i], 0.f);
-          ASSERT_LT(u[i], 1.f);
+    for (uint32_t spp : {16u, 10u, 1u, 7u, 1024u, 1000u})
+      for (uint32_t pair : {0u, 3u, 17u})
+        for (uint32_t idx : {0u, 1u, 6u, 15u, 999u, 1000u, 5000u}) {
+          float u[67], v[67];
+          sample_pairs(static_cast<SamplerKind>(kind), 9, pix, idx, spp, pair, 67, u, v);
+          for (int i = 0; i < 67; ++i) {
+            float su, sv;
+            sample_pair_scalar(static_cast<SamplerKind>(kind), 9, pix[i], idx, spp, pair, su, sv);
+            ASSERT_EQ(u[i], su) << kind << " spp " << spp << " index " << idx << " lane " << i;
+            ASSERT_EQ(v[i], sv) << kind << " spp " << spp << " index " << idx << " lane " << i;
+            ASSERT_GE(u[i], 0.f);
+            ASSERT_LT(u[i], 1.f);
+            ASSERT_GE(v[i], 0.f);
+            ASSERT_LT(v[i], 1.f);
+          }
         }
-      }
 }
 
 // The SIMD fast path of the hash-based samplers against the scalar reference: random
