@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstring>
+#include <mutex>
 
 namespace tuile {
 
@@ -18,7 +19,8 @@ static_assert(offsetof(Ray16, flags) == offsetof(RTCRay16, flags));
 struct Accel::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
-  RTCScene emitters = nullptr;
+  RTCScene emitters = nullptr;  // geometry attached at construction, built by prepare_emitters
+  std::once_flag emitters_built;
   std::string error;
   RTCScene of(Target t) const { return t == Target::emitters ? emitters : scene; }
 };
@@ -77,10 +79,16 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
     }
     ++id;
   }
-  rtcCommitScene(impl_->emitters);
   rtcCommitScene(impl_->scene);
   if (!impl_->error.empty()) throw SceneError(impl_->error);
   build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void Accel::prepare_emitters() const {
+  std::call_once(impl_->emitters_built, [this] {
+    rtcCommitScene(impl_->emitters);
+    if (!impl_->error.empty()) throw SceneError(impl_->error);
+  });
 }
 
 Accel::~Accel() {

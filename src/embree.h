@@ -21,14 +21,17 @@ enum class Target { scene, emitters };
 
 class Accel {
  public:
-  // Builds the BVHs over every mesh and sphere of the scene and over its emitters.
-  // geomID == mesh index for meshes, meshes.size() + i for sphere i, in both. Throws
-  // SceneError if Embree fails.
+  // Builds the BVH over every mesh and sphere of the scene, and attaches the emitters to a
+  // second scene (built by prepare_emitters). geomID == mesh index for meshes,
+  // meshes.size() + i for sphere i, in both. Throws SceneError if Embree fails.
   Accel(const Scene& scene, const EmbreeOptions& options = {});
   ~Accel();
   Accel(const Accel&) = delete;
   Accel& operator=(const Accel&) = delete;
 
+  // Builds the emitters' BVH (once; thread-safe). Queries with Target::emitters need it:
+  // a render that traces against the whole scene never pays for it.
+  void prepare_emitters() const;
   // valid[i] = -1 for active lanes, 0 for inactive (Embree's convention).
   void intersect16(const int32_t* valid, RayHit16& packet, bool coherent,
                    Target target = Target::scene) const noexcept;

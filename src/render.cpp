@@ -272,6 +272,7 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   } else {
     bounce_emitters_ = opt_.bounce == BounceTrace::emitters;
   }
+  if (bounce_emitters_) accel_.prepare_emitters();
 }
 
 Renderer::~Renderer() = default;
