@@ -261,6 +261,20 @@ template <class T> struct LightPointSample {
   mask_t<T> valid, is_delta;
 };
 
+// The lanes of by_area take the point y drawn by area: its direction and distance from x
+// and its density converted to solid angle (both light-point samplers end this way).
+template <class T>
+inline void take_area_point(const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& y, const mask_t<T>& by_area,
+                            Vec3<T>& wi, T& dist, T& pdf, mask_t<T>& valid) {
+  const Vec3<T> d = y - x;
+  const T da = sqrt(length_sq(d));
+  const Vec3<T> wa = d * (T(1.f) / sel(da > T(0.f), da, T(1.f)));
+  wi = sel(by_area, wa, wi);
+  dist = sel(by_area, da, dist);
+  pdf = sel(by_area, pdf_area_as_solid_angle(g, x, wa, da), pdf);
+  valid = sel_mask(by_area, da > T(0.f), valid);
+}
+
 // sample_light_point where every lane's source is a rectangle: the same steps and values
 // without the dispatch on the kind of source.
 template <class T>
@@ -286,14 +300,7 @@ inline LightPointSample<T> sample_rectangle_point(LightPoint mode, const LightGe
   }
   const auto by_area = !use_sa;
   if (any(by_area)) {
-    const Vec3<T> y = g.p0 + g.e1 * u1 + g.e2 * u2;
-    const Vec3<T> d = y - x;
-    const T da = sqrt(length_sq(d));
-    const Vec3<T> wa = d * (T(1.f) / sel(da > T(0.f), da, T(1.f)));
-    wi = sel(by_area, wa, wi);
-    dist = sel(by_area, da, dist);
-    pdf = sel(by_area, pdf_area_as_solid_angle(g, x, wa, da), pdf);
-    valid = sel_mask(by_area, da > T(0.f), valid);
+    take_area_point(g, x, g.p0 + g.e1 * u1 + g.e2 * u2, by_area, wi, dist, pdf, valid);
   }
   s.wi = wi;
   s.dist = dist;
@@ -401,13 +408,7 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
       }
       if (any(is_par)) y = sel(is_par, g.p0 + g.e1 * u1 + g.e2 * u2, y);
       if (any(is_sph)) y = sel(is_sph, sample_sphere_area(g.p0, g.e1.x, u1, u2), y);
-      const Vec3<T> d = y - x;
-      const T da = sqrt(length_sq(d));
-      const Vec3<T> wa = d * (T(1.f) / sel(da > T(0.f), da, T(1.f)));
-      wi = sel(by_area, wa, wi);
-      dist = sel(by_area, da, dist);
-      pdf = sel(by_area, pdf_area_as_solid_angle(g, x, wa, da), pdf);
-      valid = sel_mask(by_area, da > T(0.f), valid);
+      take_area_point(g, x, y, by_area, wi, dist, pdf, valid);
     }
   }
 
