@@ -333,14 +333,23 @@ inline mask_t<T> sample_spherical_triangle(const Vec3<T>& x, const Vec3<T>& a, c
 // ---------------------------------------------------------------------------------------
 // 4. Spherical rectangles (Urena, Fajardo & King 2013) for p0 + u e1 + v e2, e1 . e2 = 0.
 //
-// The angles between the four planes (x, edge) are written as gamma_i = pi/2 + asin(t_i)
-// with t_i a product of local coordinates (no acos of a dot product of normalised cross
-// products), so the solid angle S = sum(gamma_i) - 2 pi = sum(asin(t_i)) keeps its relative
-// precision when the rectangle is small and straight ahead.
+// In the local frame (x at the origin, the rectangle [x0, x1] x [y0, y1] at height z0 < 0)
+// Urena's angles between the planes through x and the edges are gamma_i = pi/2 + asin(t_i),
+// so S = sum(gamma_i) - 2 pi = sum(asin(t_i)). The sums asin(t0) + asin(t1) (the edge
+// x = x1) and asin(t2) + asin(t3) (the edge x = x0) are each one atan2 whose arguments,
+// after dropping a common positive factor, need only the local coordinates and the
+// distances R to the four corners:
+//   asin t0 + asin t1 = atan2(|z0| x1 (y1 R(x1,y0) - y0 R(x1,y1)), z0^2 R(x1,y0) R(x1,y1) + x1^2 y0 y1)
+//   asin t2 + asin t3 = atan2(|z0| x0 (y0 R(x0,y1) - y1 R(x0,y0)), z0^2 R(x0,y0) R(x0,y1) + x0^2 y0 y1)
+// (the products (c0 + i t0)(c1 + i t1) with t0 = -y0 x1 / (m0 m1), c0 = |z0| R(x1,y0) / (m0 m1),
+// m_i the lengths of the edge planes' normals). The setup evaluates them divided by the two
+// R's, as rsqrt gives 1 / R. No acos of a dot product and no 1 - t^2, so S keeps its
+// relative precision when the rectangle is small and straight ahead.
 template <class T> struct SphericalRectangle {
   Vec3<T> ex, ey, ez;  // local frame, ez towards the rectangle's side opposite x
   T x0, x1, y0, y1, z0;  // corners in the local frame (z0 <= 0)
   T b0, b1, k_sin_off;   // Urena's b0, b1, and asin(t2) + asin(t3)
+  T c0;                  // 1 - b0^2 = z0^2 / (z0^2 + y0^2)
   T omega;
   mask_t<T> valid;
 };
@@ -366,33 +375,23 @@ inline SphericalRectangle<T> spherical_rectangle_setup(const Vec3<T>& x, const V
   r.x1 = r.x0 + lx;
   r.y1 = r.y0 + ly;
   const T z2 = r.z0 * r.z0;
-  // squared lengths m_i^2 of the four edge-plane normals below, and i_i = 1 / m_i
-  const T q0 = z2 + r.y0 * r.y0, q1 = z2 + r.x1 * r.x1, q2 = z2 + r.y1 * r.y1, q3 = z2 + r.x0 * r.x0;
-  const mask_t<T> ok_m = q0 > T(0.f) && q1 > T(0.f) && q2 > T(0.f) && q3 > T(0.f) && is_finite(q0) &&
-                         is_finite(q1) && is_finite(q2) && is_finite(q3);
-  const T i0 = rsqrt_nr(sel(ok_m, q0, T(1.f))), i1 = rsqrt_nr(sel(ok_m, q1, T(1.f)));
-  const T i2 = rsqrt_nr(sel(ok_m, q2, T(1.f))), i3 = rsqrt_nr(sel(ok_m, q3, T(1.f)));
-  // Unit normals n0 = (0, z0, -y0)/m0, n1 = (-z0, 0, x1)/m1, n2 = (0, -z0, y1)/m2,
-  // n3 = (z0, 0, -x0)/m3; t_i = n_i . n_(i+1) = sin(asin t_i), c_i = cos(asin t_i) >= 0.
-  const T t0 = -(r.y0 * i0) * (r.x1 * i1);
-  const T t1 = (r.x1 * i1) * (r.y1 * i2);
-  const T t2 = -(r.y1 * i2) * (r.x0 * i3);
-  const T t3 = (r.x0 * i3) * (r.y0 * i0);
-  auto cos_of = [](const T& t) {
-    const T tc = min(max(t, T(-1.f)), T(1.f));
-    const T u = (T(1.f) - tc) * (T(1.f) + tc);
-    return sel(u > T(0.f), u * rsqrt_nr(sel(u > T(0.f), u, T(1.f))), T(0.f));
-  };
-  const T c0 = cos_of(t0), c1 = cos_of(t1), c2 = cos_of(t2), c3 = cos_of(t3);
-  // asin t0 + asin t1 and asin t2 + asin t3, each in [-pi, pi], as the arguments of the
-  // products (c0 + i t0)(c1 + i t1) and (c2 + i t2)(c3 + i t3): two atan2, not four asin.
-  const T a01 = lane_math::atan2(t0 * c1 + c0 * t1, c0 * c1 - t0 * t1);
-  const T a23 = lane_math::atan2(t2 * c3 + c2 * t3, c2 * c3 - t2 * t3);
+  // The inverse distances to the corners, and the atan2 arguments above divided by their
+  // two R's (so they scale as length^2, like the squares here). Where z0 < 0 every q > 0;
+  // elsewhere, or where a q overflows, S comes out 0 or NaN and the lane is invalid.
+  const T zx0 = mul_add(r.x0, r.x0, z2), zx1 = mul_add(r.x1, r.x1, z2);
+  const T y00 = r.y0 * r.y0, y11 = r.y1 * r.y1;
+  const T p00 = rsqrt_nr(zx0 + y00), p01 = rsqrt_nr(zx0 + y11), p10 = rsqrt_nr(zx1 + y00), p11 = rsqrt_nr(zx1 + y11);
+  const T az = -r.z0, yy = r.y0 * r.y1;
+  const T a01 = lane_math::atan2(az * r.x1 * (r.y1 * p11 - r.y0 * p10), mul_add(r.x1 * r.x1 * yy, p10 * p11, z2));
+  const T a23 = lane_math::atan2(az * r.x0 * (r.y0 * p00 - r.y1 * p01), mul_add(r.x0 * r.x0 * yy, p00 * p01, z2));
+  // b0 = -y0 / m0, b1 = y1 / m2 with m0^2 = z0^2 + y0^2, m2^2 = z0^2 + y1^2
+  const T i0 = rsqrt_nr(z2 + y00), i2 = rsqrt_nr(z2 + y11);
   r.b0 = -r.y0 * i0;
   r.b1 = r.y1 * i2;
+  r.c0 = z2 * (i0 * i0);
   r.k_sin_off = a23;
   r.omega = a01 + a23;
-  r.valid = ok_e && ok_m && r.z0 < T(0.f) && r.omega > T(0.f) && is_finite(r.omega);
+  r.valid = ok_e && r.z0 < T(0.f) && r.omega > T(0.f) && is_finite(r.omega);
   r.omega = sel(r.valid, r.omega, T(0.f));
   return r;
 }
@@ -413,7 +412,9 @@ inline T spherical_rectangle_solid_angle(const Vec3<T>& x, const Vec3<T>& p0, co
 
 // Urena's map for a prepared rectangle: the unit direction and the distance from x to the
 // point it reaches on the rectangle (the local point (xu, yv, z0) is known, so no plane
-// intersection is needed). The density is 1 / r.omega.
+// intersection is needed). The density is 1 / r.omega. Every output is finite wherever
+// r.valid holds: xu and yv are clamped to the rectangle, so every distance is at most the
+// farthest corner's, which the setup found finite.
 template <class T>
 inline mask_t<T> sample_spherical_rectangle(const SphericalRectangle<T>& r, const T& u1, const T& u2, Vec3<T>& dir,
                                             T& dist_y) noexcept {
@@ -423,37 +424,34 @@ inline mask_t<T> sample_spherical_rectangle(const SphericalRectangle<T>& r, cons
   const T psi = r.k_sin_off - u1 * r.omega;
   T sp, cp;
   lane_math::sincos(psi, sp, cp);
-  // fu = (cos(au) b0 - b1) / sin(au); cu = sign(fu) / sqrt(fu^2 + b0^2), written without
-  // the division by sin(au): cu = sign(N) D / sqrt(N^2 + b0^2 D^2), N = -cos(psi) b0 - b1, D = sin(psi).
-  // Square roots and divisions as rsqrt_nr: this map is the renderer's costliest kernel.
-  const T n = -cp * r.b0 - r.b1;
-  const T dd = sp;
-  const T qq = n * n + r.b0 * r.b0 * dd * dd;  // <= 5: b0, sin, cos in [-1, 1]
-  const T iq = rsqrt_nr(sel(qq > T(0.f), qq, T(1.f)));
-  const T cu = min(max(sel(n < T(0.f), -dd, dd) * iq, T(-1.f)), T(1.f));
-  const T xu = min(max(-(cu * r.z0) * rsqrt_nr(max(T(1.f) - cu * cu, T(1e-12f))), r.x0), r.x1);
-  const T dist2 = xu * xu + r.z0 * r.z0;  // > 0 wherever r.valid (z0 < 0)
-  const mask_t<T> ok_d = dist2 > T(0.f) && is_finite(dist2);
-  const T dist2s = sel(ok_d, dist2, T(1.f));
-  const T dist = dist2s * rsqrt_nr(dist2s);
-  const T h0 = r.y0 * rsqrt_nr(dist2s + r.y0 * r.y0);
-  const T h1 = r.y1 * rsqrt_nr(dist2s + r.y1 * r.y1);
-  const T hv = h0 + u2 * (h1 - h0);
-  const T hv2 = hv * hv;
-  const mask_t<T> inner = hv2 < T(1.f - 1e-6f);
-  const T yv = sel(inner, hv * dist * rsqrt_nr(sel(inner, T(1.f) - hv2, T(1.f))), r.y1);
-  const T yc = min(max(yv, r.y0), r.y1);
+  // fu = (cos(au) b0 - b1) / sin(au), cu = sign(fu) / sqrt(fu^2 + b0^2) and
+  // xu = -cu z0 / sqrt(1 - cu^2). With N = -cos(psi) b0 - b1 and D = sin(psi) (fu = N / D),
+  // cu = sign(N) D / sqrt(N^2 + b0^2 D^2) and 1 - cu^2 = (N^2 - (1 - b0^2) D^2) / (N^2 + b0^2 D^2),
+  // so xu = -sign(N) D z0 / sqrt(N^2 - (1 - b0^2) D^2): one square root, no division.
+  // Where rounding leaves no room under the root, xu is beyond the rectangle and clamped.
+  const T n = mul_add(-cp, r.b0, -r.b1);
+  const T den = mul_add(-r.c0 * sp, sp, n * n);
+  const T sd = sel(n < T(0.f), -sp, sp);
+  const T xu = min(max(-(sd * r.z0) * rsqrt_nr(max(den, T(1e-30f))), r.x0), r.x1);
+  const T dist2 = mul_add(xu, xu, r.z0 * r.z0);  // in [z0^2, farthest corner^2] where r.valid
+  const T dist2s = sel(r.valid, dist2, T(1.f));
+  const T id = rsqrt_nr(dist2s);
+  const T dist = dist2s * id;
+  const T q1 = mul_add(r.y1, r.y1, dist2s);
+  const T i0 = rsqrt_nr(mul_add(r.y0, r.y0, dist2s)), i1 = rsqrt_nr(q1);
+  const T h0 = r.y0 * i0, h1 = r.y1 * i1;
+  const T hv = mul_add(u2, h1 - h0, h0);
+  // yv = hv dist / sqrt(1 - hv^2), and the distance to (xu, yv, z0) is dist / sqrt(1 - hv^2)
+  const T w = T(1.f) - hv * hv;
+  const mask_t<T> inner = w > T(1e-6f);
+  const T s = rsqrt_nr(sel(inner, w, T(1.f)));
+  const T yc = sel(inner, min(max(hv * dist * s, r.y0), r.y1), r.y1);
+  // 1 / |(xu, yc, z0)|: from the map where inner, else the root of q1 = |(xu, y1, z0)|^2
+  const T il = sel(inner, id * w * s, i1);
   const Vec3<T> v = r.ex * xu + r.ey * yc + r.ez * r.z0;
-  // |v| from the local coordinates (the frame is orthonormal)
-  const T len2 = dist2s + yc * yc;
-  const T il = rsqrt_nr(len2);
-  const T len = len2 * il;
-  const mask_t<T> ok = ok_d && len > T(0.f) && is_finite(len) && is_finite(il);
-  dir = sel(ok, v * il, -r.ez);
-  dist_y = sel(ok, len, T(0.f));
-  const mask_t<T> valid = r.valid && ok && finite3(dir);
-  dir = sel(valid, dir, Vec3<T>(T(0.f), T(0.f), T(1.f)));
-  return valid;
+  dir = sel(r.valid, v * il, Vec3<T>(T(0.f), T(0.f), T(1.f)));
+  dist_y = sel(r.valid, sel(inner, dist * s, q1 * i1), T(0.f));
+  return r.valid;
 }
 
 template <class T>
