@@ -32,9 +32,7 @@ template <class T> TUILE_FLATTEN inline void generate_lanes(const CameraView& c,
   const int l = i % packet_width;
   store3(p.ray.org_x + l, p.ray.org_y + l, p.ray.org_z + l, o);
   store3(p.ray.dir_x + l, p.ray.dir_y + l, p.ray.dir_z + l, d);
-  store(p.ray.tnear + l, T(0.f));
   store(p.ray.tfar + l, T(3.0e38f));
-  store(p.ray.time + l, T(0.f));
   store(tb.Lr + i, T(0.f));
   store(tb.Lg + i, T(0.f));
   store(tb.Lb + i, T(0.f));
@@ -51,7 +49,7 @@ inline void generate(const CameraView& c, const Estimator& est, uint32_t sample,
   sample_pairs(est.sampler, est.seed, tb.pixel, sample, est.spp, 0, padded, tb.u0, tb.u1);
   int i = 0;
   for (; i < padded; i += simd_width) generate_lanes<vfloat>(c, tb, i);  // padded: whole packets
-  for (int k = 0; k < padded / packet_width; ++k) reset_query_fields(tb.cam[k]);
+  for (int k = 0; k < padded / packet_width; ++k) reset_hit(tb.cam[k]);
   std::fill_n(tb.cam_valid, lanes, -1);
   std::fill_n(tb.cam_valid + lanes, padded - lanes, 0);
   if (est.aov_mis_weight) {

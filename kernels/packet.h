@@ -36,17 +36,21 @@ template <class P, class T> inline void store_field(P* packets, float (P::*field
   }
 }
 
-// The fields of a packet that stay the same for every query: all rays enabled, no id,
-// no flags; and no hit yet (Embree writes geomID only where a ray hits).
+// The fields of a packet that stay the same for every query: every ray starts at t = 0 at
+// time 0, enabled, with no id and no flags. Embree only reads them, so TileBuffers sets
+// them once.
 inline void reset_query_fields(Ray16& r) noexcept {
+  std::fill_n(r.tnear, packet_width, 0.f);
+  std::fill_n(r.time, packet_width, 0.f);
   std::fill_n(r.mask, packet_width, 0xffffffffu);
   std::fill_n(r.id, packet_width, 0u);
   std::fill_n(r.flags, packet_width, 0u);
 }
 inline void reset_query_fields(RayHit16& p) noexcept {
   reset_query_fields(p.ray);
-  std::fill_n(p.geomID, packet_width, invalid_id);
   std::fill_n(p.instID[0], packet_width, invalid_id);
 }
+// No hit yet: Embree writes geomID only where a ray hits, so it is reset before every query.
+inline void reset_hit(RayHit16& p) noexcept { std::fill_n(p.geomID, packet_width, invalid_id); }
 
 }  // namespace tuile

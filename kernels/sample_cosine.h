@@ -24,9 +24,7 @@ template <class T> TUILE_FLATTEN inline void sample_cosine_lanes(const Estimator
   const int l = k % packet_width;
   store3(r.ray.org_x + l, r.ray.org_y + l, r.ray.org_z + l, x + n * eps);
   store3(r.ray.dir_x + l, r.ray.dir_y + l, r.ray.dir_z + l, d);
-  store(r.ray.tnear + l, T(0.f));
   store(r.ray.tfar + l, T(3.0e38f));
-  store(r.ray.time + l, T(0.f));
   if constexpr (std::is_same_v<T, float>) tb.valid[k] = ok ? -1 : 0;
   else xsimd::select(i_mask_from_f(ok), vint(-1), vint(0)).store_unaligned(tb.valid + k);
 }
@@ -36,7 +34,7 @@ inline void sample_cosine(const Estimator& est, uint32_t sample, uint32_t pair, 
   sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair, padded, tb.u0, tb.u1);
   int k = 0;
   for (; k < padded; k += simd_width) sample_cosine_lanes<vfloat>(est, tb, k);
-  for (int p = 0; p < padded / packet_width; ++p) reset_query_fields(tb.bounce[p]);
+  for (int p = 0; p < padded / packet_width; ++p) reset_hit(tb.bounce[p]);
 }
 
 }  // namespace tuile

@@ -125,9 +125,7 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   store_field(tb.shadow, &Ray16::dir_x, k, dir.x);
   store_field(tb.shadow, &Ray16::dir_y, k, dir.y);
   store_field(tb.shadow, &Ray16::dir_z, k, dir.z);
-  store_field(tb.shadow, &Ray16::tnear, k, T(0.f));
   store_field(tb.shadow, &Ray16::tfar, k, tfar);
-  store_field(tb.shadow, &Ray16::time, k, T(0.f));
   store_valid(tb.valid + k, live);
 }
 
@@ -143,7 +141,6 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
   int k = 0;
   for (; k + 2 * simd_width <= padded; k += 2 * simd_width) sample_lights_lanes<vfloat2, Kinds, Pick>(L, est, pass, tb, k);
   for (; k < padded; k += simd_width) sample_lights_lanes<vfloat, Kinds, Pick>(L, est, pass, tb, k);
-  for (int p = 0; p < padded / packet_width; ++p) reset_query_fields(tb.shadow[p]);
 }
 
 // After the shadow query: unoccluded lanes add their contribution to their shading

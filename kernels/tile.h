@@ -74,6 +74,16 @@ struct alignas(64) TileBuffers {
   RayHit16 cam[max_packets];
   Ray16 shadow[max_packets];
   RayHit16 bounce[max_packets];
+  // the packets' constant fields, once (the stages write rays and reset hits only)
+  TileBuffers() noexcept {
+    for (int p = 0; p < max_packets; ++p) {
+      reset_query_fields(cam[p]);
+      reset_query_fields(shadow[p]);
+      reset_query_fields(bounce[p]);
+      reset_hit(cam[p]);
+      reset_hit(bounce[p]);
+    }
+  }
 
   // per tile pixel (lane = row-major index inside the tile)
   alignas(64) float fx[max_tile_lanes], fy[max_tile_lanes];  // pixel corner

@@ -132,12 +132,9 @@ inline int bounce_visibility_rays(TileBuffers& tb) {
     store_field(tb.shadow, &Ray16::dir_x, j, load<vfloat>(tb.qdx + j));
     store_field(tb.shadow, &Ray16::dir_y, j, load<vfloat>(tb.qdy + j));
     store_field(tb.shadow, &Ray16::dir_z, j, load<vfloat>(tb.qdz + j));
-    store_field(tb.shadow, &Ray16::tnear, j, vfloat(0.f));
     store_field(tb.shadow, &Ray16::tfar, j, load<vfloat>(tb.qt + j) * vfloat(1.f - 1.f / 4096.f));
-    store_field(tb.shadow, &Ray16::time, j, vfloat(0.f));
     store_valid(tb.qvalid + j, (vfloat(static_cast<float>(j)) + lane_iota<vfloat>()) < vfloat(static_cast<float>(tb.queue_count)));
   }
-  for (int p = 0; p < qpadded / packet_width; ++p) reset_query_fields(tb.shadow[p]);
   return qpadded / packet_width;
 }
 
