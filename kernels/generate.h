@@ -46,7 +46,7 @@ inline void generate(const CameraView& c, const Estimator& est, uint32_t sample,
     tb.fy[i] = tb.fy[0];
     tb.pixel[i] = tb.pixel[0];
   }
-  sample_pairs(est.sampler, est.seed, tb.pixel, sample, est.spp, 0, padded, tb.u0, tb.u1);
+  lane_pairs(est, tb, sample, 0, padded, tb.u0, tb.u1);
   int i = 0;
   for (; i < padded; i += simd_width) generate_lanes<vfloat>(c, tb, i);  // padded: whole packets
   for (int k = 0; k < padded / packet_width; ++k) reset_hit(tb.cam[k]);

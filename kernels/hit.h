@@ -227,6 +227,25 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   compress_store(reinterpret_cast<int32_t*>(tb.spix + n), load_i32<T>(reinterpret_cast<const int32_t*>(tb.pixel + i)),
                  keep);
   compress_store(tb.slane + n, lane, keep);
+  // The cached stream keys of the shading pairs: while every lane so far is a shading
+  // point (point k is lane k) the points read the lanes' keys; from the first lane that is
+  // not, they are copied and then compacted.
+  if (tb.keyed & ~1u) {
+    constexpr uint32_t all = lane_traits<T>::width == 32 ? ~0u : (1u << lane_traits<T>::width) - 1u;
+    if (tb.points_are_lanes && !(keep == all && n == i)) {
+      for (uint32_t bits = tb.keyed & ~1u; bits; bits &= bits - 1)
+        for (int f = 0; f < 3; ++f)
+          std::copy_n(tb.lane_key[std::countr_zero(bits)][f], n, tb.point_key[std::countr_zero(bits)][f]);
+      tb.points_are_lanes = false;
+    }
+    if (!tb.points_are_lanes)
+      for (uint32_t bits = tb.keyed & ~1u; bits; bits &= bits - 1) {
+        const int p = std::countr_zero(bits);
+        for (int f = 0; f < 3; ++f)
+          compress_store(reinterpret_cast<int32_t*>(tb.point_key[p][f] + n),
+                         load_i32<T>(reinterpret_cast<const int32_t*>(tb.lane_key[p][f] + i)), keep);
+      }
+  }
   n += std::popcount(keep);
 }
 
@@ -238,6 +257,7 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
   const int padded_lanes = (lanes + packet_width - 1) / packet_width * packet_width;
   int n = 0;
   tb.tex_count = 0;
+  tb.points_are_lanes = true;
   for (int i = 0; i < padded_lanes; i += lane_traits<T>::width) camera_hit_lanes<T, Emitters>(G, L, tb, i, lanes, n);
   tb.shade_count = n;
   if (G.has_textures) apply_texels(G, tb);
@@ -251,12 +271,15 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
     tb.ar[k] = tb.ag[k] = tb.ab[k] = 0.f;
     tb.spix[k] = n > 0 ? tb.spix[0] : 0u;
     tb.slane[k] = -1;
+    if (!tb.points_are_lanes)  // (padded > n means n > 0; as lanes, the padding pixels are pixel 0 already)
+      for (uint32_t bits = tb.keyed & ~1u; bits; bits &= bits - 1)
+        for (int f = 0; f < 3; ++f) tb.point_key[std::countr_zero(bits)][f][k] = tb.point_key[std::countr_zero(bits)][f][0];
   }
   std::fill_n(tb.Sr, padded, 0.f);
   std::fill_n(tb.Sg, padded, 0.f);
   std::fill_n(tb.Sb, padded, 0.f);
   if (est.one_sample()) {
-    sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, 1, padded, tb.u0, tb.u1);
+    point_pairs(est, tb, sample, 1, padded, tb.u0, tb.u1);
     const float c = est.one_sample_light_prob();
     for (int k = 0; k < padded; ++k) tb.choose_light[k] = tb.u0[k] < c ? 1.f : 0.f;
   }

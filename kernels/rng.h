@@ -307,28 +307,74 @@ template <int N> inline void laine_karras_permutation(vuint (&x)[N], const vuint
   TUILE_RNG_EACH x[k] ^= x[k] * vuint(0x53a22864u);
 }
 
-// sobol_pair_bits
-template <int N> inline void sobol_block(const StreamConsts& sc, const uint32_t* pixel, float* u, float* v) noexcept {
-  vuint key[N], x[N], y[N], ku[N], kv[N];
-  stream_keys<N>(sc, pixel, key);
-  // NUS(index, key), its seeds for u and v alongside
+// The parts of sobol_pair_bits that depend on the stream key only (not on the sample
+// index): the key's pre value and the pre values of the seeds of u and v.
+template <int N>
+inline void sobol_seeds(const vuint (&key)[N], vuint (&ku)[N], vuint (&kv)[N]) noexcept {
+  TUILE_RNG_EACH ku[k] = mix(key[k] ^ vuint(xorshift16(0x1b873593u)));
+  TUILE_RNG_EACH kv[k] = mix(key[k] ^ vuint(xorshift16(0xcc9e2d51u)));
+}
+
+// sobol_pair_bits from the key and the seeds
+template <int N>
+inline void sobol_from_keys(const StreamConsts& sc, const vuint (&key)[N], const vuint (&ku)[N], const vuint (&kv)[N],
+                            float* u, float* v) noexcept {
+  vuint x[N], y[N];
+  // NUS(index, key)
   TUILE_RNG_EACH {
     const vuint hi = key[k] >> 16;
     x[k] = (vuint(sc.index) + (key[k] ^ hi)) * (hi | vuint(1u));
   }
-  TUILE_RNG_EACH {
-    x[k] ^= x[k] * vuint(0x05526c56u);
-    ku[k] = mix(key[k] ^ vuint(xorshift16(0x1b873593u)));
-  }
-  TUILE_RNG_EACH {
-    x[k] = reverse_bits(x[k] ^ x[k] * vuint(0x53a22864u));
-    kv[k] = mix(key[k] ^ vuint(xorshift16(0xcc9e2d51u)));
-  }
+  TUILE_RNG_EACH x[k] ^= x[k] * vuint(0x05526c56u);
+  TUILE_RNG_EACH x[k] = reverse_bits(x[k] ^ x[k] * vuint(0x53a22864u));
   TUILE_RNG_EACH y[k] = superset_sum(x[k]);
   laine_karras_permutation(x, ku);
   laine_karras_permutation(y, kv);
   TUILE_RNG_EACH unit24(reverse_bits_shr8(x[k])).store_unaligned(u + k * simd_width);
   TUILE_RNG_EACH unit24(reverse_bits_shr8(y[k])).store_unaligned(v + k * simd_width);
+}
+
+// sobol_pair_bits
+template <int N> inline void sobol_block(const StreamConsts& sc, const uint32_t* pixel, float* u, float* v) noexcept {
+  vuint key[N], ku[N], kv[N];
+  stream_keys<N>(sc, pixel, key);
+  sobol_seeds<N>(key, ku, kv);
+  sobol_from_keys<N>(sc, key, ku, kv, u, v);
+}
+
+// The cached forms: keys (and for Sobol' the seeds) made once per pixel and pair by
+// key_block, then read per sample.
+template <int N>
+inline void key_block(const StreamConsts& sc, const uint32_t* pixel, uint32_t* key, uint32_t* ku, uint32_t* kv) noexcept {
+  vuint k_[N], u_[N], v_[N];
+  stream_keys<N>(sc, pixel, k_);
+  sobol_seeds<N>(k_, u_, v_);
+  TUILE_RNG_EACH {
+    k_[k].store_unaligned(key + k * simd_width);
+    u_[k].store_unaligned(ku + k * simd_width);
+    v_[k].store_unaligned(kv + k * simd_width);
+  }
+}
+template <int N>
+inline void keyed_block(SamplerKind kind, const StreamConsts& sc, const uint32_t* key, const uint32_t* ku,
+                        const uint32_t* kv, float* u, float* v) noexcept {
+  vuint k_[N];
+  TUILE_RNG_EACH k_[k] = vuint::load_unaligned(key + k * simd_width);
+  if (kind == SamplerKind::independent) {
+    vuint h[N];
+    TUILE_RNG_EACH h[k] = mix(k_[k] ^ vuint(sc.index));  // hash_combine(key, index)
+    TUILE_RNG_EACH {
+      unit24(xorshift16(h[k]) >> 8).store_unaligned(u + k * simd_width);
+      unit24(xorshift16(mix(h[k] ^ vuint(xorshift16(0x68e31da4u)))) >> 8).store_unaligned(v + k * simd_width);
+    }
+    return;
+  }
+  vuint u_[N], v_[N];
+  TUILE_RNG_EACH {
+    u_[k] = vuint::load_unaligned(ku + k * simd_width);
+    v_[k] = vuint::load_unaligned(kv + k * simd_width);
+  }
+  sobol_from_keys<N>(sc, k_, u_, v_, u, v);
 }
 #undef TUILE_RNG_EACH
 
@@ -392,29 +438,59 @@ template <int N, class Block> inline int run_blocks(int i, int count, const Bloc
 
 }  // namespace rng_simd
 
+// The lane-invariant constants of the hash-based samplers for one pair and sample index.
+inline rng_simd::StreamConsts stream_consts(SamplerKind kind, uint32_t seed, uint32_t index, uint32_t pair) noexcept {
+  using SC = rng_simd::StreamConsts;
+  SC sc;
+  sc.ka = rng_simd::xorshift16(hash_u32(seed + 0x51ed270bu));
+  sc.kb = rng_simd::xorshift16(hash_u32(pair * 0x2c1b3c6du + 1u) * SC::g + SC::c);
+  if (kind == SamplerKind::independent) {
+    sc.index = rng_simd::xorshift16(index * SC::g + SC::c);
+  } else {
+    const uint32_t r = tuile::reverse_bits(index);
+    sc.index = r ^ r * 0x3d20adeau;
+  }
+  return sc;
+}
+
 // One dimension pair for W lanes (pixel per lane, same sample index): SIMD for the
 // hash-based samplers, the scalar reference per lane for stratified.
 inline void sample_pairs(SamplerKind kind, uint32_t seed, const uint32_t* pixel, uint32_t index, uint32_t spp,
                          uint32_t pair, int count, float* u, float* v) noexcept {
   using namespace rng_simd;
-  using SC = StreamConsts;
   int i = 0;
   if (kind != SamplerKind::stratified) {
-    StreamConsts sc;
-    sc.ka = xorshift16(hash_u32(seed + 0x51ed270bu));
-    sc.kb = xorshift16(hash_u32(pair * 0x2c1b3c6du + 1u) * SC::g + SC::c);
-    if (kind == SamplerKind::independent) {
-      sc.index = xorshift16(index * SC::g + SC::c);
+    const StreamConsts sc = stream_consts(kind, seed, index, pair);
+    if (kind == SamplerKind::independent)
       i = run_blocks<8>(0, count, [&](auto n, int j) { independent_block<n()>(sc, pixel + j, u + j, v + j); });
-    } else {
-      const uint32_t r = tuile::reverse_bits(index);
-      sc.index = r ^ r * 0x3d20adeau;
+    else
       i = run_blocks<8>(0, count, [&](auto n, int j) { sobol_block<n()>(sc, pixel + j, u + j, v + j); });
-    }
   } else if (spp < (1u << 24)) {  // stratified: SIMD batches (exact float cell arithmetic below 2^24)
     for (; i + simd_width <= count; i += simd_width) stratified_batch(seed, pixel + i, index, spp, pair, u + i, v + i);
   }
   for (; i < count; ++i) sample_pair_scalar(kind, seed, pixel[i], index, spp, pair, u[i], v[i]);
+}
+
+// Stream keys of one pair cached per lane (the sample index does not enter them), so that
+// the samples of a tile hash each pixel's key once instead of once per sample. Only the
+// hash-based samplers use them (cacheable); count must be a multiple of simd_width.
+struct PairKeys {
+  uint32_t *key, *ku, *kv;
+};
+inline bool cacheable(SamplerKind kind) noexcept { return kind != SamplerKind::stratified; }
+inline void make_pair_keys(uint32_t seed, const uint32_t* pixel, uint32_t pair, int count, const PairKeys& keys) noexcept {
+  using namespace rng_simd;
+  const StreamConsts sc = stream_consts(SamplerKind::sobol, seed, 0, pair);
+  run_blocks<8>(0, count, [&](auto n, int j) { key_block<n()>(sc, pixel + j, keys.key + j, keys.ku + j, keys.kv + j); });
+}
+// sample_pairs from cached keys: the same bits.
+inline void sample_pairs_keyed(SamplerKind kind, uint32_t seed, uint32_t index, uint32_t pair, const PairKeys& keys,
+                               int count, float* u, float* v) noexcept {
+  using namespace rng_simd;
+  const StreamConsts sc = stream_consts(kind, seed, index, pair);
+  run_blocks<8>(0, count, [&](auto n, int j) {
+    keyed_block<n()>(kind, sc, keys.key + j, keys.ku + j, keys.kv + j, u + j, v + j);
+  });
 }
 
 }  // namespace tuile

@@ -31,7 +31,7 @@ template <class T> TUILE_FLATTEN inline void sample_cosine_lanes(const Estimator
 
 inline void sample_cosine(const Estimator& est, uint32_t sample, uint32_t pair, TileBuffers& tb) {
   const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
-  sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair, padded, tb.u0, tb.u1);
+  point_pairs(est, tb, sample, pair, padded, tb.u0, tb.u1);
   int k = 0;
   for (; k < padded; k += simd_width) sample_cosine_lanes<vfloat>(est, tb, k);
   for (int p = 0; p < padded / packet_width; ++p) reset_hit(tb.bounce[p]);

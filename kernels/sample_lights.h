@@ -135,8 +135,8 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
                           uint32_t pair, TileBuffers& tb) {
   const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
   if (Pick && pass.fixed_light < 0)
-    sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair, padded, tb.u0, tb.u1);
-  sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair + 1, padded, tb.u2, tb.u3);
+    point_pairs(est, tb, sample, pair, padded, tb.u0, tb.u1);
+  point_pairs(est, tb, sample, pair + 1, padded, tb.u2, tb.u3);
   // two batches at a time (vfloat2): the solid-angle maps are latency-bound chains
   int k = 0;
   for (; k + 2 * simd_width <= padded; k += 2 * simd_width) sample_lights_lanes<vfloat2, Kinds, Pick>(L, est, pass, tb, k);

@@ -140,10 +140,37 @@ struct alignas(64) TileBuffers {
   alignas(64) float qvis[max_tile_lanes];
   alignas(64) int32_t qvalid[max_tile_lanes];
 
+  // The sampler's stream keys (rng.h PairKeys) of pairs 0 .. key_pairs - 1, per tile lane
+  // (made once per tile by run_tile) and per shading point (compacted by camera_hits).
+  // Bit p of keyed: pair p is cached; without it the stages hash the pixel every sample.
+  static constexpr int key_pairs = 5;
+  uint32_t keyed = 0;
+  bool points_are_lanes = false;  // shading point k is tile lane k: points read lane_key
+  alignas(64) uint32_t lane_key[key_pairs][3][max_tile_lanes];
+  alignas(64) uint32_t point_key[key_pairs][3][max_tile_lanes];
+  PairKeys lane_keys(int p) noexcept { return {lane_key[p][0], lane_key[p][1], lane_key[p][2]}; }
+  PairKeys point_keys(int p) noexcept {
+    return points_are_lanes ? lane_keys(p) : PairKeys{point_key[p][0], point_key[p][1], point_key[p][2]};
+  }
+  bool has_keys(uint32_t pair) const noexcept { return pair < key_pairs && ((keyed >> pair) & 1u); }
+
   // statistics
   uint64_t rejected_light = 0, rejected_bsdf = 0, rejected_camera = 0;
   uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0, rays_bounce_visibility = 0;
 };
+
+// One dimension pair of the sampler for the first `count` tile lanes (their pixels) or
+// shading points, from the cached keys where the tile has them (the same bits).
+inline void lane_pairs(const Estimator& est, TileBuffers& tb, uint32_t sample, uint32_t pair, int count, float* u,
+                       float* v) noexcept {
+  if (tb.has_keys(pair)) sample_pairs_keyed(est.sampler, est.seed, sample, pair, tb.lane_keys(static_cast<int>(pair)), count, u, v);
+  else sample_pairs(est.sampler, est.seed, tb.pixel, sample, est.spp, pair, count, u, v);
+}
+inline void point_pairs(const Estimator& est, TileBuffers& tb, uint32_t sample, uint32_t pair, int count, float* u,
+                        float* v) noexcept {
+  if (tb.has_keys(pair)) sample_pairs_keyed(est.sampler, est.seed, sample, pair, tb.point_keys(static_cast<int>(pair)), count, u, v);
+  else sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair, count, u, v);
+}
 
 // pbrt-v4's gamma(n) = n u / (1 - n u), u = 2^-24: bounds on floating-point error.
 inline constexpr float gamma_err(int n) { return (static_cast<float>(n) * 0x1p-24f) / (1 - static_cast<float>(n) * 0x1p-24f); }

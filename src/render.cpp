@@ -5,6 +5,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <bit>
 #include <cstring>
 #include <x86intrin.h>
 #include <chrono>
@@ -384,6 +385,31 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   timer.start();
   clear_tile_sums(tb, lanes);
   timer.stop(Stage::accumulate);
+  // The sampler's keys of the pairs this pipeline draws (pair numbers as below), hashed
+  // once per pixel for all of the tile's samples.
+  timer.start();
+  tb.keyed = 0;
+  if (cacheable(est.sampler)) {
+    uint32_t want = 1u;  // camera
+    if (est.one_sample()) want |= 2u;
+    if (Bsdf)
+      for (int m = 0; m < c.bsdf_passes; ++m) want |= 1u << std::min(2 + m, 31);
+    if (Light)
+      for (int j = 0; j < c.light_passes; ++j) {
+        const int pair = 2 + est.bsdf_samples + 2 * j;
+        if (Pick && est.pick != LightPick::all) want |= 1u << std::min(pair, 31);
+        want |= 1u << std::min(pair + 1, 31);
+      }
+    want &= (1u << TileBuffers::key_pairs) - 1u;
+    const int padded = cam_packets * packet_width;
+    for (int i = lanes; i < padded; ++i) tb.pixel[i] = tb.pixel[0];  // as generate pads
+    for (uint32_t bits = want; bits; bits &= bits - 1) {
+      const int p = std::countr_zero(bits);
+      make_pair_keys(est.seed, tb.pixel, static_cast<uint32_t>(p), padded, tb.lane_keys(p));
+    }
+    tb.keyed = want;
+  }
+  timer.stop(Stage::generate);
   for (uint32_t s = begin; s < end; ++s) {
     timer.start();
     generate(v.camera, est, s, lanes, tb);

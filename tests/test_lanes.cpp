@@ -188,6 +188,30 @@ TEST(Lanes, SamplerPairsEqualScalarMany) {
     }
 }
 
+// Keys cached per pixel and pair (made once per tile) give the bits of hashing the pixel
+// every sample, for both hash-based samplers.
+TEST(Lanes, CachedKeysGiveTheSamePairs) {
+  std::mt19937 rng(5);
+  constexpr int count = 256;
+  std::vector<uint32_t> pix(count), key(count), ku(count), kv(count);
+  std::vector<float> u(count), v(count), ku_u(count), ku_v(count);
+  const PairKeys keys{key.data(), ku.data(), kv.data()};
+  for (SamplerKind kind : {SamplerKind::independent, SamplerKind::sobol})
+    for (int trial = 0; trial < 4; ++trial) {
+      for (auto& p : pix) p = trial == 0 ? static_cast<uint32_t>(&p - pix.data()) : static_cast<uint32_t>(rng());
+      const uint32_t seed = trial == 0 ? 0u : static_cast<uint32_t>(rng());
+      for (uint32_t pair : {0u, 1u, 4u, 77u}) {
+        make_pair_keys(seed, pix.data(), pair, count, keys);
+        for (uint32_t index : {0u, 1u, 2u, 15u, 16u, 1000u, 0xffffffffu, static_cast<uint32_t>(rng())}) {
+          sample_pairs(kind, seed, pix.data(), index, 64, pair, count, u.data(), v.data());
+          sample_pairs_keyed(kind, seed, index, pair, keys, count, ku_u.data(), ku_v.data());
+          ASSERT_EQ(std::memcmp(u.data(), ku_u.data(), count * sizeof(float)), 0) << "pair " << pair << " index " << index;
+          ASSERT_EQ(std::memcmp(v.data(), ku_v.data(), count * sizeof(float)), 0) << "pair " << pair << " index " << index;
+        }
+      }
+    }
+}
+
 // The SIMD bit-manipulation helpers equal their scalar definitions on every lane.
 TEST(Lanes, SamplerBitHelpersEqualScalar) {
   std::mt19937 rng(11);
@@ -494,6 +518,9 @@ TEST(Lanes, CameraHitsEqualScalar) {
         p.Ng_x[i % 16] = p.Ng_y[i % 16] = p.Ng_z[i % 16] = 0.f;
       }
       a->cam[7].ray.tfar[9] = std::numeric_limits<float>::infinity();
+      // cached sampler keys of pairs 1..4, compacted with the shading points
+      a->keyed = 0b11111u;
+      for (int p = 0; p < TileBuffers::key_pairs; ++p) make_pair_keys(est.seed, a->pixel, p, 256, a->lane_keys(p));
       auto b = std::make_unique<TileBuffers>(*a);
       camera_hits<true, vfloat>(views.geom, views.lights, est, 0, lanes, *a);
       camera_hits<true, float>(views.geom, views.lights, est, 0, lanes, *b);
@@ -523,6 +550,23 @@ TEST(Lanes, CameraHitsEqualScalar) {
         }
       }
       for (int k = 0; k < n; ++k) ASSERT_EQ(a->shade_of[a->slane[k]], k) << name() << " point " << k;
+      // each point's cached keys are its pixel's, and the pairs drawn from them are too
+      for (int p = 1; p < TileBuffers::key_pairs; ++p) {
+        std::vector<uint32_t> key(padded), ku(padded), kv(padded);
+        make_pair_keys(est.seed, a->spix, p, padded, PairKeys{key.data(), ku.data(), kv.data()});
+        const PairKeys pa = a->point_keys(p), pb = b->point_keys(p);
+        for (int k = 0; k < padded; ++k) {
+          ASSERT_EQ(pa.key[k], key[k]) << name() << " pair " << p << " point " << k;
+          ASSERT_EQ(pa.ku[k], ku[k]) << name() << " pair " << p << " point " << k;
+          ASSERT_EQ(pa.kv[k], kv[k]) << name() << " pair " << p << " point " << k;
+          ASSERT_EQ(pb.key[k], key[k]) << name() << " scalar, pair " << p << " point " << k;
+        }
+        std::vector<float> u1(padded), v1(padded), u2(padded), v2(padded);
+        point_pairs(est, *a, 3, p, padded, u1.data(), v1.data());
+        sample_pairs(est.sampler, est.seed, a->spix, 3, est.spp, p, padded, u2.data(), v2.data());
+        ASSERT_EQ(std::memcmp(u1.data(), u2.data(), padded * sizeof(float)), 0) << name() << " pair " << p;
+        ASSERT_EQ(std::memcmp(v1.data(), v2.data(), padded * sizeof(float)), 0) << name() << " pair " << p;
+      }
       expect_same_floats(a->Lr, b->Lr, 256, name);
       expect_same_floats(a->Lg, b->Lg, 256, name);
       expect_same_floats(a->Lb, b->Lb, 256, name);
@@ -582,6 +626,36 @@ TEST(Lanes, CameraHitsEqualScalar) {
       }
       EXPECT_GT(checked, 0) << name();
     }
+}
+
+// In a closed room every camera ray hits, so shading point k is tile lane k and the points
+// read the lanes' cached keys without copying them; the pairs are still their pixels'.
+TEST(Lanes, CachedKeysWhereEveryLaneHits) {
+  Scene s = load_scene("built-in:cornell");
+  SceneViews views = build_views(s, LightPick::power);
+  Accel accel(s);
+  auto a = std::make_unique<TileBuffers>();
+  for (int i = 0; i < 256; ++i) {
+    a->fx[i] = static_cast<float>(200 + i % 16);
+    a->fy[i] = static_cast<float>(200 + i / 16);
+    a->pixel[i] = static_cast<uint32_t>(200 + i / 16) * 512u + static_cast<uint32_t>(200 + i % 16);
+  }
+  Estimator est;
+  est.seed = 3;
+  a->keyed = 0b11111u;
+  for (int p = 0; p < TileBuffers::key_pairs; ++p) make_pair_keys(est.seed, a->pixel, p, 256, a->lane_keys(p));
+  generate(views.camera, est, 0, 256, *a);
+  for (int p = 0; p < 16; ++p) accel.intersect16(a->cam_valid + p * packet_width, a->cam[p], true);
+  camera_hits<true, vfloat>(views.geom, views.lights, est, 0, 256, *a);
+  ASSERT_EQ(a->shade_count, 256);
+  EXPECT_TRUE(a->points_are_lanes);
+  for (int p = 1; p < TileBuffers::key_pairs; ++p) {
+    std::vector<float> u1(256), v1(256), u2(256), v2(256);
+    point_pairs(est, *a, 5, p, 256, u1.data(), v1.data());
+    sample_pairs(est.sampler, est.seed, a->spix, 5, est.spp, p, 256, u2.data(), v2.data());
+    ASSERT_EQ(std::memcmp(u1.data(), u2.data(), 256 * sizeof(float)), 0) << "pair " << p;
+    ASSERT_EQ(std::memcmp(v1.data(), v2.data(), 256 * sizeof(float)), 0) << "pair " << p;
+  }
 }
 
 // The MIS weight stage on traced bounce rays: the SIMD emitter queue (gathers of the
