@@ -145,7 +145,9 @@ template <class T> inline void light_geom_derive(LightGeom<T>& g) {
 // Solid angle a triangle/parallelogram/sphere source subtends from x (0 where x is
 // behind a one-sided source, where it emits nothing towards x). Rectangles use their
 // constants (the same setup the sampler uses, so both see the same Omega to the bit).
-template <class T> inline T light_solid_angle(const LightGeom<T>& g, const Vec3<T>& x) {
+template <class T> inline mask_t<T> rect_solid_angle_safe(const SphericalRectangle<T>& r);
+template <class T>
+inline T light_solid_angle(const LightGeom<T>& g, const Vec3<T>& x, mask_t<T>* rect_safe = nullptr) {
   const auto is_tri = type_is<T>(g.type, lt_triangle);
   const auto is_par = type_is<T>(g.type, lt_parallelogram);
   const auto is_sph = type_is<T>(g.type, lt_sphere);
@@ -153,9 +155,11 @@ template <class T> inline T light_solid_angle(const LightGeom<T>& g, const Vec3<
   const auto skew = is_par && !rect;
   T omega(0.f);
   if (any(is_tri)) omega = sel(is_tri, spherical_triangle_solid_angle(x, g.p0, g.p0 + g.e1, g.p0 + g.e2), omega);
-  if (any(rect))
-    omega = sel(rect,
-                spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2).omega, omega);
+  if (any(rect)) {
+    const SphericalRectangle<T> r = spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
+    omega = sel(rect, r.omega, omega);
+    if (rect_safe) *rect_safe = rect_solid_angle_safe(r);
+  }
   if (any(skew)) omega = sel(skew, spherical_parallelogram_solid_angle(x, g.p0, g.e1, g.e2), omega);
   if (any(is_sph)) omega = sel(is_sph, sphere_cone_solid_angle(x, g.p0, g.e1.x), omega);
   return omega;
@@ -175,29 +179,29 @@ template <class T> inline T light_solid_angle(const LightGeom<T>& g, const Vec3<
 inline constexpr float grazing_plane_ratio = 0.02f;
 inline constexpr float grazing_max_omega = 0.05f;
 
+// The rule for triangles, non-rectangular parallelograms and spheres (false for
+// rectangles: rect_solid_angle_safe decides for them, from their map's setup).
 template <class T> inline mask_t<T> use_solid_angle(const LightGeom<T>& g, const Vec3<T>& x, T omega) {
   const auto is_tri = type_is<T>(g.type, lt_triangle);
   const auto is_par = type_is<T>(g.type, lt_parallelogram);
   const auto is_sph = type_is<T>(g.type, lt_sphere);
   const auto rect = is_par && g.rect > T(0.5f);
-  const auto rect_ok = omega >= T(min_sa_sample_omega) && omega < T(6.2831853f) && is_finite(omega);
   const Vec3<T> to_c = g.p0 + (g.e1 + g.e2) * T(sel(is_tri, T(1.f / 3.f), T(0.5f))) - x;
   // |to_c . n| < ratio |to_c|, squared (no square root)
   const T h = dot(to_c, g.n);
   const T r = T(grazing_plane_ratio);
   const auto grazing = h * h < r * r * length_sq(to_c) && omega < T(grazing_max_omega);
-  return ((((is_tri || (is_par && !rect)) && solid_angle_sampling_safe(omega)) || (rect && rect_ok)) && !grazing) ||
-         (is_sph && omega > T(0.f));
+  return ((is_tri || (is_par && !rect)) && solid_angle_sampling_safe(omega) && !grazing) || (is_sph && omega > T(0.f));
 }
 
-// use_solid_angle where every lane's source is a rectangle (the same values).
-template <class T> inline mask_t<T> use_solid_angle_rect(const LightGeom<T>& g, const Vec3<T>& x, T omega) {
-  const auto rect_ok = omega >= T(min_sa_sample_omega) && omega < T(6.2831853f) && is_finite(omega);
-  const Vec3<T> to_c = g.p0 + (g.e1 + g.e2) * T(0.5f) - x;
-  const T h = dot(to_c, g.n);
-  const T r = T(grazing_plane_ratio);
-  const auto grazing = h * h < r * r * length_sq(to_c) && omega < T(grazing_max_omega);
-  return rect_ok && !grazing;
+// The rule for a rectangle, in the frame of its map: the centre is at ((x0 + x1) / 2,
+// (y0 + y1) / 2, z0) from x and the plane at distance |z0|. Omega is 0 where the setup
+// failed, so such lanes fall back too.
+template <class T> inline mask_t<T> rect_solid_angle_safe(const SphericalRectangle<T>& r) {
+  const T xc = (r.x0 + r.x1) * T(0.5f), yc = (r.y0 + r.y1) * T(0.5f), z2 = r.z0 * r.z0;
+  const T rr = T(grazing_plane_ratio * grazing_plane_ratio);
+  const auto grazing = z2 < rr * mul_add(xc, xc, mul_add(yc, yc, z2)) && r.omega < T(grazing_max_omega);
+  return r.omega >= T(min_sa_sample_omega) && r.omega < T(6.2831853f) && !grazing;
 }
 
 // Density in solid angle at x of reaching the source at distance dist along wi when the
@@ -221,9 +225,10 @@ template <class T> inline T pdf_area_as_solid_angle(const LightGeom<T>& g, const
 // solid-angle mode.
 template <class T>
 inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist,
-                            T omega) {
+                            T omega, const mask_t<T>& rect_safe) {
   if (mode == LightPoint::area) return finite_or_zero(pdf_area_as_solid_angle(g, x, wi, dist));
-  const auto safe = use_solid_angle(g, x, omega);
+  const auto rect = type_is<T>(g.type, lt_parallelogram) && g.rect > T(0.5f);
+  const auto safe = sel_mask(rect, rect_safe, use_solid_angle(g, x, omega));
   T pdf = sel(omega > T(0.f), T(1.f) / sel(omega > T(0.f), omega, T(1.f)), T(0.f));
   if (!all(safe)) pdf = sel(safe, pdf, pdf_area_as_solid_angle(g, x, wi, dist));
   return finite_or_zero(pdf);
@@ -231,15 +236,18 @@ inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T
 
 template <class T>
 inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist) {
-  return pdf_light_point_sa(mode, g, x, wi, dist, mode == LightPoint::area ? T(0.f) : light_solid_angle(g, x));
+  mask_t<T> rect_safe = T(0.f) > T(1.f);
+  const T omega = mode == LightPoint::area ? T(0.f) : light_solid_angle(g, x, &rect_safe);
+  return pdf_light_point_sa(mode, g, x, wi, dist, omega, rect_safe);
 }
 
 // pdf_light_point_sa where every lane's source is a rectangle (the same values).
 template <class T>
 inline T pdf_rectangle_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist) {
   if (mode == LightPoint::area) return finite_or_zero(pdf_area_as_solid_angle(g, x, wi, dist));
-  const T omega = spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2).omega;
-  const auto safe = use_solid_angle_rect(g, x, omega);
+  const SphericalRectangle<T> r = spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
+  const T omega = r.omega;
+  const auto safe = rect_solid_angle_safe(r);
   T pdf = sel(omega > T(0.f), T(1.f) / sel(omega > T(0.f), omega, T(1.f)), T(0.f));
   if (!all(safe)) pdf = sel(safe, pdf, pdf_area_as_solid_angle(g, x, wi, dist));
   return finite_or_zero(pdf);
@@ -292,7 +300,7 @@ inline LightPointSample<T> sample_rectangle_point(LightPoint mode, const LightGe
     Vec3<T> dir;
     T t_sa;
     const auto ok = sample_spherical_rectangle(r, u1, u2, dir, t_sa);
-    use_sa = use_solid_angle_rect(g, x, r.omega);
+    use_sa = rect_solid_angle_safe(r);
     wi = sel(use_sa, dir, wi);
     dist = sel(use_sa, t_sa, dist);
     pdf = sel(use_sa && r.omega > T(0.f), T(1.f) / sel(r.omega > T(0.f), r.omega, T(1.f)), pdf);
@@ -338,7 +346,7 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
       const auto skew = is_par && !rect;
       Vec3<T> dir = wi;
       T omega(0.f), t_sa(0.f);
-      auto ok = valid;
+      auto ok = valid, rect_safe = valid;
       if (any(rect)) {
         const SphericalRectangle<T> r =
             spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
@@ -349,6 +357,7 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
         t_sa = sel(rect, tr, t_sa);
         omega = sel(rect, r.omega, omega);
         ok = sel_mask(rect, m, ok);
+        rect_safe = rect_solid_angle_safe(r);
       }
       if (any(is_tri)) {
         const SphericalTriangle<T> st = spherical_triangle_setup(x, g.p0, g.p0 + g.e1, g.p0 + g.e2);
@@ -375,7 +384,7 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
         omega = sel(is_sph, sphere_cone_solid_angle(x, g.p0, g.e1.x), omega);
         ok = sel_mask(is_sph, m, ok);
       }
-      use_sa = is_area && use_solid_angle(g, x, omega);
+      use_sa = is_area && sel_mask(rect, rect_safe, use_solid_angle(g, x, omega));
       // distance along dir to the source's plane (triangles, skew parallelograms) or
       // sphere; rectangles know it already
       if (any(use_sa && !rect)) {

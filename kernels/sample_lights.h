@@ -77,8 +77,10 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   const T c_r = load<T>(tb.ar + k) * Le_r * factor;
   const T c_g = load<T>(tb.ag + k) * Le_g * factor;
   const T c_b = load<T>(tb.ab + k) * Le_b * factor;
-  const auto fin = is_finite(c_r) && is_finite(c_g) && is_finite(c_b);
-  auto live = ok && fin && (c_r + c_g + c_b > T(0.f));
+  // the channels are >= 0 or NaN: their sum is finite iff each one is
+  const T c_sum = c_r + c_g + c_b;
+  const auto fin = is_finite(c_sum);
+  auto live = ok && fin && (c_sum > T(0.f));
   store(tb.cr + k, sel(live, c_r, T(0.f)));
   store(tb.cg + k, sel(live, c_g, T(0.f)));
   store(tb.cb + k, sel(live, c_b, T(0.f)));
@@ -114,9 +116,9 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   const T len = len2 * ilen;
   const Vec3<T> dir = sel(is_dist || !(len > T(0.f)), s.wi, to * ilen);
   const T tfar = sel(is_dist, T(3.0e38f), len * T(1.f - 1.f / 4096.f));
-  // Embree does not skip non-finite rays: a lane whose ray is not finite is dropped
-  const auto ray_ok = is_finite(dir.x) && is_finite(dir.y) && is_finite(dir.z) && is_finite(tfar) &&
-                     is_finite(org.x) && is_finite(org.y) && is_finite(org.z);
+  // Embree does not skip non-finite rays: a lane whose ray is not finite is dropped (one
+  // test on the sum: a NaN or infinite term makes it non-finite)
+  const auto ray_ok = is_finite(((dir.x + dir.y) + (dir.z + tfar)) + ((org.x + org.y) + org.z));
   if (any(live && !ray_ok)) tb.rejected_light += static_cast<uint64_t>(count(live && !ray_ok));
   live = live && ray_ok;
   store_field(tb.shadow, &Ray16::org_x, k, org.x);

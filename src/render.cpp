@@ -372,13 +372,19 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   // 16, so Embree's packets are more coherent), where the tile divides into them; rows
   // otherwise. Every lane's numbers depend on its pixel only, so the image does not change.
   const bool blocks = tw % 4 == 0 && th % 4 == 0 && packet_width == 16;
-  for (int i = 0; i < lanes; ++i) {
-    const int b = i / 16, j = i % 16;
-    const int x = blocks ? x0 + 4 * (b % (tw / 4)) + j % 4 : x0 + i % tw;
-    const int y = blocks ? y0 + 4 * (b / (tw / 4)) + j / 4 : y0 + i / tw;
+  int i = 0;
+  auto set_lane = [&](int x, int y) {
     tb.fx[i] = static_cast<float>(x);
     tb.fy[i] = static_cast<float>(y);
-    tb.pixel[i] = static_cast<uint32_t>(y) * static_cast<uint32_t>(c.width) + static_cast<uint32_t>(x);
+    tb.pixel[i++] = static_cast<uint32_t>(y) * static_cast<uint32_t>(c.width) + static_cast<uint32_t>(x);
+  };
+  if (blocks) {
+    for (int by = y0; by < y0 + th; by += 4)
+      for (int bx = x0; bx < x0 + tw; bx += 4)
+        for (int j = 0; j < 16; ++j) set_lane(bx + j % 4, by + j / 4);
+  } else {
+    for (int y = y0; y < y0 + th; ++y)
+      for (int x = x0; x < x0 + tw; ++x) set_lane(x, y);
   }
   const int cam_packets = (lanes + packet_width - 1) / packet_width;
   StageTimer timer(tp, c, tile);
