@@ -490,7 +490,7 @@ template <class T> inline T lane_iota() noexcept {
 }
 // number of set lanes
 inline int count(bool m) noexcept { return m ? 1 : 0; }
-inline int count(const vmask& m) noexcept { return static_cast<int>(xsimd::hadd(xsimd::select(m, vfloat(1.f), vfloat(0.f)))); }
+inline int count(const vmask& m) noexcept { return std::popcount(lane_bits(m)); }
 inline int count(const vmask2& m) noexcept { return count(m.a) + count(m.b); }
 // -1 (all bits) where the mask is set, else 0: Embree's valid arrays
 inline void store_valid(int32_t* p, bool m) noexcept { *p = m ? -1 : 0; }

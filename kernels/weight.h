@@ -55,6 +55,7 @@ template <class T> TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView&
   const int l = k % packet_width;
   const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(r.geomID + l));
   const auto traced = load_i32<T>(tb.valid + k) != i32_t<T>(0) && geom >= i32_t<T>(0);  // invalid_id reads as -1
+  if (!any(f_mask_from_i(traced))) return;  // no hit (most rays, against the emitters only)
   const i32_t<T> gi = max(geom, i32_t<T>(0));
   const auto mesh = traced && geom < i32_t<T>(G.mesh_count);
   const auto sphere = traced && geom >= i32_t<T>(G.mesh_count);

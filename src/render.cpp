@@ -351,6 +351,12 @@ struct StageTimer {
 };
 
 inline int active_lanes(const int32_t* valid) {
+  if constexpr (packet_width % simd_width == 0) {
+    int n = 0;
+    for (int l = 0; l < packet_width; l += simd_width)
+      n += count(f_mask_from_i(load_i32<vfloat>(valid + l) != vint(0)));
+    return n;
+  }
   int n = 0;
   for (int l = 0; l < packet_width; ++l) n += valid[l] != 0;
   return n;
