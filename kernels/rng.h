@@ -289,14 +289,19 @@ template <int N> inline void stream_keys(const StreamConsts& sc, const uint32_t*
   TUILE_RNG_EACH key[k] = mix(key[k] ^ vuint(sc.kb));
 }
 
-template <int N> inline void independent_block(const StreamConsts& sc, const uint32_t* pixel, float* u, float* v) noexcept {
-  vuint h[N];
-  stream_keys<N>(sc, pixel, h);
+// the independent sampler's pair from the stream keys (h is overwritten)
+template <int N> inline void independent_from_keys(const StreamConsts& sc, vuint (&h)[N], float* u, float* v) noexcept {
   TUILE_RNG_EACH h[k] = mix(h[k] ^ vuint(sc.index));  // hash_combine(key, index)
   TUILE_RNG_EACH {
     unit24(xorshift16(h[k]) >> 8).store_unaligned(u + k * simd_width);
     unit24(xorshift16(mix(h[k] ^ vuint(xorshift16(0x68e31da4u)))) >> 8).store_unaligned(v + k * simd_width);
   }
+}
+
+template <int N> inline void independent_block(const StreamConsts& sc, const uint32_t* pixel, float* u, float* v) noexcept {
+  vuint h[N];
+  stream_keys<N>(sc, pixel, h);
+  independent_from_keys<N>(sc, h, u, v);
 }
 
 // laine_karras_permutation(x, xorshift16(p)) of N batches: the seed's high half is p's.
@@ -360,15 +365,7 @@ inline void keyed_block(SamplerKind kind, const StreamConsts& sc, const uint32_t
                         const uint32_t* kv, float* u, float* v) noexcept {
   vuint k_[N];
   TUILE_RNG_EACH k_[k] = vuint::load_unaligned(key + k * simd_width);
-  if (kind == SamplerKind::independent) {
-    vuint h[N];
-    TUILE_RNG_EACH h[k] = mix(k_[k] ^ vuint(sc.index));  // hash_combine(key, index)
-    TUILE_RNG_EACH {
-      unit24(xorshift16(h[k]) >> 8).store_unaligned(u + k * simd_width);
-      unit24(xorshift16(mix(h[k] ^ vuint(xorshift16(0x68e31da4u)))) >> 8).store_unaligned(v + k * simd_width);
-    }
-    return;
-  }
+  if (kind == SamplerKind::independent) return independent_from_keys<N>(sc, k_, u, v);
   vuint u_[N], v_[N];
   TUILE_RNG_EACH {
     u_[k] = vuint::load_unaligned(ku + k * simd_width);
