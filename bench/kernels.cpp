@@ -5,6 +5,7 @@
 
 #include <memory>
 #include <random>
+#include <vector>
 
 #include "../kernels/generate.h"
 #include "../kernels/hit.h"
@@ -192,6 +193,22 @@ void BM_sampler(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * lanes);
 }
 
+// The hash-based samplers from keys cached per pixel and pair, as the renderer draws them
+// within a tile: only the per-sample part (arg: 0 independent, 2 Sobol').
+void BM_sampler_keyed(benchmark::State& state) {
+  Fixture f;
+  const SamplerKind kind = static_cast<SamplerKind>(state.range(0));
+  std::vector<uint32_t> key(lanes), ku(lanes), kv(lanes);
+  const PairKeys keys{key.data(), ku.data(), kv.data()};
+  make_pair_keys(1, f.tb->pixel, 3, lanes, keys);
+  uint32_t s = 0;
+  for (auto _ : state) {
+    sample_pairs_keyed(kind, 1, s++, 3, keys, lanes, f.tb->u0, f.tb->u1);
+    benchmark::DoNotOptimize(f.tb->u0[0]);
+  }
+  state.SetItemsProcessed(state.iterations() * lanes);
+}
+
 }  // namespace
 
 // Arg: 0 = area, 1 = solid angle
@@ -217,3 +234,4 @@ BENCHMARK_TEMPLATE(BM_heuristic, vfloat)->DenseRange(0, 3);
 BENCHMARK_TEMPLATE(BM_heuristic, float)->DenseRange(0, 3);
 // Arg: 0 independent, 1 stratified, 2 sobol
 BENCHMARK(BM_sampler)->DenseRange(0, 2);
+BENCHMARK(BM_sampler_keyed)->Arg(0)->Arg(2);
