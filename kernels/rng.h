@@ -15,6 +15,7 @@
 // Templated on U = uint32_t (scalar reference) or vuint (one SIMD batch); sample_pairs
 // runs the same computation rearranged for SIMD (rng_simd below), equal bit for bit.
 #pragma once
+#include <algorithm>
 #include <type_traits>
 
 #include "simd.h"
@@ -470,7 +471,7 @@ inline void sample_pairs(SamplerKind kind, uint32_t seed, const uint32_t* pixel,
 
 // Stream keys of one pair cached per lane (the sample index does not enter them), so that
 // the samples of a tile hash each pixel's key once instead of once per sample. Only the
-// hash-based samplers use them (cacheable); count must be a multiple of simd_width.
+// hash-based samplers use them (cacheable).
 struct PairKeys {
   uint32_t *key, *ku, *kv;
 };
@@ -478,16 +479,42 @@ inline bool cacheable(SamplerKind kind) noexcept { return kind != SamplerKind::s
 inline void make_pair_keys(uint32_t seed, const uint32_t* pixel, uint32_t pair, int count, const PairKeys& keys) noexcept {
   using namespace rng_simd;
   const StreamConsts sc = stream_consts(SamplerKind::sobol, seed, 0, pair);
-  run_blocks<8>(0, count, [&](auto n, int j) { key_block<n()>(sc, pixel + j, keys.key + j, keys.ku + j, keys.kv + j); });
+  const int done =
+      run_blocks<8>(0, count, [&](auto n, int j) { key_block<n()>(sc, pixel + j, keys.key + j, keys.ku + j, keys.kv + j); });
+  if (done < count) {  // a partial batch: through a padded copy
+    alignas(64) uint32_t p[simd_width], k[simd_width], ku[simd_width], kv[simd_width];
+    for (int l = 0; l < simd_width; ++l) p[l] = pixel[std::min(done + l, count - 1)];
+    key_block<1>(sc, p, k, ku, kv);
+    for (int l = 0; done + l < count; ++l) {
+      keys.key[done + l] = k[l];
+      keys.ku[done + l] = ku[l];
+      keys.kv[done + l] = kv[l];
+    }
+  }
 }
 // sample_pairs from cached keys: the same bits.
 inline void sample_pairs_keyed(SamplerKind kind, uint32_t seed, uint32_t index, uint32_t pair, const PairKeys& keys,
                                int count, float* u, float* v) noexcept {
   using namespace rng_simd;
   const StreamConsts sc = stream_consts(kind, seed, index, pair);
-  run_blocks<8>(0, count, [&](auto n, int j) {
+  const int done = run_blocks<8>(0, count, [&](auto n, int j) {
     keyed_block<n()>(kind, sc, keys.key + j, keys.ku + j, keys.kv + j, u + j, v + j);
   });
+  if (done < count) {  // a partial batch: through a padded copy
+    alignas(64) uint32_t k[simd_width], ku[simd_width], kv[simd_width];
+    alignas(64) float uu[simd_width], vv[simd_width];
+    for (int l = 0; l < simd_width; ++l) {
+      const int i = std::min(done + l, count - 1);
+      k[l] = keys.key[i];
+      ku[l] = keys.ku[i];
+      kv[l] = keys.kv[i];
+    }
+    keyed_block<1>(kind, sc, k, ku, kv, uu, vv);
+    for (int l = 0; done + l < count; ++l) {
+      u[done + l] = uu[l];
+      v[done + l] = vv[l];
+    }
+  }
 }
 
 }  // namespace tuile

@@ -192,24 +192,24 @@ TEST(Lanes, SamplerPairsEqualScalarMany) {
 // every sample, for both hash-based samplers.
 TEST(Lanes, CachedKeysGiveTheSamePairs) {
   std::mt19937 rng(5);
-  constexpr int count = 256;
-  std::vector<uint32_t> pix(count), key(count), ku(count), kv(count);
-  std::vector<float> u(count), v(count), ku_u(count), ku_v(count);
-  const PairKeys keys{key.data(), ku.data(), kv.data()};
-  for (SamplerKind kind : {SamplerKind::independent, SamplerKind::sobol})
-    for (int trial = 0; trial < 4; ++trial) {
-      for (auto& p : pix) p = trial == 0 ? static_cast<uint32_t>(&p - pix.data()) : static_cast<uint32_t>(rng());
-      const uint32_t seed = trial == 0 ? 0u : static_cast<uint32_t>(rng());
-      for (uint32_t pair : {0u, 1u, 4u, 77u}) {
-        make_pair_keys(seed, pix.data(), pair, count, keys);
-        for (uint32_t index : {0u, 1u, 2u, 15u, 16u, 1000u, 0xffffffffu, static_cast<uint32_t>(rng())}) {
-          sample_pairs(kind, seed, pix.data(), index, 64, pair, count, u.data(), v.data());
-          sample_pairs_keyed(kind, seed, index, pair, keys, count, ku_u.data(), ku_v.data());
-          ASSERT_EQ(std::memcmp(u.data(), ku_u.data(), count * sizeof(float)), 0) << "pair " << pair << " index " << index;
-          ASSERT_EQ(std::memcmp(v.data(), ku_v.data(), count * sizeof(float)), 0) << "pair " << pair << " index " << index;
+  for (int count : {256, 203, 5})  // whole batches, and a partial one
+    for (SamplerKind kind : {SamplerKind::independent, SamplerKind::sobol})
+      for (int trial = 0; trial < 4; ++trial) {
+        std::vector<uint32_t> pix(count), key(count), ku(count), kv(count);
+        std::vector<float> u(count), v(count), ku_u(count), ku_v(count);
+        const PairKeys keys{key.data(), ku.data(), kv.data()};
+        for (auto& p : pix) p = trial == 0 ? static_cast<uint32_t>(&p - pix.data()) : static_cast<uint32_t>(rng());
+        const uint32_t seed = trial == 0 ? 0u : static_cast<uint32_t>(rng());
+        for (uint32_t pair : {0u, 1u, 4u, 77u}) {
+          make_pair_keys(seed, pix.data(), pair, count, keys);
+          for (uint32_t index : {0u, 1u, 2u, 15u, 16u, 1000u, 0xffffffffu, static_cast<uint32_t>(rng())}) {
+            sample_pairs(kind, seed, pix.data(), index, 64, pair, count, u.data(), v.data());
+            sample_pairs_keyed(kind, seed, index, pair, keys, count, ku_u.data(), ku_v.data());
+            ASSERT_EQ(std::memcmp(u.data(), ku_u.data(), count * sizeof(float)), 0) << count << " pair " << pair << " index " << index;
+            ASSERT_EQ(std::memcmp(v.data(), ku_v.data(), count * sizeof(float)), 0) << count << " pair " << pair << " index " << index;
+          }
         }
       }
-    }
 }
 
 // The SIMD bit-manipulation helpers equal their scalar definitions on every lane.
