@@ -67,13 +67,13 @@ template <class T> struct LightGeom {
   T len1, len2, inv_len1, inv_len2, rect;  // light_geom_derive
 };
 
-// The fields every planar source has (gather_light adds the kind and the rectangle flag).
+// The fields every planar source has (gather_light adds the kind, the area and the
+// rectangle flag).
 template <bool Small, class I, class T> inline void gather_planar_fields(const LightView& L, const I& idx, LightGeom<T>& g) {
   g.p0 = {lget<Small>(L.p0x, idx), lget<Small>(L.p0y, idx), lget<Small>(L.p0z, idx)};
   g.e1 = {lget<Small>(L.e1x, idx), lget<Small>(L.e1y, idx), lget<Small>(L.e1z, idx)};
   g.e2 = {lget<Small>(L.e2x, idx), lget<Small>(L.e2y, idx), lget<Small>(L.e2z, idx)};
   g.n = {lget<Small>(L.nx, idx), lget<Small>(L.ny, idx), lget<Small>(L.nz, idx)};
-  g.area = lget<Small>(L.area, idx);
   g.two_sided = lget<Small>(L.two_sided, idx);
   g.len1 = lget<Small>(L.len1, idx);
   g.len2 = lget<Small>(L.len2, idx);
@@ -86,6 +86,7 @@ template <bool Small = false, class I> inline auto gather_light(const LightView&
   LightGeom<T> g;
   g.type = lget<Small>(L.type, idx);
   gather_planar_fields<Small>(L, idx, g);
+  g.area = lget<Small>(L.area, idx);
   g.rect = lget<Small>(L.rect, idx);
   return g;
 }
@@ -96,6 +97,7 @@ template <bool Small = false, class I> inline auto gather_rect_light(const Light
   LightGeom<T> g;
   g.type = i32_t<T>(lt_parallelogram);
   gather_planar_fields<Small>(L, idx, g);
+  g.area = g.len1 * g.len2;  // a rectangle's table area (light_geom_derive): no gather
   g.rect = T(1.f);
   return g;
 }
@@ -140,6 +142,9 @@ template <class T> inline void light_geom_derive(LightGeom<T>& g) {
   g.inv_len1 = T(1.f) / sel(ok, g.len1, T(1.f));
   g.inv_len2 = T(1.f) / sel(ok, g.len2, T(1.f));
   g.rect = sel(type_is<T>(g.type, lt_parallelogram) && parallelogram_is_rectangle(g.e1, g.e2), T(1.f), T(0.f));
+  // a rectangle's area is the product of its edge lengths, so the rectangle pipelines
+  // derive it instead of reading it
+  g.area = sel(g.rect > T(0.5f), g.len1 * g.len2, g.area);
 }
 
 // Solid angle a triangle/parallelogram/sphere source subtends from x (0 where x is

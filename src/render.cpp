@@ -101,13 +101,14 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     if (l.type == LightType::triangle || l.type == LightType::parallelogram) nn = normalize(cross(l.e1, l.e2));
     v.nx.push_back(nn.x); v.ny.push_back(nn.y); v.nz.push_back(nn.z);
     v.Lr.push_back(l.radiance.r); v.Lg.push_back(l.radiance.g); v.Lb.push_back(l.radiance.b);
-    v.area.push_back(l.area);
     v.two_sided.push_back(l.two_sided ? 1.f : 0.f);
     LightGeom<float> g;
     g.type = static_cast<int32_t>(l.type);
     g.e1 = l.e1;
     g.e2 = l.e2;
+    g.area = l.area;
     light_geom_derive(g);
+    v.area.push_back(g.area);
     v.len1.push_back(g.len1); v.len2.push_back(g.len2);
     v.inv_len1.push_back(g.inv_len1); v.inv_len2.push_back(g.inv_len2);
     v.rect.push_back(g.rect);
