@@ -147,29 +147,6 @@ template <class T> inline void light_geom_derive(LightGeom<T>& g) {
   g.area = sel(g.rect > T(0.5f), g.len1 * g.len2, g.area);
 }
 
-// Solid angle a triangle/parallelogram/sphere source subtends from x (0 where x is
-// behind a one-sided source, where it emits nothing towards x). Rectangles use their
-// constants (the same setup the sampler uses, so both see the same Omega to the bit).
-template <class T> inline mask_t<T> rect_solid_angle_safe(const SphericalRectangle<T>& r);
-template <class T>
-inline T light_solid_angle(const LightGeom<T>& g, const Vec3<T>& x, mask_t<T>* rect_safe = nullptr) {
-  const auto is_tri = type_is<T>(g.type, lt_triangle);
-  const auto is_par = type_is<T>(g.type, lt_parallelogram);
-  const auto is_sph = type_is<T>(g.type, lt_sphere);
-  const auto rect = is_par && g.rect > T(0.5f);
-  const auto skew = is_par && !rect;
-  T omega(0.f);
-  if (any(is_tri)) omega = sel(is_tri, spherical_triangle_solid_angle(x, g.p0, g.p0 + g.e1, g.p0 + g.e2), omega);
-  if (any(rect)) {
-    const SphericalRectangle<T> r = spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
-    omega = sel(rect, r.omega, omega);
-    if (rect_safe) *rect_safe = rect_solid_angle_safe(r);
-  }
-  if (any(skew)) omega = sel(skew, spherical_parallelogram_solid_angle(x, g.p0, g.e1, g.e2), omega);
-  if (any(is_sph)) omega = sel(is_sph, sphere_cone_solid_angle(x, g.p0, g.e1.x), omega);
-  return omega;
-}
-
 // The fallback rule, the same for sampling and for pdf evaluation: spheres always use
 // their cone; triangles and non-rectangular parallelograms the solid angle within
 // [min_sa_sample_omega, max_sa_sample_omega]; rectangles from the minimum up to the
@@ -207,6 +184,28 @@ template <class T> inline mask_t<T> rect_solid_angle_safe(const SphericalRectang
   const T rr = T(grazing_plane_ratio * grazing_plane_ratio);
   const auto grazing = z2 < rr * mul_add(xc, xc, mul_add(yc, yc, z2)) && r.omega < T(grazing_max_omega);
   return r.omega >= T(min_sa_sample_omega) && r.omega < T(6.2831853f) && !grazing;
+}
+
+// Solid angle a triangle/parallelogram/sphere source subtends from x (0 where x is
+// behind a one-sided source, where it emits nothing towards x). Rectangles use their
+// constants (the same setup the sampler uses, so both see the same Omega to the bit).
+template <class T>
+inline T light_solid_angle(const LightGeom<T>& g, const Vec3<T>& x, mask_t<T>* rect_safe = nullptr) {
+  const auto is_tri = type_is<T>(g.type, lt_triangle);
+  const auto is_par = type_is<T>(g.type, lt_parallelogram);
+  const auto is_sph = type_is<T>(g.type, lt_sphere);
+  const auto rect = is_par && g.rect > T(0.5f);
+  const auto skew = is_par && !rect;
+  T omega(0.f);
+  if (any(is_tri)) omega = sel(is_tri, spherical_triangle_solid_angle(x, g.p0, g.p0 + g.e1, g.p0 + g.e2), omega);
+  if (any(rect)) {
+    const SphericalRectangle<T> r = spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
+    omega = sel(rect, r.omega, omega);
+    if (rect_safe) *rect_safe = rect_solid_angle_safe(r);
+  }
+  if (any(skew)) omega = sel(skew, spherical_parallelogram_solid_angle(x, g.p0, g.e1, g.e2), omega);
+  if (any(is_sph)) omega = sel(is_sph, sphere_cone_solid_angle(x, g.p0, g.e1.x), omega);
+  return omega;
 }
 
 // Density in solid angle at x of reaching the source at distance dist along wi when the

@@ -547,6 +547,20 @@ struct PipelineEntry {
 // scene: it is the reference the specialised ones must match.
 template <unsigned K, bool L, bool B, bool P, bool E> constexpr TileFn tile_fn() { return &run_tile<K, L, B, P, E>; }
 
+// The pipelines of scenes with area lights only (kinds K): MIS, light or BSDF technique,
+// with or without a per-lane pick; names in that order (mis pick, mis single, light pick,
+// light single, bsdf).
+template <unsigned K>
+PipelineEntry area_pipeline(const char* const (&names)[5], bool light, bool bsdf, bool pick) {
+  if (light && bsdf)
+    return pick ? PipelineEntry{names[0], tile_fn<K, true, true, true, true>()}
+                : PipelineEntry{names[1], tile_fn<K, true, true, false, true>()};
+  if (light)
+    return pick ? PipelineEntry{names[2], tile_fn<K, true, false, true, true>()}
+                : PipelineEntry{names[3], tile_fn<K, true, false, false, true>()};
+  return {names[4], tile_fn<K, false, true, false, true>()};
+}
+
 PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool general, std::string& why) {
   if (general) {
     why = "forced with --pipeline general";
@@ -565,23 +579,14 @@ PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool gene
                 : PipelineEntry{"delta/light/single", tile_fn<kind_delta, true, false, false, false>()};
   }
   if (!delta && v.all_rects) {  // rectangles only: no dispatch on the kind of source
-    constexpr unsigned R = kind_area | kind_rects;
-    if (light && bsdf)
-      return pick ? PipelineEntry{"rect/mis/pick", tile_fn<R, true, true, true, true>()}
-                  : PipelineEntry{"rect/mis/single", tile_fn<R, true, true, false, true>()};
-    if (light)
-      return pick ? PipelineEntry{"rect/light/pick", tile_fn<R, true, false, true, true>()}
-                  : PipelineEntry{"rect/light/single", tile_fn<R, true, false, false, true>()};
-    return {"rect/bsdf", tile_fn<R, false, true, false, true>()};
+    static constexpr const char* names[5] = {"rect/mis/pick", "rect/mis/single", "rect/light/pick",
+                                             "rect/light/single", "rect/bsdf"};
+    return area_pipeline<kind_area | kind_rects>(names, light, bsdf, pick);
   }
   if (!delta) {
-    if (light && bsdf)
-      return pick ? PipelineEntry{"area/mis/pick", tile_fn<kind_area, true, true, true, true>()}
-                  : PipelineEntry{"area/mis/single", tile_fn<kind_area, true, true, false, true>()};
-    if (light)
-      return pick ? PipelineEntry{"area/light/pick", tile_fn<kind_area, true, false, true, true>()}
-                  : PipelineEntry{"area/light/single", tile_fn<kind_area, true, false, false, true>()};
-    return {"area/bsdf", tile_fn<kind_area, false, true, false, true>()};
+    static constexpr const char* names[5] = {"area/mis/pick", "area/mis/single", "area/light/pick",
+                                             "area/light/single", "area/bsdf"};
+    return area_pipeline<kind_area>(names, light, bsdf, pick);
   }
   if (bsdf)
     return pick ? PipelineEntry{"mixed/mis/pick", tile_fn<kind_all, true, true, true, true>()}

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <utility>
 
 #include "render_util.h"
 
@@ -106,6 +107,21 @@ TEST(SceneRender, CornellBoxMatchesHighSampleReference) {
   EXPECT_LT(worst, 4.5);
 }
 
+// A scene at w x h, 4 spp, rendered with its bounce rays traced against the whole scene
+// (first) and against the emitters alone, then an occlusion ray (second).
+static std::pair<RenderResult, RenderResult> render_both_bounce_modes(const fs::path& f, int w, int h, uint32_t seed) {
+  Scene s = load_scene(f.string());
+  s.camera.width = w;
+  s.camera.height = h;
+  RenderOptions o;
+  o.est.spp = 4;
+  o.est.seed = seed;
+  RenderOptions oe = o;
+  o.bounce = BounceTrace::scene;
+  oe.bounce = BounceTrace::emitters;
+  return {render_scene(s, o), render_scene(s, oe)};
+}
+
 // Every project scene (stress cases included: a point next to a light, grazing and tiny
 // sources, far origins, degenerate triangles) gives the same image with its bounce rays
 // traced against the emitters alone and then an occlusion ray as against the whole scene:
@@ -116,15 +132,7 @@ TEST(SceneRender, ProjectScenesBounceRaysAgainstEmitters) {
   size_t exact = 0;
   for (const fs::path& f : files) {
     SCOPED_TRACE(f.string());
-    Scene s = load_scene(f.string());
-    s.camera.width = 48;
-    s.camera.height = 32;
-    RenderOptions o;
-    o.est.spp = 4;
-    RenderOptions oe = o;
-    o.bounce = BounceTrace::scene;
-    oe.bounce = BounceTrace::emitters;
-    const RenderResult a = render_scene(s, o), b = render_scene(s, oe);
+    const auto [a, b] = render_both_bounce_modes(f, 48, 32, 0);
     ASSERT_EQ(a.mean.size(), b.mean.size());
     size_t differ = 0;
     double worst = 0;
@@ -153,16 +161,7 @@ TEST(SceneRender, SharedScenesBounceRaysAgainstEmitters) {
     const fs::path f = dir / name / "scene-v4.pbrt";
     if (!fs::exists(f)) continue;
     SCOPED_TRACE(f.string());
-    Scene s = load_scene(f.string());
-    s.camera.width = 64;
-    s.camera.height = 48;
-    RenderOptions o;
-    o.est.spp = 4;
-    o.est.seed = 9;
-    RenderOptions oe = o;
-    o.bounce = BounceTrace::scene;
-    oe.bounce = BounceTrace::emitters;
-    const RenderResult a = render_scene(s, o), b = render_scene(s, oe);
+    const auto [a, b] = render_both_bounce_modes(f, 64, 48, 9);
     size_t differ = 0;
     double sa = 0, sb = 0;
     for (size_t i = 0; i < a.mean.size(); ++i) {
