@@ -194,7 +194,7 @@ void BM_sampler(benchmark::State& state) {
 }
 
 // The hash-based samplers from keys cached per pixel and pair, as the renderer draws them
-// within a tile: only the per-sample part (arg: 0 independent, 2 Sobol').
+// within a tile: only the per-sample part (args as registered below).
 void BM_sampler_keyed(benchmark::State& state) {
   Fixture f;
   const SamplerKind kind = static_cast<SamplerKind>(state.range(0));
@@ -203,7 +203,7 @@ void BM_sampler_keyed(benchmark::State& state) {
   make_pair_keys(1, f.tb->pixel, 3, lanes, keys);
   uint32_t s = 0;
   for (auto _ : state) {
-    sample_pairs_keyed(kind, 1, s++, 3, keys, lanes, f.tb->u0, f.tb->u1);
+    sample_pairs_keyed(kind, 1, s++, 3, keys, lanes, f.tb->u0, state.range(1) ? f.tb->u1 : nullptr);
     benchmark::DoNotOptimize(f.tb->u0[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
@@ -234,4 +234,5 @@ BENCHMARK_TEMPLATE(BM_heuristic, vfloat)->DenseRange(0, 3);
 BENCHMARK_TEMPLATE(BM_heuristic, float)->DenseRange(0, 3);
 // Arg: 0 independent, 1 stratified, 2 sobol
 BENCHMARK(BM_sampler)->DenseRange(0, 2);
-BENCHMARK(BM_sampler_keyed)->Arg(0)->Arg(2);
+// Args: sampler (0 = independent, 2 = sobol), both dimensions (1) or the first only (0)
+BENCHMARK(BM_sampler_keyed)->Args({0, 1})->Args({0, 0})->Args({2, 1})->Args({2, 0});

@@ -279,7 +279,7 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
   std::fill_n(tb.Sg, padded, 0.f);
   std::fill_n(tb.Sb, padded, 0.f);
   if (est.one_sample()) {
-    point_pairs(est, tb, sample, 1, padded, tb.u0, tb.u1);
+    point_pairs(est, tb, sample, 1, padded, tb.u0, nullptr);  // the choice reads one dimension
     const float c = est.one_sample_light_prob();
     for (int k = 0; k < padded; ++k) tb.choose_light[k] = tb.u0[k] < c ? 1.f : 0.f;
   }

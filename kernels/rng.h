@@ -290,19 +290,22 @@ template <int N> inline void stream_keys(const StreamConsts& sc, const uint32_t*
   TUILE_RNG_EACH key[k] = mix(key[k] ^ vuint(sc.kb));
 }
 
-// the independent sampler's pair from the stream keys (h is overwritten)
-template <int N> inline void independent_from_keys(const StreamConsts& sc, vuint (&h)[N], float* u, float* v) noexcept {
+// the independent sampler's pair from the stream keys (h is overwritten); V: whether v is
+// wanted (false: the first dimension only, the same u)
+template <int N, bool V>
+inline void independent_from_keys(const StreamConsts& sc, vuint (&h)[N], float* u, float* v) noexcept {
   TUILE_RNG_EACH h[k] = mix(h[k] ^ vuint(sc.index));  // hash_combine(key, index)
   TUILE_RNG_EACH {
     unit24(xorshift16(h[k]) >> 8).store_unaligned(u + k * simd_width);
-    unit24(xorshift16(mix(h[k] ^ vuint(xorshift16(0x68e31da4u)))) >> 8).store_unaligned(v + k * simd_width);
+    if constexpr (V) unit24(xorshift16(mix(h[k] ^ vuint(xorshift16(0x68e31da4u)))) >> 8).store_unaligned(v + k * simd_width);
   }
 }
 
-template <int N> inline void independent_block(const StreamConsts& sc, const uint32_t* pixel, float* u, float* v) noexcept {
+template <int N, bool V>
+inline void independent_block(const StreamConsts& sc, const uint32_t* pixel, float* u, float* v) noexcept {
   vuint h[N];
   stream_keys<N>(sc, pixel, h);
-  independent_from_keys<N>(sc, h, u, v);
+  independent_from_keys<N, V>(sc, h, u, v);
 }
 
 // laine_karras_permutation(x, xorshift16(p)) of N batches: the seed's high half is p's.
@@ -321,8 +324,8 @@ inline void sobol_seeds(const vuint (&key)[N], vuint (&ku)[N], vuint (&kv)[N]) n
   TUILE_RNG_EACH kv[k] = mix(key[k] ^ vuint(xorshift16(0xcc9e2d51u)));
 }
 
-// sobol_pair_bits from the key and the seeds
-template <int N>
+// sobol_pair_bits from the key and the seeds (V as for independent_from_keys)
+template <int N, bool V>
 inline void sobol_from_keys(const StreamConsts& sc, const vuint (&key)[N], const vuint (&ku)[N], const vuint (&kv)[N],
                             float* u, float* v) noexcept {
   vuint x[N], y[N];
@@ -333,19 +336,21 @@ inline void sobol_from_keys(const StreamConsts& sc, const vuint (&key)[N], const
   }
   TUILE_RNG_EACH x[k] ^= x[k] * vuint(0x05526c56u);
   TUILE_RNG_EACH x[k] = reverse_bits(x[k] ^ x[k] * vuint(0x53a22864u));
-  TUILE_RNG_EACH y[k] = superset_sum(x[k]);
+  if constexpr (V) {
+    TUILE_RNG_EACH y[k] = superset_sum(x[k]);
+    laine_karras_permutation(y, kv);
+    TUILE_RNG_EACH unit24(reverse_bits_shr8(y[k])).store_unaligned(v + k * simd_width);
+  }
   laine_karras_permutation(x, ku);
-  laine_karras_permutation(y, kv);
   TUILE_RNG_EACH unit24(reverse_bits_shr8(x[k])).store_unaligned(u + k * simd_width);
-  TUILE_RNG_EACH unit24(reverse_bits_shr8(y[k])).store_unaligned(v + k * simd_width);
 }
 
 // sobol_pair_bits
-template <int N> inline void sobol_block(const StreamConsts& sc, const uint32_t* pixel, float* u, float* v) noexcept {
+template <int N, bool V> inline void sobol_block(const StreamConsts& sc, const uint32_t* pixel, float* u, float* v) noexcept {
   vuint key[N], ku[N], kv[N];
   stream_keys<N>(sc, pixel, key);
   sobol_seeds<N>(key, ku, kv);
-  sobol_from_keys<N>(sc, key, ku, kv, u, v);
+  sobol_from_keys<N, V>(sc, key, ku, kv, u, v);
 }
 
 // The cached forms: keys (and for Sobol' the seeds) made once per pixel and pair by
@@ -361,18 +366,18 @@ inline void key_block(const StreamConsts& sc, const uint32_t* pixel, uint32_t* k
     v_[k].store_unaligned(kv + k * simd_width);
   }
 }
-template <int N>
+template <int N, bool V>
 inline void keyed_block(SamplerKind kind, const StreamConsts& sc, const uint32_t* key, const uint32_t* ku,
                         const uint32_t* kv, float* u, float* v) noexcept {
   vuint k_[N];
   TUILE_RNG_EACH k_[k] = vuint::load_unaligned(key + k * simd_width);
-  if (kind == SamplerKind::independent) return independent_from_keys<N>(sc, k_, u, v);
+  if (kind == SamplerKind::independent) return independent_from_keys<N, V>(sc, k_, u, v);
   vuint u_[N], v_[N];
   TUILE_RNG_EACH {
     u_[k] = vuint::load_unaligned(ku + k * simd_width);
-    v_[k] = vuint::load_unaligned(kv + k * simd_width);
+    if constexpr (V) v_[k] = vuint::load_unaligned(kv + k * simd_width);
   }
-  sobol_from_keys<N>(sc, k_, u_, v_, u, v);
+  sobol_from_keys<N, V>(sc, k_, u_, v_, u, v);
 }
 #undef TUILE_RNG_EACH
 
@@ -452,21 +457,29 @@ inline rng_simd::StreamConsts stream_consts(SamplerKind kind, uint32_t seed, uin
 }
 
 // One dimension pair for W lanes (pixel per lane, same sample index): SIMD for the
-// hash-based samplers, the scalar reference per lane for stratified.
+// hash-based samplers, the scalar reference per lane for stratified. v = nullptr: the
+// first dimension only (the same u, for half the work with the hash-based samplers).
 inline void sample_pairs(SamplerKind kind, uint32_t seed, const uint32_t* pixel, uint32_t index, uint32_t spp,
                          uint32_t pair, int count, float* u, float* v) noexcept {
   using namespace rng_simd;
   int i = 0;
   if (kind != SamplerKind::stratified) {
     const StreamConsts sc = stream_consts(kind, seed, index, pair);
-    if (kind == SamplerKind::independent)
-      i = run_blocks<8>(0, count, [&](auto n, int j) { independent_block<n()>(sc, pixel + j, u + j, v + j); });
-    else
-      i = run_blocks<8>(0, count, [&](auto n, int j) { sobol_block<n()>(sc, pixel + j, u + j, v + j); });
-  } else if (spp < (1u << 24)) {  // stratified: SIMD batches (exact float cell arithmetic below 2^24)
+    auto blocks = [&](auto want_v) {
+      constexpr bool V = decltype(want_v)::value;
+      if (kind == SamplerKind::independent)
+        return run_blocks<8>(0, count, [&](auto n, int j) { independent_block<n(), V>(sc, pixel + j, u + j, V ? v + j : nullptr); });
+      return run_blocks<8>(0, count, [&](auto n, int j) { sobol_block<n(), V>(sc, pixel + j, u + j, V ? v + j : nullptr); });
+    };
+    i = v ? blocks(std::true_type{}) : blocks(std::false_type{});
+  } else if (spp < (1u << 24) && v) {  // stratified: SIMD batches (exact float cell arithmetic below 2^24)
     for (; i + simd_width <= count; i += simd_width) stratified_batch(seed, pixel + i, index, spp, pair, u + i, v + i);
   }
-  for (; i < count; ++i) sample_pair_scalar(kind, seed, pixel[i], index, spp, pair, u[i], v[i]);
+  for (; i < count; ++i) {
+    float vi;
+    sample_pair_scalar(kind, seed, pixel[i], index, spp, pair, u[i], vi);
+    if (v) v[i] = vi;
+  }
 }
 
 // Stream keys of one pair cached per lane (the sample index does not enter them), so that
@@ -497,9 +510,13 @@ inline void sample_pairs_keyed(SamplerKind kind, uint32_t seed, uint32_t index, 
                                int count, float* u, float* v) noexcept {
   using namespace rng_simd;
   const StreamConsts sc = stream_consts(kind, seed, index, pair);
-  const int done = run_blocks<8>(0, count, [&](auto n, int j) {
-    keyed_block<n()>(kind, sc, keys.key + j, keys.ku + j, keys.kv + j, u + j, v + j);
-  });
+  auto blocks = [&](auto want_v) {
+    constexpr bool V = decltype(want_v)::value;
+    return run_blocks<8>(0, count, [&](auto n, int j) {
+      keyed_block<n(), V>(kind, sc, keys.key + j, keys.ku + j, keys.kv + j, u + j, V ? v + j : nullptr);
+    });
+  };
+  const int done = v ? blocks(std::true_type{}) : blocks(std::false_type{});
   if (done < count) {  // a partial batch: through a padded copy
     alignas(64) uint32_t k[simd_width], ku[simd_width], kv[simd_width];
     alignas(64) float uu[simd_width], vv[simd_width];
@@ -509,10 +526,10 @@ inline void sample_pairs_keyed(SamplerKind kind, uint32_t seed, uint32_t index, 
       ku[l] = keys.ku[i];
       kv[l] = keys.kv[i];
     }
-    keyed_block<1>(kind, sc, k, ku, kv, uu, vv);
+    keyed_block<1, true>(kind, sc, k, ku, kv, uu, vv);
     for (int l = 0; done + l < count; ++l) {
       u[done + l] = uu[l];
-      v[done + l] = vv[l];
+      if (v) v[done + l] = vv[l];
     }
   }
 }

@@ -136,8 +136,8 @@ template <unsigned Kinds = kind_all, bool Pick = true>
 inline void sample_lights(const LightView& L, const Estimator& est, const LightPass& pass, uint32_t sample,
                           uint32_t pair, TileBuffers& tb) {
   const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
-  if (Pick && pass.fixed_light < 0)
-    point_pairs(est, tb, sample, pair, padded, tb.u0, tb.u1);
+  if (Pick && pass.fixed_light < 0)  // the pick reads the first dimension only
+    point_pairs(est, tb, sample, pair, padded, tb.u0, nullptr);
   point_pairs(est, tb, sample, pair + 1, padded, tb.u2, tb.u3);
   // two batches at a time (vfloat2): the solid-angle maps are latency-bound chains
   int k = 0;

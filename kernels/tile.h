@@ -160,7 +160,8 @@ struct alignas(64) TileBuffers {
 };
 
 // One dimension pair of the sampler for the first `count` tile lanes (their pixels) or
-// shading points, from the cached keys where the tile has them (the same bits).
+// shading points, from the cached keys where the tile has them (the same bits); with
+// v = nullptr the first dimension only.
 inline void lane_pairs(const Estimator& est, TileBuffers& tb, uint32_t sample, uint32_t pair, int count, float* u,
                        float* v) noexcept {
   if (tb.has_keys(pair)) sample_pairs_keyed(est.sampler, est.seed, sample, pair, tb.lane_keys(static_cast<int>(pair)), count, u, v);

@@ -155,6 +155,9 @@ TEST(Lanes, Samplers) {
             ASSERT_GE(v[i], 0.f);
             ASSERT_LT(v[i], 1.f);
           }
+          float u1[67];  // the first dimension alone (v = nullptr): the same u
+          sample_pairs(static_cast<SamplerKind>(kind), 9, pix, idx, spp, pair, 67, u1, nullptr);
+          ASSERT_EQ(std::memcmp(u, u1, sizeof(u)), 0) << kind << " spp " << spp << " index " << idx;
         }
 }
 
@@ -184,6 +187,10 @@ TEST(Lanes, SamplerPairsEqualScalarMany) {
             ASSERT_TRUE(std::memcmp(&u[i], &su, sizeof(float)) == 0 && std::memcmp(&v[i], &sv, sizeof(float)) == 0)
                 << "kind " << kind << " seed " << seed << " pixel " << pix[i] << " index " << index << " pair " << pair;
           }
+          // the first dimension alone (v = nullptr): the same u
+          std::vector<float> u1(pix.size(), -1.f);
+          sample_pairs(static_cast<SamplerKind>(kind), seed, pix.data(), index, 64, pair, count, u1.data(), nullptr);
+          ASSERT_EQ(std::memcmp(u.data(), u1.data(), count * sizeof(float)), 0) << "kind " << kind << " index " << index;
         }
     }
 }
@@ -207,6 +214,9 @@ TEST(Lanes, CachedKeysGiveTheSamePairs) {
             sample_pairs_keyed(kind, seed, index, pair, keys, count, ku_u.data(), ku_v.data());
             ASSERT_EQ(std::memcmp(u.data(), ku_u.data(), count * sizeof(float)), 0) << count << " pair " << pair << " index " << index;
             ASSERT_EQ(std::memcmp(v.data(), ku_v.data(), count * sizeof(float)), 0) << count << " pair " << pair << " index " << index;
+            std::vector<float> u1(count, -1.f);  // the first dimension alone: the same u
+            sample_pairs_keyed(kind, seed, index, pair, keys, count, u1.data(), nullptr);
+            ASSERT_EQ(std::memcmp(u.data(), u1.data(), count * sizeof(float)), 0) << count << " pair " << pair << " index " << index;
           }
         }
       }
