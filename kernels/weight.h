@@ -49,8 +49,10 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
 }
 
 // Lanes [k, k + width) of the bounce packets: the rays that hit the front of an emitter
-// join the hit queue at nq, in lane order (compress stores; nq is advanced).
-template <class T> TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int k, int& nq) {
+// join the hit queue at nq, in lane order (compress stores; nq is advanced). vis: whether
+// the queue keeps what the visibility rays need (bounce rays traced against the emitters).
+template <class T>
+TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int k, int& nq, bool vis) {
   const RayHit16& r = tb.bounce[k / packet_width];
   const int l = k % packet_width;
   const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(r.geomID + l));
@@ -87,20 +89,24 @@ template <class T> TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView&
   compress_store(tb.qab + nq, load<T>(tb.ab + k), keep);
   compress_store(tb.qlight + nq, li, keep);
   compress_store(tb.qpoint + nq, i32_t<T>(k) + lane_iota_i32<T>(), keep);
-  compress_store(tb.qox + nq, o.x, keep);
-  compress_store(tb.qoy + nq, o.y, keep);
-  compress_store(tb.qoz + nq, o.z, keep);
-  compress_store(tb.qt + nq, load<T>(r.ray.tfar + l), keep);
+  if (vis) {
+    compress_store(tb.qox + nq, o.x, keep);
+    compress_store(tb.qoy + nq, o.y, keep);
+    compress_store(tb.qoz + nq, o.z, keep);
+    compress_store(tb.qt + nq, load<T>(r.ray.tfar + l), keep);
+  }
   nq += std::popcount(keep);
 }
 
 // Queues the bounce rays that hit the front of an emitter (tb.queue_count entries, all
-// visible until bounce_visibility says otherwise). T = float: the scalar reference.
-template <class T = vfloat> inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers& tb) {
+// visible until bounce_visibility says otherwise). T = float: the scalar reference. vis as
+// for queue_emitter_lanes.
+template <class T = vfloat>
+inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers& tb, bool vis = true) {
   int nq = 0;
   // padding lanes past shade_count are never valid (sample_cosine)
   const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
-  for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T>(G, L, tb, k, nq);
+  for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T>(G, L, tb, k, nq, vis);
   tb.queue_count = nq;
   const int qpadded = (nq + packet_width - 1) / packet_width * packet_width;
   for (int j = nq; j < qpadded; ++j) {  // padding: a valid light index, no contribution
