@@ -69,16 +69,18 @@ inline int32_t light_of_hit(const GeomView& G, uint32_t geom, uint32_t prim) {
 // Whether a ray from o travelling along d sees the emitting side of light l: one-sided
 // planar sources emit on the side of their normal, spheres outwards (a ray starting
 // inside a sphere light sees no emission, as in pbrt).
-template <class T, bool Small = false>
+template <class T, int Tier = tier_gather>
 inline mask_t<T> light_front_lanes(const LightView& L, const i32_t<T>& l, const Vec3<T>& o, const Vec3<T>& d) {
-  if constexpr (!Small && !std::is_same_v<T, float>)
-    if (L.small) return light_front_lanes<T, true>(L, l, o, d);  // permutes of the small tables
-  const Vec3<T> c = o - Vec3<T>{lget<Small>(L.p0x, l), lget<Small>(L.p0y, l), lget<Small>(L.p0z, l)};
-  const T r = lget<Small>(L.e1x, l);
-  const auto sphere = f_mask_from_i(lget<Small>(L.type, l) == i32_t<T>(lt_sphere));
+  if constexpr (Tier == tier_gather && !std::is_same_v<T, float>) {  // permutes of small and medium tables
+    if (L.tier == tier_small) return light_front_lanes<T, tier_small>(L, l, o, d);
+    if (L.tier == tier_medium) return light_front_lanes<T, tier_medium>(L, l, o, d);
+  }
+  const Vec3<T> c = o - Vec3<T>{lget<Tier>(L.p0x, l), lget<Tier>(L.p0y, l), lget<Tier>(L.p0z, l)};
+  const T r = lget<Tier>(L.e1x, l);
+  const auto sphere = f_mask_from_i(lget<Tier>(L.type, l) == i32_t<T>(lt_sphere));
   const auto outside = dot(c, c) > r * r;
-  const auto front = lget<Small>(L.two_sided, l) > T(0.f) ||
-                     dot(d, Vec3<T>{lget<Small>(L.nx, l), lget<Small>(L.ny, l), lget<Small>(L.nz, l)}) < T(0.f);
+  const auto front = lget<Tier>(L.two_sided, l) > T(0.f) ||
+                     dot(d, Vec3<T>{lget<Tier>(L.nx, l), lget<Tier>(L.ny, l), lget<Tier>(L.nz, l)}) < T(0.f);
   return sel_mask(sphere, outside, front);
 }
 inline bool light_front(const LightView& L, int32_t l, float ox, float oy, float oz, float dx, float dy, float dz) {
@@ -174,10 +176,12 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     if (any(lit)) {  // then the light table is not empty
       const i32_t<T> li = max(light, i32_t<T>(0));
       const auto emit = lit && light_front_lanes<T>(L, li, o, d);
-      const bool small = L.small;
-      store(tb.Lr + i, sel(emit, load<T>(tb.Lr + i) + (small ? lookup_small(L.Lr, li) : gather(L.Lr, li)), load<T>(tb.Lr + i)));
-      store(tb.Lg + i, sel(emit, load<T>(tb.Lg + i) + (small ? lookup_small(L.Lg, li) : gather(L.Lg, li)), load<T>(tb.Lg + i)));
-      store(tb.Lb + i, sel(emit, load<T>(tb.Lb + i) + (small ? lookup_small(L.Lb, li) : gather(L.Lb, li)), load<T>(tb.Lb + i)));
+      with_table_tier(L, [&](auto tier) {
+        constexpr int S = decltype(tier)::value;
+        store(tb.Lr + i, sel(emit, load<T>(tb.Lr + i) + lget<S>(L.Lr, li), load<T>(tb.Lr + i)));
+        store(tb.Lg + i, sel(emit, load<T>(tb.Lg + i) + lget<S>(L.Lg, li), load<T>(tb.Lg + i)));
+        store(tb.Lb + i, sel(emit, load<T>(tb.Lb + i) + lget<S>(L.Lb, li), load<T>(tb.Lb + i)));
+      });
     }
   }
 

@@ -23,7 +23,9 @@ inline constexpr int32_t lt_triangle = 0, lt_parallelogram = 1, lt_sphere = 2, l
 
 struct LightView {
   int32_t count = 0;
-  bool small = false;  // count <= small_table_size, arrays padded to it: lookup_small reads them
+  // how the tables are read per lane (table_tier): arrays padded to small_table_size or
+  // medium_table_size where count fits, then lookup_small / lookup_medium read them
+  int tier = 0;
   const int32_t* type = nullptr;
   const float *p0x = nullptr, *p0y = nullptr, *p0z = nullptr;
   const float *e1x = nullptr, *e1y = nullptr, *e1z = nullptr;
@@ -40,21 +42,35 @@ struct LightView {
   const int32_t* alias_idx = nullptr;
 };
 
-// A table read per lane: a gather, or with Small (tables padded to small_table_size) two
-// vector loads and a permute.
-template <bool Small, class Base, class I> inline auto lget(const Base* base, const I& i) {
-  if constexpr (Small) return lookup_small(base, i);
+// How a light table is read per lane: tier_gather (any size), tier_small (tables padded to
+// small_table_size: lookup_small), tier_medium (padded to medium_table_size: lookup_medium).
+inline constexpr int tier_gather = 0, tier_small = 1, tier_medium = 2;
+inline int table_tier(size_t count) noexcept {
+  return count <= static_cast<size_t>(small_table_size)    ? tier_small
+         : count <= static_cast<size_t>(medium_table_size) ? tier_medium
+                                                             : tier_gather;
+}
+// A table read per lane in tier Tier (the same values in every tier).
+template <int Tier, class Base, class I> inline auto lget(const Base* base, const I& i) {
+  if constexpr (Tier == tier_small) return lookup_small(base, i);
+  else if constexpr (Tier == tier_medium) return lookup_medium(base, i);
   else return gather(base, i);
+}
+// Runs f(std::integral_constant<int, tier>) for the tables' tier.
+template <class F> inline void with_table_tier(const LightView& L, F&& f) {
+  if (L.tier == tier_small) f(std::integral_constant<int, tier_small>{});
+  else if (L.tier == tier_medium) f(std::integral_constant<int, tier_medium>{});
+  else f(std::integral_constant<int, tier_gather>{});
 }
 
 // Picks a source with the alias table: one uniform number, O(1).
-template <class T, bool Small = false> inline i32_t<T> pick_light(const LightView& L, T u) {
+template <class T, int Tier = tier_gather> inline i32_t<T> pick_light(const LightView& L, T u) {
   const T scaled = u * T(static_cast<float>(L.count));
   i32_t<T> i = to_i32(scaled);
   i = min(i, i32_t<T>(L.count - 1));
   const T frac = scaled - to_f32(i);
-  const T prob = lget<Small>(L.alias_prob, i);
-  const i32_t<T> alt = lget<Small>(L.alias_idx, i);
+  const T prob = lget<Tier>(L.alias_prob, i);
+  const i32_t<T> alt = lget<Tier>(L.alias_idx, i);
   if constexpr (std::is_same_v<T, float>) return frac < prob ? i : alt;
   else return sel(i_mask_from_f(frac < prob), i, alt);
 }
@@ -69,46 +85,46 @@ template <class T> struct LightGeom {
 
 // The fields every planar source has (gather_light adds the kind, the area and the
 // rectangle flag).
-template <bool Small, class I, class T> inline void gather_planar_fields(const LightView& L, const I& idx, LightGeom<T>& g) {
-  g.p0 = {lget<Small>(L.p0x, idx), lget<Small>(L.p0y, idx), lget<Small>(L.p0z, idx)};
-  g.e1 = {lget<Small>(L.e1x, idx), lget<Small>(L.e1y, idx), lget<Small>(L.e1z, idx)};
-  g.e2 = {lget<Small>(L.e2x, idx), lget<Small>(L.e2y, idx), lget<Small>(L.e2z, idx)};
-  g.n = {lget<Small>(L.nx, idx), lget<Small>(L.ny, idx), lget<Small>(L.nz, idx)};
-  g.two_sided = lget<Small>(L.two_sided, idx);
-  g.len1 = lget<Small>(L.len1, idx);
-  g.len2 = lget<Small>(L.len2, idx);
-  g.inv_len1 = lget<Small>(L.inv_len1, idx);
-  g.inv_len2 = lget<Small>(L.inv_len2, idx);
+template <int Tier, class I, class T> inline void gather_planar_fields(const LightView& L, const I& idx, LightGeom<T>& g) {
+  g.p0 = {lget<Tier>(L.p0x, idx), lget<Tier>(L.p0y, idx), lget<Tier>(L.p0z, idx)};
+  g.e1 = {lget<Tier>(L.e1x, idx), lget<Tier>(L.e1y, idx), lget<Tier>(L.e1z, idx)};
+  g.e2 = {lget<Tier>(L.e2x, idx), lget<Tier>(L.e2y, idx), lget<Tier>(L.e2z, idx)};
+  g.n = {lget<Tier>(L.nx, idx), lget<Tier>(L.ny, idx), lget<Tier>(L.nz, idx)};
+  g.two_sided = lget<Tier>(L.two_sided, idx);
+  g.len1 = lget<Tier>(L.len1, idx);
+  g.len2 = lget<Tier>(L.len2, idx);
+  g.inv_len1 = lget<Tier>(L.inv_len1, idx);
+  g.inv_len2 = lget<Tier>(L.inv_len2, idx);
 }
 
-template <bool Small = false, class I> inline auto gather_light(const LightView& L, const I& idx) {
+template <int Tier = tier_gather, class I> inline auto gather_light(const LightView& L, const I& idx) {
   using T = decltype(gather(L.area, idx));
   LightGeom<T> g;
-  g.type = lget<Small>(L.type, idx);
-  gather_planar_fields<Small>(L, idx, g);
-  g.area = lget<Small>(L.area, idx);
-  g.rect = lget<Small>(L.rect, idx);
+  g.type = lget<Tier>(L.type, idx);
+  gather_planar_fields<Tier>(L, idx, g);
+  g.area = lget<Tier>(L.area, idx);
+  g.rect = lget<Tier>(L.rect, idx);
   return g;
 }
 
 // The fields a rectangle source needs (no type or rectangle flag: they are known).
-template <bool Small = false, class I> inline auto gather_rect_light(const LightView& L, const I& idx) {
+template <int Tier = tier_gather, class I> inline auto gather_rect_light(const LightView& L, const I& idx) {
   using T = decltype(gather(L.area, idx));
   LightGeom<T> g;
   g.type = i32_t<T>(lt_parallelogram);
-  gather_planar_fields<Small>(L, idx, g);
+  gather_planar_fields<Tier>(L, idx, g);
   g.area = g.len1 * g.len2;  // a rectangle's table area (light_geom_derive): no gather
   g.rect = T(1.f);
   return g;
 }
 
 // A source's pick probability and radiance per lane.
-template <bool Small, class I, class T>
+template <int Tier, class I, class T>
 inline void gather_pick_radiance(const LightView& L, const I& idx, T& pick, T& r, T& g, T& b) {
-  pick = lget<Small>(L.pick_pdf, idx);
-  r = lget<Small>(L.Lr, idx);
-  g = lget<Small>(L.Lg, idx);
-  b = lget<Small>(L.Lb, idx);
+  pick = lget<Tier>(L.pick_pdf, idx);
+  r = lget<Tier>(L.Lr, idx);
+  g = lget<Tier>(L.Lg, idx);
+  b = lget<Tier>(L.Lb, idx);
 }
 
 template <class T> inline LightGeom<T> broadcast_light(const LightView& L, int32_t i) {

@@ -35,18 +35,16 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   LightGeom<T> g;
   T pick, Le_r, Le_g, Le_b;
   if constexpr (Pick) {
-    // per-lane sources: gathers, or permutes of small tables (the same values)
-    auto fetch = [&](auto small) {
-      constexpr bool S = decltype(small)::value;
+    // per-lane sources: gathers, or permutes of small and medium tables (the same values)
+    with_table_tier(L, [&](auto tier) {
+      constexpr int S = decltype(tier)::value;
       i32_t<T> idx;
       if (pass.fixed_light >= 0) idx = i32_t<T>(pass.fixed_light);
       else idx = pick_light<T, S>(L, load<T>(tb.u0 + k));
       if constexpr ((Kinds & kind_rects) != 0) g = gather_rect_light<S>(L, idx);
       else g = gather_light<S>(L, idx);
       gather_pick_radiance<S>(L, idx, pick, Le_r, Le_g, Le_b);
-    };
-    if (L.small) fetch(std::true_type{});
-    else fetch(std::false_type{});
+    });
   } else {  // every lane samples the same source: broadcasts, no gathers
     const int32_t li = pass.fixed_light;
     g = broadcast_light<T>(L, li);

@@ -201,10 +201,14 @@ inline vint gather(const int32_t* base, const vint& i) noexcept {
 }
 
 // Lookups in a table of at most small_table_size entries whose array is padded to that
-// size: two vector loads and a permute instead of a gather (the same values).
-inline constexpr int small_table_size = 32;
+// size: two vector loads and a permute instead of a gather (the same values). Tables of
+// at most medium_table_size entries, padded to it: eight loads, four permutes of 32
+// entries each and three blends (lookup_medium), still cheaper than a gather.
+inline constexpr int small_table_size = 32, medium_table_size = 128;
 inline float lookup_small(const float* base, int32_t i) noexcept { return base[i]; }
 inline int32_t lookup_small(const int32_t* base, int32_t i) noexcept { return base[i]; }
+inline float lookup_medium(const float* base, int32_t i) noexcept { return base[i]; }
+inline int32_t lookup_medium(const int32_t* base, int32_t i) noexcept { return base[i]; }
 #if defined(__AVX512F__)
 inline vfloat lookup_small(const float* base, const vint& i) noexcept {
   return _mm512_permutex2var_ps(_mm512_loadu_ps(base), i, _mm512_loadu_ps(base + 16));
@@ -212,9 +216,24 @@ inline vfloat lookup_small(const float* base, const vint& i) noexcept {
 inline vint lookup_small(const int32_t* base, const vint& i) noexcept {
   return _mm512_permutex2var_epi32(_mm512_loadu_si512(base), i, _mm512_loadu_si512(base + 16));
 }
+inline vint lookup_medium(const int32_t* base, const vint& i) noexcept {
+  const __m512i x = i;
+  auto quarter = [&](int q) {  // entries 32 q .. 32 q + 31 by the index's low 5 bits
+    return _mm512_permutex2var_epi32(_mm512_loadu_si512(base + 32 * q), x, _mm512_loadu_si512(base + 32 * q + 16));
+  };
+  const __mmask16 b5 = _mm512_test_epi32_mask(x, _mm512_set1_epi32(32));
+  const __mmask16 b6 = _mm512_test_epi32_mask(x, _mm512_set1_epi32(64));
+  return _mm512_mask_blend_epi32(b6, _mm512_mask_blend_epi32(b5, quarter(0), quarter(1)),
+                                 _mm512_mask_blend_epi32(b5, quarter(2), quarter(3)));
+}
+inline vfloat lookup_medium(const float* base, const vint& i) noexcept {
+  return _mm512_castsi512_ps(lookup_medium(reinterpret_cast<const int32_t*>(base), i));
+}
 #else
 inline vfloat lookup_small(const float* base, const vint& i) noexcept { return gather(base, i); }
 inline vint lookup_small(const int32_t* base, const vint& i) noexcept { return gather(base, i); }
+inline vfloat lookup_medium(const float* base, const vint& i) noexcept { return gather(base, i); }
+inline vint lookup_medium(const int32_t* base, const vint& i) noexcept { return gather(base, i); }
 #endif
 
 template <class T> inline i32_t<T> lane_iota_i32() noexcept {
@@ -464,6 +483,12 @@ inline vfloat2 lookup_small(const float* base, const vint2& i) noexcept {
 }
 inline vint2 lookup_small(const int32_t* base, const vint2& i) noexcept {
   return {lookup_small(base, i.a), lookup_small(base, i.b)};
+}
+inline vfloat2 lookup_medium(const float* base, const vint2& i) noexcept {
+  return {lookup_medium(base, i.a), lookup_medium(base, i.b)};
+}
+inline vint2 lookup_medium(const int32_t* base, const vint2& i) noexcept {
+  return {lookup_medium(base, i.a), lookup_medium(base, i.b)};
 }
 
 // Lane-type generic forms of what differs between float, vfloat and vfloat2.

@@ -22,17 +22,15 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
   const Vec3<T> n = load3<T>(tb.qnx + j, tb.qny + j, tb.qnz + j);
   const Vec3<T> wi = load3<T>(tb.qdx + j, tb.qdy + j, tb.qdz + j);
   const T dist = load<T>(tb.qdist + j);
-  // gathers, or permutes of small tables (the same values)
+  // gathers, or permutes of small and medium tables (the same values)
   T pdf_point, pick, Le_r, Le_g, Le_b;
-  auto fetch = [&](auto small) {
-    constexpr bool S = decltype(small)::value;
+  with_table_tier(L, [&](auto tier) {
+    constexpr int S = decltype(tier)::value;
     if constexpr ((Kinds & kind_rects) != 0)
       pdf_point = pdf_rectangle_point_sa(est.point, gather_rect_light<S>(L, idx), x, wi, dist);
     else pdf_point = pdf_light_point_sa(est.point, gather_light<S>(L, idx), x, wi, dist);
     gather_pick_radiance<S>(L, idx, pick, Le_r, Le_g, Le_b);
-  };
-  if (L.small) fetch(std::true_type{});
-  else fetch(std::false_type{});
+  });
   const T pdf_l = pick * pdf_point;
   T w(1.f);
   if (est.strategy == Strategy::mis) {

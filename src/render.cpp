@@ -141,19 +141,21 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     for (size_t i = 0; i < n; ++i) p[i] = static_cast<float>(weight[i] / total);
     build_alias(p, v.alias_prob, v.alias_idx);
   }
-  // Tables of at most small_table_size sources are read with permutes of two vector loads
-  // (lookup_small): pad them so that those loads stay inside.
-  if (n > 0 && n <= static_cast<size_t>(small_table_size)) {
+  // Small and medium tables are read with permutes of vector loads (lookup_small,
+  // lookup_medium): pad them to their tier's size so that those loads stay inside.
+  const int tier = table_tier(n);
+  if (n > 0 && tier != tier_gather) {
+    const size_t padded = static_cast<size_t>(tier == tier_small ? small_table_size : medium_table_size);
     for (auto* f : {&v.p0x, &v.p0y, &v.p0z, &v.e1x, &v.e1y, &v.e1z, &v.e2x, &v.e2y, &v.e2z, &v.nx, &v.ny, &v.nz, &v.Lr,
                     &v.Lg, &v.Lb, &v.area, &v.two_sided, &v.len1, &v.len2, &v.inv_len1, &v.inv_len2, &v.rect,
                     &v.pick_pdf, &v.alias_prob})
-      f->resize(small_table_size, 0.f);
-    v.type.resize(small_table_size, 0);
-    v.alias_idx.resize(small_table_size, 0);
+      f->resize(padded, 0.f);
+    v.type.resize(padded, 0);
+    v.alias_idx.resize(padded, 0);
   }
   LightView& L = v.lights;
   L.count = static_cast<int32_t>(n);
-  L.small = n <= static_cast<size_t>(small_table_size);
+  L.tier = tier;
   L.type = v.type.data();
   L.p0x = v.p0x.data(); L.p0y = v.p0y.data(); L.p0z = v.p0z.data();
   L.e1x = v.e1x.data(); L.e1y = v.e1y.data(); L.e1z = v.e1z.data();

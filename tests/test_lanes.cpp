@@ -252,6 +252,7 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
       for (MisMode mode : {MisMode::multi, MisMode::one}) {
         SceneViews views = build_views(s, pick);
         ASSERT_TRUE(views.all_rects);
+        ASSERT_EQ(views.lights.tier, tier_medium);  // 101 sources: permutes of the 128-entry tables
         Estimator est;
         est.pick = pick;
         est.point = point;
@@ -334,6 +335,9 @@ TEST(Lanes, StagesEqualScalar) {
   std::mt19937 rng(3);
   for (LightPick pick : {LightPick::all, LightPick::uniform, LightPick::area, LightPick::power}) {
     SceneViews views = build_views(s, pick);
+    ASSERT_EQ(views.lights.tier, tier_small);
+    // the tables (padded for permutes) read with permutes, then with gathers
+    for (int tier : {tier_small, tier_gather})
     for (LightPoint point : {LightPoint::area, LightPoint::solid_angle})
       for (Strategy strategy : {Strategy::light, Strategy::bsdf, Strategy::mis})
         for (MisMode mode : {MisMode::multi, MisMode::one}) {
@@ -347,7 +351,8 @@ TEST(Lanes, StagesEqualScalar) {
           auto b = std::make_unique<TileBuffers>(*a);
           auto d = std::make_unique<TileBuffers>(*a);
           const int n = 208;  // whole packets
-          auto name = [&] { return describe(est); };
+          views.lights.tier = tier;
+          auto name = [&] { return describe(est) + " tier " + std::to_string(tier); };
           // light sampling stage
           LightPass pass;
           pass.fixed_light = pick == LightPick::all ? 2 : -1;
@@ -440,6 +445,48 @@ TEST(Lanes, StagesEqualScalar) {
           expect_same_floats(a->wb, b->wb, n, name);
         }
   }
+}
+
+// Table lookups by permutes (small: 32 entries, medium: 128) and by gathers give every
+// lane the table's entry.
+TEST(Lanes, TableLookupsEqualScalar) {
+  std::mt19937 rng(9);
+  alignas(64) float tf[medium_table_size];
+  alignas(64) int32_t ti[medium_table_size];
+  for (int e = 0; e < medium_table_size; ++e) {
+    tf[e] = static_cast<float>(rng()) * 0x1p-20f - 1000.f;
+    ti[e] = static_cast<int32_t>(rng());
+  }
+  alignas(64) int32_t idx[simd_width];
+  alignas(64) float of[simd_width];
+  alignas(64) int32_t oi[simd_width];
+  for (int trial = 0; trial < 2000; ++trial) {
+    for (int tier : {tier_small, tier_medium, tier_gather}) {
+      const int size = tier == tier_small ? small_table_size : medium_table_size;
+      for (int l = 0; l < simd_width; ++l)  // every entry in turn, then random ones
+        idx[l] = trial * simd_width + l < size ? trial * simd_width + l : static_cast<int32_t>(rng() % size);
+      const vint i = vint::load_aligned(idx);
+      if (tier == tier_small) {
+        store(of, lget<tier_small>(tf, i));
+        store(oi, lget<tier_small>(ti, i));
+      } else if (tier == tier_medium) {
+        store(of, lget<tier_medium>(tf, i));
+        store(oi, lget<tier_medium>(ti, i));
+      } else {
+        store(of, lget<tier_gather>(tf, i));
+        store(oi, lget<tier_gather>(ti, i));
+      }
+      for (int l = 0; l < simd_width; ++l) {
+        ASSERT_EQ(of[l], tf[idx[l]]) << "tier " << tier << " index " << idx[l];
+        ASSERT_EQ(oi[l], ti[idx[l]]) << "tier " << tier << " index " << idx[l];
+      }
+    }
+  }
+  EXPECT_EQ(table_tier(1), tier_small);
+  EXPECT_EQ(table_tier(32), tier_small);
+  EXPECT_EQ(table_tier(33), tier_medium);
+  EXPECT_EQ(table_tier(128), tier_medium);
+  EXPECT_EQ(table_tier(129), tier_gather);
 }
 
 TEST(Lanes, CameraRays) {
