@@ -68,19 +68,21 @@ inline int32_t light_of_hit(const GeomView& G, uint32_t geom, uint32_t prim) {
 
 // Whether a ray from o travelling along d sees the emitting side of light l: one-sided
 // planar sources emit on the side of their normal, spheres outwards (a ray starting
-// inside a sphere light sees no emission, as in pbrt).
-template <class T, int Tier = tier_gather>
+// inside a sphere light sees no emission, as in pbrt). Spheres: false when no source is a
+// sphere (the planar test alone, the same answer).
+template <class T, bool Spheres = true, int Tier = tier_gather>
 inline mask_t<T> light_front_lanes(const LightView& L, const i32_t<T>& l, const Vec3<T>& o, const Vec3<T>& d) {
   if constexpr (Tier == tier_gather && !std::is_same_v<T, float>) {  // permutes of small and medium tables
-    if (L.tier == tier_small) return light_front_lanes<T, tier_small>(L, l, o, d);
-    if (L.tier == tier_medium) return light_front_lanes<T, tier_medium>(L, l, o, d);
+    if (L.tier == tier_small) return light_front_lanes<T, Spheres, tier_small>(L, l, o, d);
+    if (L.tier == tier_medium) return light_front_lanes<T, Spheres, tier_medium>(L, l, o, d);
   }
+  const auto front = lget<Tier>(L.two_sided, l) > T(0.f) ||
+                     dot(d, Vec3<T>{lget<Tier>(L.nx, l), lget<Tier>(L.ny, l), lget<Tier>(L.nz, l)}) < T(0.f);
+  if constexpr (!Spheres) return front;
   const Vec3<T> c = o - Vec3<T>{lget<Tier>(L.p0x, l), lget<Tier>(L.p0y, l), lget<Tier>(L.p0z, l)};
   const T r = lget<Tier>(L.e1x, l);
   const auto sphere = f_mask_from_i(lget<Tier>(L.type, l) == i32_t<T>(lt_sphere));
   const auto outside = dot(c, c) > r * r;
-  const auto front = lget<Tier>(L.two_sided, l) > T(0.f) ||
-                     dot(d, Vec3<T>{lget<Tier>(L.nx, l), lget<Tier>(L.ny, l), lget<Tier>(L.nz, l)}) < T(0.f);
   return sel_mask(sphere, outside, front);
 }
 inline bool light_front(const LightView& L, int32_t l, float ox, float oy, float oz, float dx, float dy, float dz) {

@@ -49,7 +49,8 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
 // Lanes [k, k + width) of the bounce packets: the rays that hit the front of an emitter
 // join the hit queue at nq, in lane order (compress stores; nq is advanced). vis: whether
 // the queue keeps what the visibility rays need (bounce rays traced against the emitters).
-template <class T>
+// Kinds with kind_rects: no source is a sphere.
+template <class T, unsigned Kinds = kind_all>
 TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int k, int& nq, bool vis) {
   const RayHit16& r = tb.bounce[k / packet_width];
   const int l = k % packet_width;
@@ -68,7 +69,7 @@ TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView
   const i32_t<T> li = max(light, i32_t<T>(0));
   const Vec3<T> o = load3<T>(r.ray.org_x + l, r.ray.org_y + l, r.ray.org_z + l);
   const Vec3<T> d = load3<T>(r.ray.dir_x + l, r.ray.dir_y + l, r.ray.dir_z + l);
-  const uint32_t keep = lane_bits(lit && light_front_lanes<T>(L, li, o, d));
+  const uint32_t keep = lane_bits(lit && light_front_lanes<T, (Kinds & kind_rects) == 0>(L, li, o, d));
   if (!keep) return;
   const Vec3<T> n = load3<T>(tb.nx + k, tb.ny + k, tb.nz + k);
   compress_store(tb.qx + nq, load<T>(tb.px + k), keep);
@@ -99,12 +100,12 @@ TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView
 // Queues the bounce rays that hit the front of an emitter (tb.queue_count entries, all
 // visible until bounce_visibility says otherwise). T = float: the scalar reference. vis as
 // for queue_emitter_lanes.
-template <class T = vfloat>
+template <class T = vfloat, unsigned Kinds = kind_all>
 inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers& tb, bool vis = true) {
   int nq = 0;
   // padding lanes past shade_count are never valid (sample_cosine)
   const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
-  for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T>(G, L, tb, k, nq, vis);
+  for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T, Kinds>(G, L, tb, k, nq, vis);
   tb.queue_count = nq;
   const int qpadded = (nq + packet_width - 1) / packet_width * packet_width;
   for (int j = nq; j < qpadded; ++j) {  // padding: a valid light index, no contribution
@@ -178,11 +179,11 @@ inline void weight_queue(const LightView& L, const Estimator& est, float n_light
 
 // Queues the bounce rays that hit the front of an emitter, weights them, adds them
 // (bounce rays traced against the whole scene: every queued emitter is visible).
-template <class T = vfloat>
+template <class T = vfloat, unsigned Kinds = kind_all>
 inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator& est, float n_light, float n_bsdf,
                           TileBuffers& tb) {
-  queue_bounce_hits<T>(G, L, tb);
-  weight_queue(L, est, n_light, n_bsdf, tb);
+  queue_bounce_hits<T, Kinds>(G, L, tb);
+  weight_queue<Kinds>(L, est, n_light, n_bsdf, tb);
 }
 
 }  // namespace tuile

@@ -484,7 +484,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
             tb.rays_bounce += static_cast<uint64_t>(active);
           }
           timer.lap(Stage::intersect_bounce);
-          queue_bounce_hits(v.geom, v.lights, tb, c.bounce_emitters);
+          queue_bounce_hits<vfloat, Kinds>(v.geom, v.lights, tb, c.bounce_emitters);
           if (c.bounce_emitters && tb.queue_count > 0) {
             const int qpackets = bounce_visibility_rays(tb);
             timer.lap(Stage::mis_weight);

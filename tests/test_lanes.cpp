@@ -718,10 +718,15 @@ TEST(Lanes, CachedKeysWhereEveryLaneHits) {
 // The MIS weight stage on traced bounce rays: the SIMD emitter queue (gathers of the
 // triangle and sphere light tables, front test, compress stores) and the radiance it adds
 // equal the scalar reference, with rays that miss, hit plain surfaces, hit emitters from
-// behind and from the front, triangles, parallelograms and the sphere.
+// behind and from the front, triangles, parallelograms and the sphere; and on two-panels
+// (rectangles only) the rectangle pipeline's queue (no sphere tests) against the scalar
+// general one.
 TEST(Lanes, EmitterQueueEqualScalar) {
-  Scene s = all_lights_scene(true);
+  for (bool rects : {false, true}) {
+  Scene s = rects ? builtin_scene("two-panels") : all_lights_scene(true);
+  if (rects) finalize_scene(s);
   SceneViews views = build_views(s, LightPick::power);
+  ASSERT_EQ(views.all_rects, rects);
   Accel accel(s);
   std::mt19937 rng(5);
   int queued = 0;
@@ -743,9 +748,10 @@ TEST(Lanes, EmitterQueueEqualScalar) {
       std::fill_n(a->Sg, max_tile_lanes, 0.f);
       std::fill_n(a->Sb, max_tile_lanes, 0.f);
       auto b = std::make_unique<TileBuffers>(*a);
-      weight_bounce<vfloat>(views.geom, views.lights, est, 1.f, 1.f, *a);
+      if (rects) weight_bounce<vfloat, kind_area | kind_rects>(views.geom, views.lights, est, 1.f, 1.f, *a);
+      else weight_bounce<vfloat>(views.geom, views.lights, est, 1.f, 1.f, *a);
       weight_bounce<float>(views.geom, views.lights, est, 1.f, 1.f, *b);
-      auto name = [&] { return describe(est) + " count " + std::to_string(count); };
+      auto name = [&] { return describe(est) + " count " + std::to_string(count) + (rects ? " rects" : ""); };
       ASSERT_EQ(a->queue_count, b->queue_count) << name();
       const int nq = a->queue_count;
       queued += nq;
@@ -773,6 +779,7 @@ TEST(Lanes, EmitterQueueEqualScalar) {
       EXPECT_EQ(nq, expected) << name();
     }
   EXPECT_GT(queued, 20);
+  }
 }
 
 // Film accumulation into the tile's double sums, with non-finite samples and padding.
