@@ -588,7 +588,7 @@ TEST(Lanes, CameraHitsEqualScalar) {
       const int n = a->shade_count, padded = (n + packet_width - 1) / packet_width * packet_width;
       const struct {
         const char* what;
-        float (TileBuffers::*arr)[max_tile_lanes];
+        float (TileBuffers::*arr)[lane_array];
       } arrays[] = {{"px", &TileBuffers::px}, {"py", &TileBuffers::py}, {"pz", &TileBuffers::pz},
                     {"nx", &TileBuffers::nx}, {"ny", &TileBuffers::ny}, {"nz", &TileBuffers::nz},
                     {"eps", &TileBuffers::eps}, {"ar", &TileBuffers::ar}, {"ag", &TileBuffers::ag},
