@@ -56,6 +56,12 @@ template <class T> TUILE_FLATTEN inline void accumulate_lanes(TileBuffers& tb, i
   // plus what the techniques added to the lanes' shading points: camera_hits compacted
   // them in lane order, so an expand reads them back
   const uint32_t shaded = lane_bits(f_mask_from_i(load_i32<T>(tb.shade_of + i) >= i32_t<T>(0)));
+  // A batch without shading points and without emission (camera rays that all missed):
+  // it would add +0 to every sum and leave every maximum, so it is skipped, with the same
+  // bits. (Lanes without a shading point have no MIS weight either; tested all the same.)
+  if (!shaded && !any((r != T(0.f)) || (g != T(0.f)) || (b != T(0.f))) &&
+      !(aov && any((load<T>(tb.wsum + i) != T(0.f)) || (load<T>(tb.wcnt + i) != T(0.f)))))
+    return;
   if (shaded) {
     const int32_t first = tb.shade_of[i + std::countr_zero(shaded)];
     r = r + expand_load<T>(tb.Sr + first, shaded);

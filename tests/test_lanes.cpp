@@ -822,6 +822,55 @@ TEST(Lanes, AccumulateEqualScalar) {
   }
 }
 
+// Batches whose lanes have no shading point and no emission (camera rays that missed) are
+// skipped; the sums, squares, weights and maxima are those of adding every lane.
+TEST(Lanes, AccumulateSkipsEmptyBatchesExactly) {
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<float> U(0.f, 4.f);
+  for (bool aov : {false, true}) {
+    auto a = std::make_unique<TileBuffers>();
+    const int lanes = 200;
+    clear_tile_sums(*a, lanes);
+    std::vector<double> sr(lanes, 0.0), srr(lanes, 0.0), sw(lanes, 0.0), swc(lanes, 0.0);
+    std::vector<float> mx(lanes, 0.f);
+    for (int pass = 0; pass < 6; ++pass) {
+      for (int i = 0, k = 0; i < 256; ++i) {
+        // batch kinds by batch and pass: empty; empty but for emission or a weight; shaded
+        const int kind = (i / simd_width + pass) % 4;
+        const bool shaded = kind == 3 && rng() % 3 != 0;
+        a->shade_of[i] = shaded ? k++ : -1;
+        a->Lr[i] = kind == 1 && i % 5 == 0 ? U(rng) : 0.f;
+        a->Lg[i] = a->Lb[i] = 0.f;
+        a->wsum[i] = kind == 2 && i % 7 == 0 ? U(rng) : 0.f;
+        a->wcnt[i] = a->wsum[i] > 0.f ? 1.f : 0.f;
+        if (shaded) {
+          a->Sr[a->shade_of[i]] = U(rng);
+          a->Sg[a->shade_of[i]] = a->Sb[a->shade_of[i]] = 0.f;
+        }
+      }
+      for (int i = 0; i < lanes; ++i) {  // the reference: every lane added
+        const float r = a->Lr[i] + (a->shade_of[i] >= 0 ? a->Sr[a->shade_of[i]] : 0.f);
+        sr[i] += static_cast<double>(r);
+        srr[i] += static_cast<double>(r) * static_cast<double>(r);
+        if (aov) {
+          sw[i] += static_cast<double>(a->wsum[i]);
+          swc[i] += static_cast<double>(a->wcnt[i]);
+        }
+        mx[i] = std::max(mx[i], luminance(r, 0.f, 0.f));
+      }
+      accumulate_samples<vfloat>(*a, lanes, aov);
+    }
+    for (int i = 0; i < lanes; ++i) {
+      ASSERT_EQ(a->acc_r[i], sr[i]) << "lane " << i;
+      ASSERT_EQ(a->acc_rr[i], srr[i]) << "lane " << i;
+      ASSERT_EQ(a->acc_g[i], 0.0) << "lane " << i;
+      ASSERT_EQ(a->acc_w[i], aov ? sw[i] : 0.0) << "lane " << i;
+      ASSERT_EQ(a->acc_wc[i], aov ? swc[i] : 0.0) << "lane " << i;
+      ASSERT_EQ(a->acc_max[i], mx[i]) << "lane " << i;
+    }
+  }
+}
+
 // rcp_nr / rsqrt_nr (hardware estimate + one Newton step): within 2 ulps of the correctly
 // rounded 1/x and 1/sqrt(x) from the smallest normal float to 1e37, and every SIMD lane
 // equal to the scalar function.
