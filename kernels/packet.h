@@ -35,6 +35,15 @@ template <class P, class T> inline void store_field(P* packets, float (P::*field
     store_field(packets, field, k + lane_traits<T>::width / 2, v.b);
   }
 }
+// The same for a ray field of an array of hit packets (e.g. &Ray16::dir_x of tb.bounce).
+template <class T> inline void store_field(RayHit16* packets, float (Ray16::*field)[16], int k, const T& v) noexcept {
+  if constexpr (std::is_same_v<T, float>) (packets[k / packet_width].ray.*field)[k % packet_width] = v;
+  else if constexpr (lane_traits<T>::width <= packet_width) store((packets[k / packet_width].ray.*field) + k % packet_width, v);
+  else {
+    store_field(packets, field, k, v.a);
+    store_field(packets, field, k + lane_traits<T>::width / 2, v.b);
+  }
+}
 
 // The fields of a packet that stay the same for every query: every ray starts at t = 0 at
 // time 0, enabled, with no id and no flags. Embree only reads them, so TileBuffers sets

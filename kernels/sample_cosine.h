@@ -20,19 +20,22 @@ template <class T> TUILE_FLATTEN inline void sample_cosine_lanes(const Estimator
   make_basis(n, t, b);
   const Vec3<T> d = normalize(t * local.x + b * local.y + n * local.z);
   const auto ok = active && local.z > T(0.f);
-  RayHit16& r = tb.bounce[k / packet_width];
-  const int l = k % packet_width;
-  store3(r.ray.org_x + l, r.ray.org_y + l, r.ray.org_z + l, x + n * eps);
-  store3(r.ray.dir_x + l, r.ray.dir_y + l, r.ray.dir_z + l, d);
-  store(r.ray.tfar + l, T(3.0e38f));
-  if constexpr (std::is_same_v<T, float>) tb.valid[k] = ok ? -1 : 0;
-  else xsimd::select(i_mask_from_f(ok), vint(-1), vint(0)).store_unaligned(tb.valid + k);
+  const Vec3<T> org = x + n * eps;
+  store_field(tb.bounce, &Ray16::org_x, k, org.x);
+  store_field(tb.bounce, &Ray16::org_y, k, org.y);
+  store_field(tb.bounce, &Ray16::org_z, k, org.z);
+  store_field(tb.bounce, &Ray16::dir_x, k, d.x);
+  store_field(tb.bounce, &Ray16::dir_y, k, d.y);
+  store_field(tb.bounce, &Ray16::dir_z, k, d.z);
+  store_field(tb.bounce, &Ray16::tfar, k, T(3.0e38f));
+  store_valid(tb.valid + k, ok);
 }
 
 inline void sample_cosine(const Estimator& est, uint32_t sample, uint32_t pair, TileBuffers& tb) {
   const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
   point_pairs(est, tb, sample, pair, padded, tb.u0, tb.u1);
   int k = 0;
+  for (; k + 2 * simd_width <= padded; k += 2 * simd_width) sample_cosine_lanes<vfloat2>(est, tb, k);
   for (; k < padded; k += simd_width) sample_cosine_lanes<vfloat>(est, tb, k);
   for (int p = 0; p < padded / packet_width; ++p) reset_hit(tb.bounce[p]);
 }

@@ -409,15 +409,26 @@ TEST(Lanes, StagesEqualScalar) {
             const bool lit = a->valid[k] && k % 3 != 0;
             ASSERT_EQ(a->Sr[k], lit ? 0.25f + a->cr[k] : 0.25f) << name() << " lane " << k;
           }
-          // cosine stage
+          // cosine stage: one batch at a time, two at a time (vfloat2, as the stage runs
+          // them), and the scalar reference
+          auto d2 = std::make_unique<TileBuffers>(*a);
           for (int k = 0; k < n; k += simd_width) sample_cosine_lanes<vfloat>(est, *a, k);
           for (int k = 0; k < n; ++k) sample_cosine_lanes<float>(est, *b, k);
-          for (int p = 0; p < n / packet_width; ++p)
-            for (int l = 0; l < packet_width; ++l) {
-              ASSERT_EQ(a->bounce[p].ray.dir_x[l], b->bounce[p].ray.dir_x[l]);
-              ASSERT_EQ(a->bounce[p].ray.dir_z[l], b->bounce[p].ray.dir_z[l]);
-              ASSERT_EQ(a->bounce[p].ray.org_y[l], b->bounce[p].ray.org_y[l]);
-            }
+          {
+            int k = 0;
+            for (; k + 2 * simd_width <= n; k += 2 * simd_width) sample_cosine_lanes<vfloat2>(est, *d2, k);
+            for (; k < n; k += simd_width) sample_cosine_lanes<vfloat>(est, *d2, k);
+          }
+          for (const TileBuffers* t : {a.get(), d2.get()})
+            for (int p = 0; p < n / packet_width; ++p)
+              for (int l = 0; l < packet_width; ++l) {
+                const int k = p * packet_width + l;
+                ASSERT_EQ(t->valid[k], b->valid[k]) << name() << " lane " << k;
+                const Ray16 &ra = t->bounce[p].ray, &rb = b->bounce[p].ray;
+                for (auto f : {&Ray16::org_x, &Ray16::org_y, &Ray16::org_z, &Ray16::dir_x, &Ray16::dir_y,
+                               &Ray16::dir_z, &Ray16::tfar})
+                  ASSERT_TRUE(std::memcmp(&(ra.*f)[l], &(rb.*f)[l], sizeof(float)) == 0) << name() << " lane " << k;
+              }
           // MIS weight stage on a synthetic queue of hits of every area light
           a->queue_count = b->queue_count = n - 5;
           for (int k = 0; k < n; ++k) {
