@@ -25,20 +25,15 @@ struct alignas(64) RayHit16 {
   uint32_t primID[16], geomID[16], instID[1][16];
 };
 
-// Stores lanes [k, k + width) of one field (e.g. &Ray16::org_x) of an array of packets,
+// A ray field (e.g. &Ray16::org_x) of a ray packet or of a hit packet's ray.
+inline float* field_of(Ray16& p, float (Ray16::*f)[16]) noexcept { return p.*f; }
+inline float* field_of(RayHit16& p, float (Ray16::*f)[16]) noexcept { return p.ray.*f; }
+
+// Stores lanes [k, k + width) of one ray field of an array of packets (Ray16 or RayHit16),
 // packet k / 16 at lane k % 16; a lane type wider than a packet continues into the next.
-template <class P, class T> inline void store_field(P* packets, float (P::*field)[16], int k, const T& v) noexcept {
-  if constexpr (std::is_same_v<T, float>) (packets[k / packet_width].*field)[k % packet_width] = v;
-  else if constexpr (lane_traits<T>::width <= packet_width) store((packets[k / packet_width].*field) + k % packet_width, v);
-  else {
-    store_field(packets, field, k, v.a);
-    store_field(packets, field, k + lane_traits<T>::width / 2, v.b);
-  }
-}
-// The same for a ray field of an array of hit packets (e.g. &Ray16::dir_x of tb.bounce).
-template <class T> inline void store_field(RayHit16* packets, float (Ray16::*field)[16], int k, const T& v) noexcept {
-  if constexpr (std::is_same_v<T, float>) (packets[k / packet_width].ray.*field)[k % packet_width] = v;
-  else if constexpr (lane_traits<T>::width <= packet_width) store((packets[k / packet_width].ray.*field) + k % packet_width, v);
+template <class P, class T> inline void store_field(P* packets, float (Ray16::*field)[16], int k, const T& v) noexcept {
+  if constexpr (std::is_same_v<T, float>) field_of(packets[k / packet_width], field)[k % packet_width] = v;
+  else if constexpr (lane_traits<T>::width <= packet_width) store(field_of(packets[k / packet_width], field) + k % packet_width, v);
   else {
     store_field(packets, field, k, v.a);
     store_field(packets, field, k + lane_traits<T>::width / 2, v.b);

@@ -20,14 +20,7 @@ template <class T> TUILE_FLATTEN inline void sample_cosine_lanes(const Estimator
   make_basis(n, t, b);
   const Vec3<T> d = normalize(t * local.x + b * local.y + n * local.z);
   const auto ok = active && local.z > T(0.f);
-  const Vec3<T> org = x + n * eps;
-  store_field(tb.bounce, &Ray16::org_x, k, org.x);
-  store_field(tb.bounce, &Ray16::org_y, k, org.y);
-  store_field(tb.bounce, &Ray16::org_z, k, org.z);
-  store_field(tb.bounce, &Ray16::dir_x, k, d.x);
-  store_field(tb.bounce, &Ray16::dir_y, k, d.y);
-  store_field(tb.bounce, &Ray16::dir_z, k, d.z);
-  store_field(tb.bounce, &Ray16::tfar, k, T(3.0e38f));
+  store_rays(tb.bounce, k, x + n * eps, d, T(3.0e38f));
   store_valid(tb.valid + k, ok);
 }
 

@@ -119,13 +119,7 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   const auto ray_ok = is_finite(((dir.x + dir.y) + (dir.z + tfar)) + ((org.x + org.y) + org.z));
   if (any(live && !ray_ok)) tb.rejected_light += static_cast<uint64_t>(count(live && !ray_ok));
   live = live && ray_ok;
-  store_field(tb.shadow, &Ray16::org_x, k, org.x);
-  store_field(tb.shadow, &Ray16::org_y, k, org.y);
-  store_field(tb.shadow, &Ray16::org_z, k, org.z);
-  store_field(tb.shadow, &Ray16::dir_x, k, dir.x);
-  store_field(tb.shadow, &Ray16::dir_y, k, dir.y);
-  store_field(tb.shadow, &Ray16::dir_z, k, dir.z);
-  store_field(tb.shadow, &Ray16::tfar, k, tfar);
+  store_rays(tb.shadow, k, org, dir, tfar);
   store_valid(tb.valid + k, live);
 }
 

@@ -179,6 +179,19 @@ inline void point_pairs(const Estimator& est, TileBuffers& tb, uint32_t sample, 
   else sample_pairs(est.sampler, est.seed, tb.spix, sample, est.spp, pair, count, u, v);
 }
 
+// Stores lanes [k, k + width) of rays (origin, direction, tfar) into an array of packets
+// (Ray16 or RayHit16), packet k / 16 at lane k % 16, as store_field.
+template <class P, class T>
+inline void store_rays(P* packets, int k, const Vec3<T>& org, const Vec3<T>& dir, const T& tfar) noexcept {
+  store_field(packets, &Ray16::org_x, k, org.x);
+  store_field(packets, &Ray16::org_y, k, org.y);
+  store_field(packets, &Ray16::org_z, k, org.z);
+  store_field(packets, &Ray16::dir_x, k, dir.x);
+  store_field(packets, &Ray16::dir_y, k, dir.y);
+  store_field(packets, &Ray16::dir_z, k, dir.z);
+  store_field(packets, &Ray16::tfar, k, tfar);
+}
+
 // pbrt-v4's gamma(n) = n u / (1 - n u), u = 2^-24: bounds on floating-point error.
 inline constexpr float gamma_err(int n) { return (static_cast<float>(n) * 0x1p-24f) / (1 - static_cast<float>(n) * 0x1p-24f); }
 
