@@ -302,6 +302,7 @@ struct TileContext {
   int light_passes, bsdf_passes, S;
   float n_light, n_bsdf;
   bool bounce_emitters;   // bounce rays against the emitters, then visibility rays
+  bool fresh_film;        // the film held no samples (zeros) when the render began
   Profile* profile;       // null when not profiling
   uint64_t origin_ticks;
 };
@@ -511,22 +512,10 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   // bits of adding sample by sample; a film that already holds samples (progressive
   // renders) gets its old sum plus this render's partial sum: other rounding than adding
   // one sample at a time, equally deterministic.
-  for (int i = 0; i < lanes; ++i) {
-    const size_t pix = tb.pixel[i];
-    double* sp = &film.sum[3 * pix];
-    double* sq = &film.sum_sq[3 * pix];
-    sp[0] += tb.acc_r[i];
-    sp[1] += tb.acc_g[i];
-    sp[2] += tb.acc_b[i];
-    sq[0] += tb.acc_rr[i];
-    sq[1] += tb.acc_gg[i];
-    sq[2] += tb.acc_bb[i];
-    if (est.aov_mis_weight) {
-      film.w_sum[pix] += tb.acc_w[i];
-      film.w_cnt[pix] += tb.acc_wc[i];
-    }
-    if (tb.acc_max[i] > film.max_sample[pix]) film.max_sample[pix] = tb.acc_max[i];
-  }
+  const FilmSums fs{film.sum.data(),    film.sum_sq.data(),           film.w_sum.data(), film.w_cnt.data(),
+                    film.max_sample.data(), static_cast<size_t>(c.width)};
+  if (c.fresh_film && blocks && can_stream_tile(x0, tw, th, fs)) stream_tile_to_film(tb, x0, y0, th, fs, est.aov_mis_weight);
+  else add_tile_to_film(tb, lanes, fs, est.aov_mis_weight);
   timer.lap(Stage::accumulate);
 }
 
@@ -731,6 +720,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
                 one ? c_l : static_cast<float>(est.light_samples),
                 one ? 1.f - c_l : static_cast<float>(est.bsdf_samples),
                 bounce_emitters_,
+                film.samples == 0,
                 profile,
                 __rdtsc()};
   std::string why;

@@ -882,6 +882,54 @@ TEST(Lanes, AccumulateSkipsEmptyBatchesExactly) {
   }
 }
 
+// A tile written into a film of zeros with streaming stores (16-pixel rows of 4x4 blocks)
+// equals adding it lane by lane, and touches no other pixel.
+TEST(Lanes, StreamedTileEqualsAddedTile) {
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<float> U(0.f, 4.f);
+  const int width = 64, height = 48;
+  for (int th : {16, 8, 4})
+    for (bool aov : {false, true}) {
+      auto tb = std::make_unique<TileBuffers>();
+      const int x0 = 32, y0 = 16, lanes = 16 * th;
+      // lanes in 4x4 blocks, as run_tile orders them
+      int i = 0;
+      for (int by = y0; by < y0 + th; by += 4)
+        for (int bx = x0; bx < x0 + 16; bx += 4)
+          for (int j = 0; j < 16; ++j)
+            tb->pixel[i++] = static_cast<uint32_t>((by + j / 4) * width + bx + j % 4);
+      for (int k = 0; k < lanes; ++k) {
+        tb->acc_r[k] = U(rng), tb->acc_g[k] = U(rng), tb->acc_b[k] = rng() % 4 ? U(rng) : 0.0;
+        tb->acc_rr[k] = U(rng), tb->acc_gg[k] = U(rng), tb->acc_bb[k] = U(rng);
+        tb->acc_w[k] = U(rng), tb->acc_wc[k] = static_cast<double>(rng() % 5);
+        tb->acc_max[k] = rng() % 3 ? U(rng) : 0.f;
+      }
+      Film a, b;
+      a.reset(width, height);
+      b.reset(width, height);
+      const FilmSums fa{a.sum.data(), a.sum_sq.data(), a.w_sum.data(), a.w_cnt.data(), a.max_sample.data(), size_t(width)};
+      const FilmSums fb{b.sum.data(), b.sum_sq.data(), b.w_sum.data(), b.w_cnt.data(), b.max_sample.data(), size_t(width)};
+      add_tile_to_film(*tb, lanes, fa, aov);
+      if (!can_stream_tile(x0, 16, th, fb)) GTEST_SKIP() << "no AVX-512 in this build: tiles are always added";
+      stream_tile_to_film(*tb, x0, y0, th, fb, aov);
+      ASSERT_EQ(std::memcmp(a.sum.data(), b.sum.data(), a.sum.size() * sizeof(double)), 0) << th << " " << aov;
+      ASSERT_EQ(std::memcmp(a.sum_sq.data(), b.sum_sq.data(), a.sum.size() * sizeof(double)), 0) << th;
+      ASSERT_EQ(std::memcmp(a.w_sum.data(), b.w_sum.data(), a.w_sum.size() * sizeof(double)), 0) << th;
+      ASSERT_EQ(std::memcmp(a.w_cnt.data(), b.w_cnt.data(), a.w_cnt.size() * sizeof(double)), 0) << th;
+      ASSERT_EQ(std::memcmp(a.max_sample.data(), b.max_sample.data(), a.max_sample.size() * sizeof(float)), 0) << th;
+      EXPECT_GT(a.sum[3 * (y0 * width + x0) + 1], 0.0);  // the tile landed where expected
+    }
+  // not streamable: a tile narrower than 16, an x0 or a width that is not a multiple of 16
+  Film f;
+  f.reset(40, 8);
+  const FilmSums ff{f.sum.data(), f.sum_sq.data(), f.w_sum.data(), f.w_cnt.data(), f.max_sample.data(), 40};
+  EXPECT_FALSE(can_stream_tile(0, 16, 8, ff));
+  f.reset(64, 8);
+  const FilmSums fg{f.sum.data(), f.sum_sq.data(), f.w_sum.data(), f.w_cnt.data(), f.max_sample.data(), 64};
+  EXPECT_FALSE(can_stream_tile(8, 16, 8, fg));
+  EXPECT_FALSE(can_stream_tile(0, 12, 8, fg));
+}
+
 // rcp_nr / rsqrt_nr (hardware estimate + one Newton step): within 2 ulps of the correctly
 // rounded 1/x and 1/sqrt(x) from the smallest normal float to 1e37, and every SIMD lane
 // equal to the scalar function.
