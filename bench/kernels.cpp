@@ -103,7 +103,7 @@ template <class T> void BM_rectangle_map(benchmark::State& state) {
     for (int k = 0; k < lanes; k += w) {
       const Vec3<T> x = load3<T>(f.tb->px + k, f.tb->py + k, f.tb->pz + k);
       const SphericalRectangle<T> r =
-          spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
+          spherical_rectangle_setup_unit(x, g.p0, g.ex, g.ey, g.len1, g.len2);
       Vec3<T> d;
       T t;
       sample_spherical_rectangle(r, load<T>(f.tb->u2 + k), load<T>(f.tb->u3 + k), d, t);

@@ -37,6 +37,11 @@ struct LightView {
   // constants of planar sources (light_geom_derive): edge lengths, their inverses, and 1
   // for parallelograms with orthogonal edges (sampled with Urena's map)
   const float *len1 = nullptr, *len2 = nullptr, *inv_len1 = nullptr, *inv_len2 = nullptr, *rect = nullptr;
+  // unit edge directions e1 * inv_len1, e2 * inv_len2 (the same bits light_geom_derive
+  // computes); a rectangle's normal n is cross(ex, ey), so rectangle pipelines read these
+  // six instead of the edges, their inverse lengths and the normal
+  const float *exx = nullptr, *exy = nullptr, *exz = nullptr, *eyx = nullptr, *eyy = nullptr, *eyz = nullptr;
+  bool any_two_sided = true;  // false: every two_sided entry is 0 (rectangle pipelines skip reading it)
   const float* pick_pdf = nullptr;    // probability of picking each source (1 with "all")
   const float* alias_prob = nullptr;  // alias table of pick_pdf
   const int32_t* alias_idx = nullptr;
@@ -81,6 +86,7 @@ template <class T> struct LightGeom {
   Vec3<T> p0, e1, e2, n;
   T area, two_sided;
   T len1, len2, inv_len1, inv_len2, rect;  // light_geom_derive
+  Vec3<T> ex, ey;                          // e1 * inv_len1, e2 * inv_len2 (light_geom_derive)
 };
 
 // The fields every planar source has (gather_light adds the kind, the area and the
@@ -104,17 +110,30 @@ template <int Tier = tier_gather, class I> inline auto gather_light(const LightV
   gather_planar_fields<Tier>(L, idx, g);
   g.area = lget<Tier>(L.area, idx);
   g.rect = lget<Tier>(L.rect, idx);
+  g.ex = g.e1 * g.inv_len1;  // the table's ex, ey bit for bit
+  g.ey = g.e2 * g.inv_len2;
   return g;
 }
 
-// The fields a rectangle source needs (no type or rectangle flag: they are known).
+// The fields a rectangle source needs: its corner, unit edges and edge lengths (and
+// whether it is two-sided, where any source is); its normal is cross(ex, ey) and its area
+// len1 len2, bit for bit the table's (light_geom_derive, build_views). e1, e2 and the
+// inverse lengths are not read: no rectangle path uses them (0 here).
 template <int Tier = tier_gather, class I> inline auto gather_rect_light(const LightView& L, const I& idx) {
   using T = decltype(gather(L.area, idx));
   LightGeom<T> g;
   g.type = i32_t<T>(lt_parallelogram);
-  gather_planar_fields<Tier>(L, idx, g);
-  g.area = g.len1 * g.len2;  // a rectangle's table area (light_geom_derive): no gather
+  g.p0 = {lget<Tier>(L.p0x, idx), lget<Tier>(L.p0y, idx), lget<Tier>(L.p0z, idx)};
+  g.ex = {lget<Tier>(L.exx, idx), lget<Tier>(L.exy, idx), lget<Tier>(L.exz, idx)};
+  g.ey = {lget<Tier>(L.eyx, idx), lget<Tier>(L.eyy, idx), lget<Tier>(L.eyz, idx)};
+  g.len1 = lget<Tier>(L.len1, idx);
+  g.len2 = lget<Tier>(L.len2, idx);
+  g.two_sided = L.any_two_sided ? lget<Tier>(L.two_sided, idx) : T(0.f);
+  g.n = cross(g.ex, g.ey);
+  g.area = g.len1 * g.len2;
   g.rect = T(1.f);
+  g.e1 = g.e2 = Vec3<T>(T(0.f), T(0.f), T(0.f));
+  g.inv_len1 = g.inv_len2 = T(0.f);
   return g;
 }
 
@@ -141,6 +160,8 @@ template <class T> inline LightGeom<T> broadcast_light(const LightView& L, int32
   g.inv_len1 = T(L.inv_len1[i]);
   g.inv_len2 = T(L.inv_len2[i]);
   g.rect = T(L.rect[i]);
+  g.ex = {T(L.exx[i]), T(L.exy[i]), T(L.exz[i])};
+  g.ey = {T(L.eyx[i]), T(L.eyy[i]), T(L.eyz[i])};
   return g;
 }
 
@@ -157,6 +178,8 @@ template <class T> inline void light_geom_derive(LightGeom<T>& g) {
   const mask_t<T> ok = g.len1 > T(0.f) && g.len2 > T(0.f);
   g.inv_len1 = T(1.f) / sel(ok, g.len1, T(1.f));
   g.inv_len2 = T(1.f) / sel(ok, g.len2, T(1.f));
+  g.ex = g.e1 * g.inv_len1;
+  g.ey = g.e2 * g.inv_len2;
   g.rect = sel(type_is<T>(g.type, lt_parallelogram) && parallelogram_is_rectangle(g.e1, g.e2), T(1.f), T(0.f));
   // a rectangle's area is the product of its edge lengths, so the rectangle pipelines
   // derive it instead of reading it
@@ -215,7 +238,7 @@ inline T light_solid_angle(const LightGeom<T>& g, const Vec3<T>& x, mask_t<T>* r
   T omega(0.f);
   if (any(is_tri)) omega = sel(is_tri, spherical_triangle_solid_angle(x, g.p0, g.p0 + g.e1, g.p0 + g.e2), omega);
   if (any(rect)) {
-    const SphericalRectangle<T> r = spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
+    const SphericalRectangle<T> r = spherical_rectangle_setup_unit(x, g.p0, g.ex, g.ey, g.len1, g.len2);
     omega = sel(rect, r.omega, omega);
     if (rect_safe) *rect_safe = rect_solid_angle_safe(r);
   }
@@ -265,7 +288,7 @@ inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T
 template <class T>
 inline T pdf_rectangle_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist) {
   if (mode == LightPoint::area) return finite_or_zero(pdf_area_as_solid_angle(g, x, wi, dist));
-  const SphericalRectangle<T> r = spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
+  const SphericalRectangle<T> r = spherical_rectangle_setup_unit(x, g.p0, g.ex, g.ey, g.len1, g.len2);
   const T omega = r.omega;
   const auto safe = rect_solid_angle_safe(r);
   T pdf = sel(omega > T(0.f), T(1.f) / sel(omega > T(0.f), omega, T(1.f)), T(0.f));
@@ -303,6 +326,12 @@ inline void take_area_point(const LightGeom<T>& g, const Vec3<T>& x, const Vec3<
   valid = sel_mask(by_area, da > T(0.f), valid);
 }
 
+// A point uniform by area on a rectangle, from its unit edges and lengths (what rectangle
+// pipelines read; the general pipeline draws rectangles' points the same way).
+template <class T> inline Vec3<T> rectangle_area_point(const LightGeom<T>& g, T u1, T u2) {
+  return g.p0 + g.ex * (g.len1 * u1) + g.ey * (g.len2 * u2);
+}
+
 // sample_light_point where every lane's source is a rectangle: the same steps and values
 // without the dispatch on the kind of source.
 template <class T>
@@ -316,7 +345,7 @@ inline LightPointSample<T> sample_rectangle_point(LightPoint mode, const LightGe
   auto valid = s.is_delta, use_sa = s.is_delta;
   if (mode == LightPoint::solid_angle) {
     const SphericalRectangle<T> r =
-        spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
+        spherical_rectangle_setup_unit(x, g.p0, g.ex, g.ey, g.len1, g.len2);
     Vec3<T> dir;
     T t_sa;
     const auto ok = sample_spherical_rectangle(r, u1, u2, dir, t_sa);
@@ -328,7 +357,7 @@ inline LightPointSample<T> sample_rectangle_point(LightPoint mode, const LightGe
   }
   const auto by_area = !use_sa;
   if (any(by_area)) {
-    take_area_point(g, x, g.p0 + g.e1 * u1 + g.e2 * u2, by_area, wi, dist, pdf, valid);
+    take_area_point(g, x, rectangle_area_point(g, u1, u2), by_area, wi, dist, pdf, valid);
   }
   s.wi = wi;
   s.dist = dist;
@@ -369,7 +398,7 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
       auto ok = valid, rect_safe = valid;
       if (any(rect)) {
         const SphericalRectangle<T> r =
-            spherical_rectangle_setup(x, g.p0, g.e1, g.e2, g.len1, g.len2, g.inv_len1, g.inv_len2);
+            spherical_rectangle_setup_unit(x, g.p0, g.ex, g.ey, g.len1, g.len2);
         Vec3<T> dr;
         T tr;
         const auto m = sample_spherical_rectangle(r, u1, u2, dr, tr);
@@ -435,7 +464,7 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
         sample_triangle_area(u1, u2, b1, b2);
         y = sel(is_tri, g.p0 + g.e1 * b1 + g.e2 * b2, y);
       }
-      if (any(is_par)) y = sel(is_par, g.p0 + g.e1 * u1 + g.e2 * u2, y);
+      if (any(is_par)) y = sel(is_par, sel(g.rect > T(0.5f), rectangle_area_point(g, u1, u2), g.p0 + g.e1 * u1 + g.e2 * u2), y);
       if (any(is_sph)) y = sel(is_sph, sample_sphere_area(g.p0, g.e1.x, u1, u2), y);
       take_area_point(g, x, y, by_area, wi, dist, pdf, valid);
     }

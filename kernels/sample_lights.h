@@ -93,11 +93,12 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   const auto is_dist = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_distant);
   const auto is_sph = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_sphere);
   const Vec3<T> y = x + s.wi * sel(is_dist, T(0.f), s.dist);
-  // error bound of the light point, per axis (it is p0 + u e1 + v e2, or x + t wi)
+  // error bound of the light point, per axis (it is p0 + u e1 + v e2, or x + t wi), with
+  // |e1| + |e2| bounding every axis's |e1_i| + |e2_i| (a sphere's |e1| is its radius)
   const T g7 = T(gamma_err(7));
-  const Vec3<T> err_y{g7 * (abs(g.p0.x) + abs(g.e1.x) + abs(g.e2.x) + abs(y.x)),
-                      g7 * (abs(g.p0.y) + abs(g.e1.y) + abs(g.e2.y) + abs(y.y)),
-                      g7 * (abs(g.p0.z) + abs(g.e1.z) + abs(g.e2.z) + abs(y.z))};
+  const T edges = g.len1 + g.len2;
+  const Vec3<T> err_y{g7 * (abs(g.p0.x) + edges + abs(y.x)), g7 * (abs(g.p0.y) + edges + abs(y.y)),
+                      g7 * (abs(g.p0.z) + edges + abs(y.z))};
   Vec3<T> ny = sel(dot(g.n, s.wi) > T(0.f), -g.n, g.n);  // planar normal facing x
   if (!rects && any(is_sph)) {  // outward normal; a point at the centre of a tiny sphere falls back to -wi
     const Vec3<T> rel = y - g.p0;

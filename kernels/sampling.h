@@ -354,16 +354,15 @@ template <class T> struct SphericalRectangle {
   mask_t<T> valid;
 };
 
-// Setup with the edge lengths and their inverses given (a source's constants, made once
-// per light by the renderer).
+// Setup from the unit edge directions ex = e1 / |e1|, ey = e2 / |e2| and the edge lengths
+// (a source's constants, made once per light by the renderer).
 template <class T>
-inline SphericalRectangle<T> spherical_rectangle_setup(const Vec3<T>& x, const Vec3<T>& p0, const Vec3<T>& e1,
-                                                       const Vec3<T>& e2, const T& lx, const T& ly, const T& ilx,
-                                                       const T& ily) noexcept {
+inline SphericalRectangle<T> spherical_rectangle_setup_unit(const Vec3<T>& x, const Vec3<T>& p0, const Vec3<T>& ex,
+                                                            const Vec3<T>& ey, const T& lx, const T& ly) noexcept {
   SphericalRectangle<T> r;
   const mask_t<T> ok_e = lx > T(0.f) && ly > T(0.f) && is_finite(lx) && is_finite(ly);
-  r.ex = e1 * ilx;
-  r.ey = e2 * ily;
+  r.ex = ex;
+  r.ey = ey;
   r.ez = cross(r.ex, r.ey);
   const Vec3<T> d = p0 - x;
   const T zd = dot(d, r.ez);
@@ -396,12 +395,14 @@ inline SphericalRectangle<T> spherical_rectangle_setup(const Vec3<T>& x, const V
   return r;
 }
 
+// Setup from the edges themselves.
 template <class T>
 inline SphericalRectangle<T> spherical_rectangle_setup(const Vec3<T>& x, const Vec3<T>& p0, const Vec3<T>& e1,
                                                        const Vec3<T>& e2) noexcept {
   const T lx = length(e1), ly = length(e2);
   const mask_t<T> ok = lx > T(0.f) && ly > T(0.f);
-  return spherical_rectangle_setup(x, p0, e1, e2, lx, ly, T(1.f) / sel(ok, lx, T(1.f)), T(1.f) / sel(ok, ly, T(1.f)));
+  return spherical_rectangle_setup_unit(x, p0, e1 * (T(1.f) / sel(ok, lx, T(1.f))), e2 * (T(1.f) / sel(ok, ly, T(1.f))),
+                                        lx, ly);
 }
 
 template <class T>

@@ -92,16 +92,15 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   SceneViews& v = out;
   const auto& lights = scene.lights;
   const size_t n = lights.size();
+  v.lights.any_two_sided = false;
   for (const Light& l : lights) {
     v.type.push_back(static_cast<int32_t>(l.type));
     v.p0x.push_back(l.p0.x); v.p0y.push_back(l.p0.y); v.p0z.push_back(l.p0.z);
     v.e1x.push_back(l.e1.x); v.e1y.push_back(l.e1.y); v.e1z.push_back(l.e1.z);
     v.e2x.push_back(l.e2.x); v.e2y.push_back(l.e2.y); v.e2z.push_back(l.e2.z);
-    vec3f nn{0, 0, 0};
-    if (l.type == LightType::triangle || l.type == LightType::parallelogram) nn = normalize(cross(l.e1, l.e2));
-    v.nx.push_back(nn.x); v.ny.push_back(nn.y); v.nz.push_back(nn.z);
     v.Lr.push_back(l.radiance.r); v.Lg.push_back(l.radiance.g); v.Lb.push_back(l.radiance.b);
     v.two_sided.push_back(l.two_sided ? 1.f : 0.f);
+    v.lights.any_two_sided = v.lights.any_two_sided || l.two_sided;
     LightGeom<float> g;
     g.type = static_cast<int32_t>(l.type);
     g.e1 = l.e1;
@@ -112,6 +111,14 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     v.len1.push_back(g.len1); v.len2.push_back(g.len2);
     v.inv_len1.push_back(g.inv_len1); v.inv_len2.push_back(g.inv_len2);
     v.rect.push_back(g.rect);
+    v.exx.push_back(g.ex.x); v.exy.push_back(g.ex.y); v.exz.push_back(g.ex.z);
+    v.eyx.push_back(g.ey.x); v.eyy.push_back(g.ey.y); v.eyz.push_back(g.ey.z);
+    // the emitting side's unit normal; a rectangle's is cross(ex, ey), which rectangle
+    // pipelines compute from the unit edges instead of reading it (the same bits)
+    vec3f nn{0, 0, 0};
+    if (g.rect > 0.5f) nn = cross(g.ex, g.ey);
+    else if (l.type == LightType::triangle || l.type == LightType::parallelogram) nn = normalize(cross(l.e1, l.e2));
+    v.nx.push_back(nn.x); v.ny.push_back(nn.y); v.nz.push_back(nn.z);
     (is_delta(l.type) ? v.has_delta : v.has_area) = true;
     v.all_rects = v.all_rects && l.type == LightType::parallelogram && g.rect > 0.5f;
   }
@@ -148,6 +155,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     const size_t padded = static_cast<size_t>(tier == tier_small ? small_table_size : medium_table_size);
     for (auto* f : {&v.p0x, &v.p0y, &v.p0z, &v.e1x, &v.e1y, &v.e1z, &v.e2x, &v.e2y, &v.e2z, &v.nx, &v.ny, &v.nz, &v.Lr,
                     &v.Lg, &v.Lb, &v.area, &v.two_sided, &v.len1, &v.len2, &v.inv_len1, &v.inv_len2, &v.rect,
+                    &v.exx, &v.exy, &v.exz, &v.eyx, &v.eyy, &v.eyz,
                     &v.pick_pdf, &v.alias_prob})
       f->resize(padded, 0.f);
     v.type.resize(padded, 0);
@@ -167,6 +175,8 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   L.len1 = v.len1.data(); L.len2 = v.len2.data();
   L.inv_len1 = v.inv_len1.data(); L.inv_len2 = v.inv_len2.data();
   L.rect = v.rect.data();
+  L.exx = v.exx.data(); L.exy = v.exy.data(); L.exz = v.exz.data();
+  L.eyx = v.eyx.data(); L.eyy = v.eyy.data(); L.eyz = v.eyz.data();
   L.pick_pdf = v.pick_pdf.data();
   L.alias_prob = v.alias_prob.data();
   L.alias_idx = v.alias_idx.data();

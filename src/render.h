@@ -146,7 +146,7 @@ struct SceneViews {
   SceneViews(SceneViews&&) = default;
   SceneViews& operator=(SceneViews&&) = default;
   std::vector<float> p0x, p0y, p0z, e1x, e1y, e1z, e2x, e2y, e2z, nx, ny, nz, Lr, Lg, Lb, area, two_sided;
-  std::vector<float> len1, len2, inv_len1, inv_len2, rect;
+  std::vector<float> len1, len2, inv_len1, inv_len2, rect, exx, exy, exz, eyx, eyy, eyz;
   std::vector<float> pick_pdf, alias_prob;
   std::vector<int32_t> alias_idx;
   LightView lights;
