@@ -241,17 +241,22 @@ TEST(Lanes, SamplerBitHelpersEqualScalar) {
 }
 
 // The light and MIS weight stages of rectangle-only scenes (kind_rects: no dispatch on the
-// kind of source) equal the general stages and their own scalar reference, lane for lane.
+// kind of source) equal the general stages and their own scalar reference, lane for lane,
+// with one-sided sources (two_sided is not read) and two-sided ones.
 TEST(Lanes, RectangleStagesEqualGeneral) {
-  Scene s = builtin_scene("two-panels");
-  finalize_scene(s);
   std::mt19937 rng(5);
   constexpr unsigned R = kind_area | kind_rects;
+  for (bool two_sided : {false, true})
   for (LightPick pick : {LightPick::all, LightPick::power})
     for (LightPoint point : {LightPoint::area, LightPoint::solid_angle})
       for (MisMode mode : {MisMode::multi, MisMode::one}) {
+        Scene s = builtin_scene("two-panels");
+        for (Mesh& m : s.meshes)
+          if (m.emissive()) m.two_sided = two_sided;
+        finalize_scene(s);
         SceneViews views = build_views(s, pick);
         ASSERT_TRUE(views.all_rects);
+        ASSERT_EQ(views.lights.any_two_sided, two_sided);
         ASSERT_EQ(views.lights.tier, tier_medium);  // 101 sources: permutes of the 128-entry tables
         Estimator est;
         est.pick = pick;
@@ -259,11 +264,17 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
         est.mode = mode;
         auto a = std::make_unique<TileBuffers>();
         fill_shading_points(*a, rng, 200);
-        for (int k = 0; k < max_tile_lanes; ++k) a->py[k] *= 0.8f;  // some points in the sources' plane
+        for (int k = 0; k < max_tile_lanes; ++k) {
+          a->py[k] *= 0.8f;  // some points in the sources' plane
+          if (two_sided && k % 3 == 0) {  // some points above the sources, facing their backs
+            a->py[k] = 1.6f;
+            a->ny[k] = -std::abs(a->ny[k]);
+          }
+        }
         auto b = std::make_unique<TileBuffers>(*a), c = std::make_unique<TileBuffers>(*a),
              d = std::make_unique<TileBuffers>(*a);
         const int n = 208;
-        auto name = [&] { return describe(est); };
+        auto name = [&] { return describe(est) + (two_sided ? " two-sided" : ""); };
         LightPass pass;
         pass.fixed_light = pick == LightPick::all ? 37 : -1;
         const bool fixed = pass.fixed_light >= 0;
