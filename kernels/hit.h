@@ -180,9 +180,11 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
       const auto emit = lit && light_front_lanes<T>(L, li, o, d);
       with_table_tier(L, [&](auto tier) {
         constexpr int S = decltype(tier)::value;
-        store(tb.Lr + i, sel(emit, load<T>(tb.Lr + i) + lget<S>(L.Lr, li), load<T>(tb.Lr + i)));
-        store(tb.Lg + i, sel(emit, load<T>(tb.Lg + i) + lget<S>(L.Lg, li), load<T>(tb.Lg + i)));
-        store(tb.Lb + i, sel(emit, load<T>(tb.Lb + i) + lget<S>(L.Lb, li), load<T>(tb.Lb + i)));
+        T Le_r, Le_g, Le_b;
+        lookup_radiance<S>(L, li, Le_r, Le_g, Le_b);
+        store(tb.Lr + i, sel(emit, load<T>(tb.Lr + i) + Le_r, load<T>(tb.Lr + i)));
+        store(tb.Lg + i, sel(emit, load<T>(tb.Lg + i) + Le_g, load<T>(tb.Lg + i)));
+        store(tb.Lb + i, sel(emit, load<T>(tb.Lb + i) + Le_b, load<T>(tb.Lb + i)));
       });
     }
   }

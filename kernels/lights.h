@@ -42,6 +42,7 @@ struct LightView {
   // six instead of the edges, their inverse lengths and the normal
   const float *exx = nullptr, *exy = nullptr, *exz = nullptr, *eyx = nullptr, *eyy = nullptr, *eyz = nullptr;
   bool any_two_sided = true;  // false: every two_sided entry is 0 (rectangle pipelines skip reading it)
+  bool one_radiance = false;  // every source has the radiance of source 0 (broadcast, not read per lane)
   const float* pick_pdf = nullptr;    // probability of picking each source (1 with "all")
   const float* alias_prob = nullptr;  // alias table of pick_pdf
   const int32_t* alias_idx = nullptr;
@@ -137,13 +138,24 @@ template <int Tier = tier_gather, class I> inline auto gather_rect_light(const L
   return g;
 }
 
+// A source's radiance per lane (source 0's where every source has the same).
+template <int Tier, class I, class T> inline void lookup_radiance(const LightView& L, const I& idx, T& r, T& g, T& b) {
+  if (L.one_radiance) {
+    r = T(L.Lr[0]);
+    g = T(L.Lg[0]);
+    b = T(L.Lb[0]);
+    return;
+  }
+  r = lget<Tier>(L.Lr, idx);
+  g = lget<Tier>(L.Lg, idx);
+  b = lget<Tier>(L.Lb, idx);
+}
+
 // A source's pick probability and radiance per lane.
 template <int Tier, class I, class T>
 inline void gather_pick_radiance(const LightView& L, const I& idx, T& pick, T& r, T& g, T& b) {
   pick = lget<Tier>(L.pick_pdf, idx);
-  r = lget<Tier>(L.Lr, idx);
-  g = lget<Tier>(L.Lg, idx);
-  b = lget<Tier>(L.Lb, idx);
+  lookup_radiance<Tier>(L, idx, r, g, b);
 }
 
 template <class T> inline LightGeom<T> broadcast_light(const LightView& L, int32_t i) {

@@ -170,6 +170,9 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   L.e2x = v.e2x.data(); L.e2y = v.e2y.data(); L.e2z = v.e2z.data();
   L.nx = v.nx.data(); L.ny = v.ny.data(); L.nz = v.nz.data();
   L.Lr = v.Lr.data(); L.Lg = v.Lg.data(); L.Lb = v.Lb.data();
+  L.one_radiance = n > 0;
+  for (size_t i = 1; i < n; ++i)
+    L.one_radiance = L.one_radiance && v.Lr[i] == v.Lr[0] && v.Lg[i] == v.Lg[0] && v.Lb[i] == v.Lb[0];
   L.area = v.area.data();
   L.two_sided = v.two_sided.data();
   L.len1 = v.len1.data(); L.len2 = v.len2.data();

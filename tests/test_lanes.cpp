@@ -257,6 +257,11 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
         SceneViews views = build_views(s, pick);
         ASSERT_TRUE(views.all_rects);
         ASSERT_EQ(views.lights.any_two_sided, two_sided);
+        ASSERT_TRUE(views.lights.one_radiance);  // every source has L = 4
+        // the reference reads every field per lane
+        LightView ref = views.lights;
+        ref.any_two_sided = true;
+        ref.one_radiance = false;
         ASSERT_EQ(views.lights.tier, tier_medium);  // 101 sources: permutes of the 128-entry tables
         Estimator est;
         est.pick = pick;
@@ -278,7 +283,7 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
         LightPass pass;
         pass.fixed_light = pick == LightPick::all ? 37 : -1;
         const bool fixed = pass.fixed_light >= 0;
-        for (int k = 0; k < n; k += simd_width) sample_lights_lanes<vfloat>(views.lights, est, pass, *a, k);
+        for (int k = 0; k < n; k += simd_width) sample_lights_lanes<vfloat>(ref, est, pass, *a, k);
         for (int k = 0; k < n; ++k) {
           if (fixed) sample_lights_lanes<float, R, false>(views.lights, est, pass, *b, k);
           else sample_lights_lanes<float, R, true>(views.lights, est, pass, *b, k);
@@ -329,7 +334,7 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
           }
           *b = *a;
           *c = *a;
-          for (int j = 0; j < n; j += simd_width) weight_lanes<vfloat>(views.lights, est, 1.f, 1.f, *a, j);
+          for (int j = 0; j < n; j += simd_width) weight_lanes<vfloat>(ref, est, 1.f, 1.f, *a, j);
           for (int j = 0; j < n; j += simd_width) weight_lanes<vfloat, R>(views.lights, est, 1.f, 1.f, *b, j);
           for (int j = 0; j < n; ++j) weight_lanes<float, R>(views.lights, est, 1.f, 1.f, *c, j);
           for (const TileBuffers* t : {b.get(), c.get()}) {
@@ -347,6 +352,7 @@ TEST(Lanes, StagesEqualScalar) {
   for (LightPick pick : {LightPick::all, LightPick::uniform, LightPick::area, LightPick::power}) {
     SceneViews views = build_views(s, pick);
     ASSERT_EQ(views.lights.tier, tier_small);
+    ASSERT_FALSE(views.lights.one_radiance);
     // the tables (padded for permutes) read with permutes, then with gathers
     for (int tier : {tier_small, tier_gather})
     for (LightPoint point : {LightPoint::area, LightPoint::solid_angle})
