@@ -132,8 +132,11 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
   if (Pick && pass.fixed_light < 0)  // the pick reads the first dimension only
     point_pairs(est, tb, sample, pair, padded, tb.u0, nullptr);
   point_pairs(est, tb, sample, pair + 1, padded, tb.u2, tb.u3);
-  // two batches at a time (vfloat2): the solid-angle maps are latency-bound chains
+  // four batches at a time (vfloat4), then two: the solid-angle maps are latency-bound
+  // chains, so interleaved batches keep the core busy (two-panels: one batch at a time
+  // 6% slower overall, four 1% faster than two)
   int k = 0;
+  for (; k + 4 * simd_width <= padded; k += 4 * simd_width) sample_lights_lanes<vfloat4, Kinds, Pick>(L, est, pass, tb, k);
   for (; k + 2 * simd_width <= padded; k += 2 * simd_width) sample_lights_lanes<vfloat2, Kinds, Pick>(L, est, pass, tb, k);
   for (; k < padded; k += simd_width) sample_lights_lanes<vfloat, Kinds, Pick>(L, est, pass, tb, k);
 }

@@ -383,6 +383,7 @@ inline void clear_high_vector_registers() noexcept {
 // waiting). Every operation is issued for both halves back to back, so the two dependency
 // chains overlap. Half a is lanes [0, W), half b lanes [W, 2W).
 template <class V> struct Twin {
+  static constexpr std::size_t size = 2 * V::size;
   V a, b;
   Twin() = default;
   Twin(const V& x, const V& y) : a(x), b(y) {}
@@ -393,12 +394,15 @@ using vint2 = Twin<vint>;
 using vmask2 = Twin<vmask>;
 using vimask2 = Twin<xsimd::batch_bool<int32_t>>;
 
-template <> struct lane_traits<vfloat2> {
-  using mask = vmask2;
-  using i32 = vint2;
-  using u32 = Twin<vuint>;
-  static constexpr int width = 2 * simd_width;
+// Twin<vfloat> (two batches) and Twin<Twin<vfloat>> (four): the lane types of the
+// latency-bound stages.
+template <class V> struct lane_traits<Twin<V>> {
+  using mask = Twin<typename lane_traits<V>::mask>;
+  using i32 = Twin<typename lane_traits<V>::i32>;
+  using u32 = Twin<typename lane_traits<V>::u32>;
+  static constexpr int width = 2 * lane_traits<V>::width;
 };
+using vfloat4 = Twin<vfloat2>;
 
 #define TUILE_TWIN_BINARY(op)                                                                                 \
   template <class V> inline auto operator op(const Twin<V>& x, const Twin<V>& y) noexcept {                  \
@@ -434,7 +438,7 @@ template <class V> inline Twin<V>& operator+=(Twin<V>& x, const Twin<V>& y) noex
 }
 
 #define TUILE_TWIN_UNARY(fn) \
-  inline vfloat2 fn(const vfloat2& x) noexcept { return {fn(x.a), fn(x.b)}; }
+  template <class V> inline Twin<V> fn(const Twin<V>& x) noexcept { return {fn(x.a), fn(x.b)}; }
 TUILE_TWIN_UNARY(abs)
 TUILE_TWIN_UNARY(sqrt)
 TUILE_TWIN_UNARY(floor)
@@ -444,63 +448,66 @@ TUILE_TWIN_UNARY(log)
 TUILE_TWIN_UNARY(rcp_nr)
 TUILE_TWIN_UNARY(rsqrt_nr)
 #undef TUILE_TWIN_UNARY
-inline vfloat2 mul_add(const vfloat2& x, const vfloat2& y, const vfloat2& z) noexcept {
+template <class V> inline Twin<V> mul_add(const Twin<V>& x, const Twin<V>& y, const Twin<V>& z) noexcept {
   return {mul_add(x.a, y.a, z.a), mul_add(x.b, y.b, z.b)};
 }
-inline vfloat2 min(const vfloat2& x, const vfloat2& y) noexcept { return {min(x.a, y.a), min(x.b, y.b)}; }
-inline vfloat2 max(const vfloat2& x, const vfloat2& y) noexcept { return {max(x.a, y.a), max(x.b, y.b)}; }
-inline vint2 min(const vint2& x, const vint2& y) noexcept { return {min(x.a, y.a), min(x.b, y.b)}; }
-inline vint2 max(const vint2& x, const vint2& y) noexcept { return {max(x.a, y.a), max(x.b, y.b)}; }
-inline vmask2 is_finite(const vfloat2& x) noexcept { return {is_finite(x.a), is_finite(x.b)}; }
-inline vfloat2 sel(const vmask2& m, const vfloat2& x, const vfloat2& y) noexcept {
+template <class V> inline Twin<V> min(const Twin<V>& x, const Twin<V>& y) noexcept { return {min(x.a, y.a), min(x.b, y.b)}; }
+template <class V> inline Twin<V> max(const Twin<V>& x, const Twin<V>& y) noexcept { return {max(x.a, y.a), max(x.b, y.b)}; }
+template <class V> inline auto is_finite(const Twin<V>& x) noexcept {
+  return Twin<decltype(is_finite(x.a))>(is_finite(x.a), is_finite(x.b));
+}
+template <class M, class V> inline Twin<V> sel(const Twin<M>& m, const Twin<V>& x, const Twin<V>& y) noexcept {
   return {sel(m.a, x.a, y.a), sel(m.b, x.b, y.b)};
 }
-inline vint2 sel(const vimask2& m, const vint2& x, const vint2& y) noexcept {
-  return {sel(m.a, x.a, y.a), sel(m.b, x.b, y.b)};
-}
-inline vmask2 sel_mask(const vmask2& m, const vmask2& x, const vmask2& y) noexcept {
+template <class M> inline Twin<M> sel_mask(const Twin<M>& m, const Twin<M>& x, const Twin<M>& y) noexcept {
   return {sel_mask(m.a, x.a, y.a), sel_mask(m.b, x.b, y.b)};
 }
-inline bool any(const vmask2& m) noexcept { return any(m.a || m.b); }
-inline bool all(const vmask2& m) noexcept { return all(m.a && m.b); }
-inline bool none(const vmask2& m) noexcept { return !any(m); }
-inline vint2 to_i32(const vfloat2& x) noexcept { return {to_i32(x.a), to_i32(x.b)}; }
-inline vfloat2 to_f32(const vint2& x) noexcept { return {to_f32(x.a), to_f32(x.b)}; }
-inline vmask2 f_mask_from_i(const vimask2& m) noexcept { return {f_mask_from_i(m.a), f_mask_from_i(m.b)}; }
-inline vimask2 i_mask_from_f(const vmask2& m) noexcept { return {i_mask_from_f(m.a), i_mask_from_f(m.b)}; }
-inline void store(float* p, const vfloat2& v) noexcept {
-  store(p, v.a);
-  store(p + simd_width, v.b);
+template <class M> inline bool any(const Twin<M>& m) noexcept { return any(m.a || m.b); }
+template <class M> inline bool all(const Twin<M>& m) noexcept { return all(m.a && m.b); }
+template <class M> inline bool none(const Twin<M>& m) noexcept { return !any(m); }
+template <class V> inline auto to_i32(const Twin<V>& x) noexcept { return Twin<decltype(to_i32(x.a))>(to_i32(x.a), to_i32(x.b)); }
+template <class V> inline auto to_f32(const Twin<V>& x) noexcept { return Twin<decltype(to_f32(x.a))>(to_f32(x.a), to_f32(x.b)); }
+template <class M> inline auto f_mask_from_i(const Twin<M>& m) noexcept {
+  return Twin<decltype(f_mask_from_i(m.a))>(f_mask_from_i(m.a), f_mask_from_i(m.b));
 }
-inline void store(int32_t* p, const vint2& v) noexcept {
-  store(p, v.a);
-  store(p + simd_width, v.b);
+template <class M> inline auto i_mask_from_f(const Twin<M>& m) noexcept {
+  return Twin<decltype(i_mask_from_f(m.a))>(i_mask_from_f(m.a), i_mask_from_f(m.b));
 }
-inline vfloat2 gather(const float* base, const vint2& i) noexcept { return {gather(base, i.a), gather(base, i.b)}; }
-inline vint2 gather(const int32_t* base, const vint2& i) noexcept { return {gather(base, i.a), gather(base, i.b)}; }
-inline vfloat2 lookup_small(const float* base, const vint2& i) noexcept {
+template <class V> inline void store(float* p, const Twin<V>& v) noexcept {
+  store(p, v.a);
+  store(p + V::size, v.b);
+}
+template <class V> inline void store(int32_t* p, const Twin<V>& v) noexcept {
+  store(p, v.a);
+  store(p + V::size, v.b);
+}
+template <class I> inline auto gather(const float* base, const Twin<I>& i) noexcept {
+  return Twin<decltype(gather(base, i.a))>(gather(base, i.a), gather(base, i.b));
+}
+template <class I> inline Twin<I> gather(const int32_t* base, const Twin<I>& i) noexcept { return {gather(base, i.a), gather(base, i.b)}; }
+template <class I> inline auto lookup_small(const float* base, const Twin<I>& i) noexcept {
+  return Twin<decltype(lookup_small(base, i.a))>(lookup_small(base, i.a), lookup_small(base, i.b));
+}
+template <class I> inline Twin<I> lookup_small(const int32_t* base, const Twin<I>& i) noexcept {
   return {lookup_small(base, i.a), lookup_small(base, i.b)};
 }
-inline vint2 lookup_small(const int32_t* base, const vint2& i) noexcept {
-  return {lookup_small(base, i.a), lookup_small(base, i.b)};
+template <class I> inline auto lookup_medium(const float* base, const Twin<I>& i) noexcept {
+  return Twin<decltype(lookup_medium(base, i.a))>(lookup_medium(base, i.a), lookup_medium(base, i.b));
 }
-inline vfloat2 lookup_medium(const float* base, const vint2& i) noexcept {
-  return {lookup_medium(base, i.a), lookup_medium(base, i.b)};
-}
-inline vint2 lookup_medium(const int32_t* base, const vint2& i) noexcept {
+template <class I> inline Twin<I> lookup_medium(const int32_t* base, const Twin<I>& i) noexcept {
   return {lookup_medium(base, i.a), lookup_medium(base, i.b)};
 }
 
-// Lane-type generic forms of what differs between float, vfloat and vfloat2.
+// Lane-type generic forms of what differs between float, vfloat and the twins.
 template <class T> inline T load(const float* p) noexcept {
   if constexpr (std::is_same_v<T, float>) return *p;
   else if constexpr (std::is_same_v<T, vfloat>) return vfloat::load_unaligned(p);
-  else return T(vfloat::load_unaligned(p), vfloat::load_unaligned(p + simd_width));
+  else return T(load<decltype(T::a)>(p), load<decltype(T::a)>(p + lane_traits<T>::width / 2));
 }
 template <class T> inline i32_t<T> load_i32(const int32_t* p) noexcept {
   if constexpr (std::is_same_v<T, float>) return *p;
   else if constexpr (std::is_same_v<T, vfloat>) return vint::load_unaligned(p);
-  else return vint2(vint::load_unaligned(p), vint::load_unaligned(p + simd_width));
+  else return i32_t<T>(load_i32<decltype(T::a)>(p), load_i32<decltype(T::a)>(p + lane_traits<T>::width / 2));
 }
 template <class T> inline T lane_iota() noexcept {
   if constexpr (std::is_same_v<T, float>) return 0.f;
@@ -509,22 +516,23 @@ template <class T> inline T lane_iota() noexcept {
     for (int i = 0; i < simd_width; ++i) v[i] = static_cast<float>(i);
     return vfloat::load_aligned(v);
   } else {
-    const vfloat lo = lane_iota<vfloat>();
-    return T(lo, lo + vfloat(static_cast<float>(simd_width)));
+    using H = decltype(T::a);
+    const H lo = lane_iota<H>();
+    return T(lo, lo + H(static_cast<float>(lane_traits<H>::width)));
   }
 }
 // number of set lanes
 inline int count(bool m) noexcept { return m ? 1 : 0; }
 inline int count(const vmask& m) noexcept { return std::popcount(lane_bits(m)); }
-inline int count(const vmask2& m) noexcept { return count(m.a) + count(m.b); }
+template <class M> inline int count(const Twin<M>& m) noexcept { return count(m.a) + count(m.b); }
 // -1 (all bits) where the mask is set, else 0: Embree's valid arrays
 inline void store_valid(int32_t* p, bool m) noexcept { *p = m ? -1 : 0; }
 inline void store_valid(int32_t* p, const vmask& m) noexcept {
   xsimd::select(i_mask_from_f(m), vint(-1), vint(0)).store_unaligned(p);
 }
-inline void store_valid(int32_t* p, const vmask2& m) noexcept {
+template <class M> inline void store_valid(int32_t* p, const Twin<M>& m) noexcept {
   store_valid(p, m.a);
-  store_valid(p + simd_width, m.b);
+  store_valid(p + M::size, m.b);
 }
 
 

@@ -277,7 +277,7 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
           }
         }
         auto b = std::make_unique<TileBuffers>(*a), c = std::make_unique<TileBuffers>(*a),
-             d = std::make_unique<TileBuffers>(*a);
+             d = std::make_unique<TileBuffers>(*a), e = std::make_unique<TileBuffers>(*a);
         const int n = 208;
         auto name = [&] { return describe(est) + (two_sided ? " two-sided" : ""); };
         LightPass pass;
@@ -296,8 +296,12 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
           if (fixed) sample_lights_lanes<vfloat2, R, false>(views.lights, est, pass, *d, k);
           else sample_lights_lanes<vfloat2, R, true>(views.lights, est, pass, *d, k);
         }
+        for (int k = 0; k < n; k += 4 * simd_width) {
+          if (fixed) sample_lights_lanes<vfloat4, R, false>(views.lights, est, pass, *e, k);
+          else sample_lights_lanes<vfloat4, R, true>(views.lights, est, pass, *e, k);
+        }
         int lit = 0;
-        for (const TileBuffers* t : {b.get(), c.get(), d.get()}) {
+        for (const TileBuffers* t : {b.get(), c.get(), d.get(), e.get()}) {
           expect_same_floats(t->cr, a->cr, n, name);
           expect_same_floats(t->cb, a->cb, n, name);
           for (int k = 0; k < n; ++k) {
@@ -381,9 +385,11 @@ TEST(Lanes, StagesEqualScalar) {
               sample_lights_lanes<vfloat, kind_all, false>(views.lights, est, pass, *c, k);
             expect_same_floats(a->cr, c->cr, n, name);
           }
-          // two batches at a time (vfloat2), as the stage runs them, then one batch for the rest
+          // four batches at a time (vfloat4), then two (vfloat2), then one, as the stage runs them
           {
             int k = 0;
+            for (; k + 4 * simd_width <= n; k += 4 * simd_width)
+              sample_lights_lanes<vfloat4>(views.lights, est, pass, *d, k);
             for (; k + 2 * simd_width <= n; k += 2 * simd_width)
               sample_lights_lanes<vfloat2>(views.lights, est, pass, *d, k);
             for (; k < n; k += simd_width) sample_lights_lanes<vfloat>(views.lights, est, pass, *d, k);
