@@ -76,8 +76,8 @@ inline mask_t<T> light_front_lanes(const LightView& L, const i32_t<T>& l, const 
     if (L.tier == tier_small) return light_front_lanes<T, Spheres, tier_small>(L, l, o, d);
     if (L.tier == tier_medium) return light_front_lanes<T, Spheres, tier_medium>(L, l, o, d);
   }
-  const auto front = lget<Tier>(L.two_sided, l) > T(0.f) ||
-                     dot(d, Vec3<T>{lget<Tier>(L.nx, l), lget<Tier>(L.ny, l), lget<Tier>(L.nz, l)}) < T(0.f);
+  auto front = dot(d, Vec3<T>{lget<Tier>(L.nx, l), lget<Tier>(L.ny, l), lget<Tier>(L.nz, l)}) < T(0.f);
+  if (L.any_two_sided) front = front || lget<Tier>(L.two_sided, l) > T(0.f);
   if constexpr (!Spheres) return front;
   const Vec3<T> c = o - Vec3<T>{lget<Tier>(L.p0x, l), lget<Tier>(L.p0y, l), lget<Tier>(L.p0z, l)};
   const T r = lget<Tier>(L.e1x, l);

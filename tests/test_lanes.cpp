@@ -763,7 +763,7 @@ TEST(Lanes, EmitterQueueEqualScalar) {
   ASSERT_EQ(views.all_rects, rects);
   Accel accel(s);
   std::mt19937 rng(5);
-  int queued = 0;
+  int queued = 0, two_sided_hits = 0;
   for (Strategy strategy : {Strategy::mis, Strategy::bsdf})
     for (int count : {200, 256, 13}) {
       Estimator est;
@@ -774,6 +774,12 @@ TEST(Lanes, EmitterQueueEqualScalar) {
         a->py[k] = 0.f;
         a->nx[k] = a->nz[k] = 0.f;
         a->ny[k] = 1.f;
+        if (!rects && k % 4 == 0) {  // and some above the two-sided triangle (y = 0.2), facing its back
+          a->px[k] = 2.f + 0.1f * a->px[k];
+          a->py[k] = 0.4f;
+          a->pz[k] = -0.6f + 0.1f * a->pz[k];
+          a->ny[k] = -1.f;
+        }
       }
       sample_cosine(est, 0, 2, *a);
       const int padded = (count + packet_width - 1) / packet_width * packet_width;
@@ -800,19 +806,28 @@ TEST(Lanes, EmitterQueueEqualScalar) {
       expect_same_floats(a->Sr, b->Sr, count, name);
       expect_same_floats(a->Sg, b->Sg, count, name);
       expect_same_floats(a->Sb, b->Sb, count, name);
-      // every queued entry is a traced ray that hit the front of an emitter, and every such ray is queued
+      // every queued entry is a traced ray that hit the front of an emitter, and every such
+      // ray is queued; planar fronts from the scene's own sources (two-sided: either side)
       int expected = 0;
       for (int k = 0; k < count; ++k) {
         const RayHit16& r = b->bounce[k / packet_width];
         const int l = k % packet_width;
         if (!b->valid[k]) continue;
         const int32_t li = light_of_hit(views.geom, r.geomID[l], r.primID[l]);
-        expected += li >= 0 && light_front(views.lights, li, r.ray.org_x[l], r.ray.org_y[l], r.ray.org_z[l],
-                                           r.ray.dir_x[l], r.ray.dir_y[l], r.ray.dir_z[l]);
+        if (li < 0) continue;
+        const Light& src = s.lights[static_cast<size_t>(li)];
+        const vec3f d{r.ray.dir_x[l], r.ray.dir_y[l], r.ray.dir_z[l]};
+        if (src.type == LightType::sphere)
+          expected += light_front(views.lights, li, r.ray.org_x[l], r.ray.org_y[l], r.ray.org_z[l], d.x, d.y, d.z);
+        else {
+          expected += src.two_sided || dot(d, cross(src.e1, src.e2)) < 0.f;
+          two_sided_hits += src.two_sided && dot(d, cross(src.e1, src.e2)) > 0.f;
+        }
       }
       EXPECT_EQ(nq, expected) << name();
     }
   EXPECT_GT(queued, 20);
+  if (!rects) EXPECT_GT(two_sided_hits, 5);  // backs of the two-sided source were seen
   }
 }
 
