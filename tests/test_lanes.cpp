@@ -338,10 +338,12 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
           }
           *b = *a;
           *c = *a;
+          *d = *a;
           for (int j = 0; j < n; j += simd_width) weight_lanes<vfloat>(ref, est, 1.f, 1.f, *a, j);
           for (int j = 0; j < n; j += simd_width) weight_lanes<vfloat, R>(views.lights, est, 1.f, 1.f, *b, j);
           for (int j = 0; j < n; ++j) weight_lanes<float, R>(views.lights, est, 1.f, 1.f, *c, j);
-          for (const TileBuffers* t : {b.get(), c.get()}) {
+          for (int j = 0; j < n; j += 2 * simd_width) weight_lanes<vfloat2, R>(views.lights, est, 1.f, 1.f, *d, j);
+          for (const TileBuffers* t : {b.get(), c.get(), d.get()}) {
             expect_same_floats(t->cr, a->cr, n, name);
             expect_same_floats(t->wb, a->wb, n, name);
           }
@@ -472,11 +474,20 @@ TEST(Lanes, StagesEqualScalar) {
             a->qag[k] = b->qag[k] = a->ag[k];
             a->qab[k] = b->qab[k] = a->ab[k];
           }
+          auto w2 = std::make_unique<TileBuffers>(*a);
           for (int k = 0; k < n; k += simd_width) weight_lanes<vfloat>(views.lights, est, 1.f, 1.f, *a, k);
           for (int k = 0; k < n; ++k) weight_lanes<float>(views.lights, est, 1.f, 1.f, *b, k);
-          expect_same_floats(a->cr, b->cr, n, name);
-          expect_same_floats(a->cb, b->cb, n, name);
-          expect_same_floats(a->wb, b->wb, n, name);
+          // two batches at a time (vfloat2) for the whole ones, as weight_queue runs them
+          {
+            int k = 0;
+            for (; k + 2 * simd_width <= n; k += 2 * simd_width) weight_lanes<vfloat2>(views.lights, est, 1.f, 1.f, *w2, k);
+            for (; k < n; k += simd_width) weight_lanes<vfloat>(views.lights, est, 1.f, 1.f, *w2, k);
+          }
+          for (const TileBuffers* t : {a.get(), w2.get()}) {
+            expect_same_floats(t->cr, b->cr, n, name);
+            expect_same_floats(t->cb, b->cb, n, name);
+            expect_same_floats(t->wb, b->wb, n, name);
+          }
         }
   }
 }
