@@ -792,9 +792,11 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
       ++tid;
     }
   }
-  const std::vector<float> m = film.mean();
-  for (size_t i = 0; i < film.max_sample.size(); ++i) {
-    const float y = luminance(m[3 * i], m[3 * i + 1], m[3 * i + 2]);
+  // the worst accident, from the pixel means as Film::mean gives them (no image allocated)
+  const double n = static_cast<double>(film.samples);
+  for (size_t i = 0; i < film.max_sample.size() && film.samples > 0; ++i) {
+    const float y = luminance(static_cast<float>(film.sum[3 * i] / n), static_cast<float>(film.sum[3 * i + 1] / n),
+                              static_cast<float>(film.sum[3 * i + 2] / n));
     if (y > 0) st.worst_ratio = std::max(st.worst_ratio, static_cast<double>(film.max_sample[i] / y));
   }
   return st;

@@ -838,7 +838,9 @@ TEST(Lanes, EmitterQueueEqualScalar) {
       EXPECT_EQ(nq, expected) << name();
     }
   EXPECT_GT(queued, 20);
-  if (!rects) EXPECT_GT(two_sided_hits, 5);  // backs of the two-sided source were seen
+  if (!rects) {
+    EXPECT_GT(two_sided_hits, 5);  // backs of the two-sided source were seen
+  }
   }
 }
 
