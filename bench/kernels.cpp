@@ -82,13 +82,13 @@ template <class T> void BM_sample_lights(benchmark::State& state) {
 }
 // The rectangle-only light stage as the renderer runs it (two batches per call), with the
 // source broadcast (one light) or gathered per lane (picked with the alias table).
-template <bool Pick> void BM_sample_lights_rect(benchmark::State& state) {
+template <class T, bool Pick> void BM_sample_lights_rect(benchmark::State& state) {
   Fixture f;
   LightPass pass;
   pass.fixed_light = Pick ? -1 : 0;
   for (auto _ : state) {
-    for (int k = 0; k < lanes; k += 2 * simd_width)
-      sample_lights_lanes<vfloat2, kind_area | kind_rects, Pick>(f.views.lights, f.est, pass, *f.tb, k);
+    for (int k = 0; k < lanes; k += lane_traits<T>::width)
+      sample_lights_lanes<T, kind_area | kind_rects, Pick>(f.views.lights, f.est, pass, *f.tb, k);
     benchmark::DoNotOptimize(f.tb->cr[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
@@ -215,10 +215,15 @@ void BM_sampler_keyed(benchmark::State& state) {
 BENCHMARK_TEMPLATE(BM_sample_lights, vfloat)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_sample_lights, vfloat2)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_sample_lights, float)->Arg(0)->Arg(1);
-BENCHMARK_TEMPLATE(BM_sample_lights_rect, false);
-BENCHMARK_TEMPLATE(BM_sample_lights_rect, true);
+// one, two and four batches at a time (the stage runs four, then two, then one)
+BENCHMARK_TEMPLATE(BM_sample_lights_rect, vfloat, false);
+BENCHMARK_TEMPLATE(BM_sample_lights_rect, vfloat2, false);
+BENCHMARK_TEMPLATE(BM_sample_lights_rect, vfloat4, false);
+BENCHMARK_TEMPLATE(BM_sample_lights_rect, vfloat2, true);
+BENCHMARK_TEMPLATE(BM_sample_lights_rect, vfloat4, true);
 BENCHMARK_TEMPLATE(BM_rectangle_map, vfloat);
 BENCHMARK_TEMPLATE(BM_rectangle_map, vfloat2);
+BENCHMARK_TEMPLATE(BM_rectangle_map, vfloat4);
 BENCHMARK_TEMPLATE(BM_light_point, vfloat);
 BENCHMARK_TEMPLATE(BM_light_point, vfloat2);
 BENCHMARK_TEMPLATE(BM_mis_weight, vfloat)->Arg(0)->Arg(1);
