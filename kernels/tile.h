@@ -160,9 +160,13 @@ struct alignas(64) TileBuffers {
   }
   bool has_keys(uint32_t pair) const noexcept { return pair < key_pairs && ((keyed >> pair) & 1u); }
 
-  // statistics
+  // statistics of one render
   uint64_t rejected_light = 0, rejected_bsdf = 0, rejected_camera = 0;
   uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0, rays_bounce_visibility = 0;
+  void reset_statistics() noexcept {
+    rejected_light = rejected_bsdf = rejected_camera = 0;
+    rays_camera = rays_shadow = rays_bounce = rays_bounce_visibility = 0;
+  }
 };
 
 // One dimension pair of the sampler for the first `count` tile lanes (their pixels) or

@@ -172,7 +172,9 @@ class Renderer {
  public:
   Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options);
   ~Renderer();
-  // Adds samples [begin, end) of every pixel to the film.
+  // Adds samples [begin, end) of every pixel to the film. Not reentrant: the per-thread
+  // tile buffers are kept from one call to the next (progressive renders and converge
+  // do not pay for them again).
   RenderStats render(Film& film, uint32_t begin, uint32_t end, Profile* profile = nullptr);
   // The pipeline this scene and estimator select, and why.
   std::string pipeline_name(std::string* why = nullptr) const;
@@ -186,6 +188,8 @@ class Renderer {
   RenderOptions opt_;
   std::unique_ptr<SceneViews> views_;
   bool bounce_emitters_ = false;
+  struct BufferPool;  // per-thread TileBuffers, made on a thread's first tile
+  std::unique_ptr<BufferPool> pool_;
 };
 
 // Parses the names used on the command line and in scene files; throw std::invalid_argument.

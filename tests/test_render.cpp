@@ -47,6 +47,46 @@ TEST(Render, BitIdenticalForThreadsAndTileSizes) {
     ASSERT_EQ(std::memcmp(images[0].data(), images[i].data(), images[0].size() * sizeof(float)), 0) << "config " << i;
 }
 
+// A renderer keeps its tile buffers from one render to the next: after a render of other
+// samples (other values in every buffer) it gives the bits and counts a fresh one gives,
+// with partial tiles, both techniques, the MIS weight AOV and rejected-sample counters.
+TEST(Render, ReusedRendererGivesTheSameBits) {
+  Scene s = load_scene("built-in:two-panels");
+  s.camera.width = 97;
+  s.camera.height = 61;
+  for (bool bounce_emitters : {false, true}) {
+    RenderOptions o;
+    o.est.spp = 4;
+    o.threads = 2;
+    o.est.aov_mis_weight = true;
+    o.bounce = bounce_emitters ? BounceTrace::emitters : BounceTrace::scene;
+    Accel accel(s);
+    Renderer fresh(s, accel, o), reused(s, accel, o);
+    Film a, b, other;
+    const RenderStats sa = fresh.render(a, 0, 4);
+    const RenderStats so = reused.render(other, 5, 9);
+    const RenderStats sb = reused.render(b, 0, 4);
+    auto same = [](const auto& x, const auto& y) {
+      return x.size() == y.size() && std::memcmp(x.data(), y.data(), x.size() * sizeof(x[0])) == 0;
+    };
+    EXPECT_TRUE(same(a.sum, b.sum)) << bounce_emitters;
+    EXPECT_TRUE(same(a.sum_sq, b.sum_sq)) << bounce_emitters;
+    EXPECT_TRUE(same(a.w_sum, b.w_sum)) << bounce_emitters;
+    EXPECT_TRUE(same(a.w_cnt, b.w_cnt)) << bounce_emitters;
+    EXPECT_TRUE(same(a.max_sample, b.max_sample)) << bounce_emitters;
+    EXPECT_FALSE(same(a.sum, other.sum));  // the first render did leave other values behind
+    // the counters are this render's alone
+    EXPECT_EQ(sb.rays_camera, sa.rays_camera);
+    EXPECT_EQ(sb.rays_shadow, sa.rays_shadow);
+    EXPECT_EQ(sb.rays_bounce, sa.rays_bounce);
+    EXPECT_EQ(sb.rays_bounce_visibility, sa.rays_bounce_visibility);
+    EXPECT_EQ(sb.rejected_light + sb.rejected_bsdf + sb.rejected_camera,
+              sa.rejected_light + sa.rejected_bsdf + sa.rejected_camera);
+    EXPECT_GT(so.rays_shadow, 0u);
+    EXPECT_EQ(bounce_emitters, sa.rays_bounce_visibility > 0);
+  }
+}
+
 // Every strategy estimates the same integral: on a closed room with occlusion their
 // images agree within their standard errors, in 4x4 blocks and overall.
 TEST(Render, AllStrategiesAgreeWithOcclusion) {
