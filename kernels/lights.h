@@ -90,6 +90,13 @@ template <class T> struct LightGeom {
   Vec3<T> ex, ey;                          // e1 * inv_len1, e2 * inv_len2 (light_geom_derive)
 };
 
+// The unit edges of a source's LightGeom from its edges and inverse lengths: the bits the
+// table's ex, ey hold (light_geom_derive, build_views).
+template <class T> inline void derive_unit_edges(LightGeom<T>& g) {
+  g.ex = g.e1 * g.inv_len1;
+  g.ey = g.e2 * g.inv_len2;
+}
+
 // The fields every planar source has (gather_light adds the kind, the area and the
 // rectangle flag).
 template <int Tier, class I, class T> inline void gather_planar_fields(const LightView& L, const I& idx, LightGeom<T>& g) {
@@ -111,8 +118,7 @@ template <int Tier = tier_gather, class I> inline auto gather_light(const LightV
   gather_planar_fields<Tier>(L, idx, g);
   g.area = lget<Tier>(L.area, idx);
   g.rect = lget<Tier>(L.rect, idx);
-  g.ex = g.e1 * g.inv_len1;  // the table's ex, ey bit for bit
-  g.ey = g.e2 * g.inv_len2;
+  derive_unit_edges(g);
   return g;
 }
 
@@ -190,8 +196,7 @@ template <class T> inline void light_geom_derive(LightGeom<T>& g) {
   const mask_t<T> ok = g.len1 > T(0.f) && g.len2 > T(0.f);
   g.inv_len1 = T(1.f) / sel(ok, g.len1, T(1.f));
   g.inv_len2 = T(1.f) / sel(ok, g.len2, T(1.f));
-  g.ex = g.e1 * g.inv_len1;
-  g.ey = g.e2 * g.inv_len2;
+  derive_unit_edges(g);
   g.rect = sel(type_is<T>(g.type, lt_parallelogram) && parallelogram_is_rectangle(g.e1, g.e2), T(1.f), T(0.f));
   // a rectangle's area is the product of its edge lengths, so the rectangle pipelines
   // derive it instead of reading it

@@ -27,9 +27,7 @@ template <class T> TUILE_FLATTEN inline void sample_cosine_lanes(const Estimator
 inline void sample_cosine(const Estimator& est, uint32_t sample, uint32_t pair, TileBuffers& tb) {
   const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
   point_pairs(est, tb, sample, pair, padded, tb.u0, tb.u1);
-  int k = 0;
-  for (; k + 2 * simd_width <= padded; k += 2 * simd_width) sample_cosine_lanes<vfloat2>(est, tb, k);
-  for (; k < padded; k += simd_width) sample_cosine_lanes<vfloat>(est, tb, k);
+  for_lane_batches<vfloat2>(0, padded, [&](auto lane, int k) { sample_cosine_lanes<typename decltype(lane)::type>(est, tb, k); });
   for (int p = 0; p < padded / packet_width; ++p) reset_hit(tb.bounce[p]);
 }
 

@@ -5,6 +5,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <type_traits>
 // GCC 12's AVX-512 intrinsic headers warn about their own _mm512_undefined_* values once
 // inlined (GCC bug 105593, fixed in GCC 13); silence that inside these headers only.
 #if defined(__GNUC__) && !defined(__clang__)
@@ -496,6 +497,16 @@ template <class I> inline auto lookup_medium(const float* base, const Twin<I>& i
 }
 template <class I> inline Twin<I> lookup_medium(const int32_t* base, const Twin<I>& i) noexcept {
   return {lookup_medium(base, i.a), lookup_medium(base, i.b)};
+}
+
+// Runs f(std::type_identity<T>{}, k) for batches k of lanes [k0, count) of lane type T
+// while they fit, then of each narrower half down to vfloat (count a multiple of
+// simd_width): the latency-bound stages take the widest twin first. Returns the end.
+template <class T, class F> inline int for_lane_batches(int k0, int count, F&& f) {
+  int k = k0;
+  for (; k + lane_traits<T>::width <= count; k += lane_traits<T>::width) f(std::type_identity<T>{}, k);
+  if constexpr (std::is_same_v<T, vfloat>) return k;
+  else return for_lane_batches<decltype(T::a)>(k, count, f);
 }
 
 // Lane-type generic forms of what differs between float, vfloat and the twins.

@@ -158,9 +158,9 @@ inline void weight_queue(const LightView& L, const Estimator& est, float n_light
   const int qpadded = (nq + simd_width - 1) / simd_width * simd_width;
   // two batches at a time (vfloat2) where whole: the solid-angle setup is a latency-bound
   // chain (two-panels: MIS weight 1.27 -> 1.20 ns per sample)
-  int j = 0;
-  for (; j + 2 * simd_width <= qpadded; j += 2 * simd_width) weight_lanes<vfloat2, Kinds>(L, est, n_light, n_bsdf, tb, j);
-  for (; j < qpadded; j += simd_width) weight_lanes<vfloat, Kinds>(L, est, n_light, n_bsdf, tb, j);
+  for_lane_batches<vfloat2>(0, qpadded, [&](auto lane, int j) {
+    weight_lanes<typename decltype(lane)::type, Kinds>(L, est, n_light, n_bsdf, tb, j);
+  });
   if (est.strategy == Strategy::light) return;
   for (int j = 0; j < nq; ++j) {
     if (!(tb.qvis[j] > 0.f)) continue;

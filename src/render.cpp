@@ -37,7 +37,7 @@ void Film::reset(int w, int h) {
 std::vector<float> Film::mean() const {
   std::vector<float> out(sum.size(), 0.f);
   if (samples == 0) return out;
-  for (size_t i = 0; i < sum.size(); ++i) out[i] = static_cast<float>(sum[i] / static_cast<double>(samples));
+  for (size_t i = 0; i < sum.size(); ++i) out[i] = mean_of(i);
   return out;
 }
 
@@ -269,8 +269,16 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   return out;
 }
 
+// Each worker's tile buffers (about 0.7 MB), made once and reused by every render: making
+// them per render (zeroed, so page faults on every call) cost a measurable share of short
+// progressive renders.
+struct Renderer::BufferPool {
+  tbb::enumerable_thread_specific<std::unique_ptr<TileBuffers>> buffers{[] { return std::make_unique<TileBuffers>(); }};
+};
+
 Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options)
-    : scene_(scene), accel_(accel), opt_(options), views_(std::make_unique<SceneViews>()) {
+    : scene_(scene), accel_(accel), opt_(options), views_(std::make_unique<SceneViews>()),
+      pool_(std::make_unique<BufferPool>()) {
   if (opt_.tile < 1 || opt_.tile > max_tile_side) throw std::invalid_argument("tile size must be in 1..32");
   if (opt_.est.light_samples < 1 || opt_.est.bsdf_samples < 1)
     throw std::invalid_argument("--light-samples and --bsdf-samples must be >= 1");
@@ -291,13 +299,6 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   }
   if (bounce_emitters_) accel_.prepare_emitters();
 }
-
-// Each worker's tile buffers (about 0.7 MB), made once and reused by every render: making
-// them per render (zeroed, so page faults on every call) cost a measurable share of short
-// progressive renders.
-struct Renderer::BufferPool {
-  tbb::enumerable_thread_specific<std::unique_ptr<TileBuffers>> buffers{[] { return std::make_unique<TileBuffers>(); }};
-};
 
 Renderer::~Renderer() = default;
 
@@ -747,7 +748,6 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
   const PipelineEntry pipe = pick_pipeline(v, est, opt_.general_pipeline, why);
   const int tiles = c.tiles_x * ((cam.height + ts - 1) / ts);
 
-  if (!pool_) pool_ = std::make_unique<BufferPool>();
   auto& buffers = pool_->buffers;
   for (auto& p : buffers) p->reset_statistics();
   tbb::enumerable_thread_specific<ThreadProfile> profiles;
@@ -801,11 +801,9 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
       ++tid;
     }
   }
-  // the worst accident, from the pixel means as Film::mean gives them (no image allocated)
-  const double n = static_cast<double>(film.samples);
+  // the worst accident, from the pixel means (no mean image allocated)
   for (size_t i = 0; i < film.max_sample.size() && film.samples > 0; ++i) {
-    const float y = luminance(static_cast<float>(film.sum[3 * i] / n), static_cast<float>(film.sum[3 * i + 1] / n),
-                              static_cast<float>(film.sum[3 * i + 2] / n));
+    const float y = luminance(film.mean_of(3 * i), film.mean_of(3 * i + 1), film.mean_of(3 * i + 2));
     if (y > 0) st.worst_ratio = std::max(st.worst_ratio, static_cast<double>(film.max_sample[i] / y));
   }
   return st;

@@ -106,6 +106,7 @@ struct Film {
   FilmArray<float> max_sample;  // largest single-sample luminance
   void reset(int w, int h);
   // mean radiance, variance of the mean (per channel), mean BSDF MIS weight
+  float mean_of(size_t k) const { return static_cast<float>(sum[k] / static_cast<double>(samples)); }  // samples > 0
   std::vector<float> mean() const;
   std::vector<float> variance_of_mean() const;
   std::vector<float> mis_weight() const;
