@@ -30,7 +30,13 @@ struct FiguresFlags {
   bool quick = false;  // smaller images and sample counts (tests)
 };
 
+struct DiffFlags {
+  std::string a, b;
+  double tolerance = 0;  // largest relative difference still accepted (0: bit-identical only)
+};
+
 void add_figures_flags(CLI::App& app, FiguresFlags& f);
+void add_diff_flags(CLI::App& app, DiffFlags& f);
 void add_bench_flags(CLI::App& app, BenchFlags& f);
 void add_profile_flags(CLI::App& app, ProfileFlags& f);
 void add_converge_flags(CLI::App& app, ConvergeFlags& f);
@@ -41,5 +47,6 @@ int run_bench(const BenchFlags& f);
 int run_profile(const ProfileFlags& f);
 int run_converge(const ConvergeFlags& f);  // src/converge.cpp
 int run_figures(const FiguresFlags& f);    // src/figures.cpp
+int run_diff(const DiffFlags& f);          // src/image_diff.cpp
 
 }  // namespace tuile

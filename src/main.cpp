@@ -1,4 +1,4 @@
-// tuile: one binary, subcommands render | bench | profile | converge | info.
+// tuile: one binary, subcommands render | info | bench | profile | converge | figures | diff.
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -51,6 +51,10 @@ int main(int argc, char** argv) {
   CLI::App* figures = app.add_subcommand("figures", "the course's figures as labelled PNG contact sheets");
   add_figures_flags(*figures, ff);
 
+  DiffFlags df;
+  CLI::App* diff = app.add_subcommand("diff", "compare two EXR images: identical bits, or by how much they differ");
+  add_diff_flags(*diff, df);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -65,6 +69,7 @@ int main(int argc, char** argv) {
     if (*profile) return run_profile(pf);
     if (*converge) return run_converge(cf);
     if (*figures) return run_figures(ff);
+    if (*diff) return run_diff(df);
   } catch (const SceneError& e) {
     std::cerr << "tuile: " << e.what() << "\n";
     return 1;

@@ -981,10 +981,17 @@ TEST(Lanes, StreamedTileEqualsAddedTile) {
   EXPECT_FALSE(can_stream_tile(0, 12, 8, fg));
 }
 
-// rcp_nr / rsqrt_nr (hardware estimate + one Newton step): within 2 ulps of the correctly
-// rounded 1/x and 1/sqrt(x) from the smallest normal float to 1e37, and every SIMD lane
-// equal to the scalar function.
-TEST(Lanes, ReciprocalEstimatesWithin2Ulps) {
+// rcp_nr / rsqrt_nr (an estimate + one Newton step): every SIMD lane equal to the scalar
+// function, and within a bound of the correctly rounded 1/x and 1/sqrt(x) from the smallest
+// normal float to 1e37 that holds for any estimate within twice the documented error
+// (|e| <= 2^-13; the test builds perturb the hardware's by 2^-14 both ways). In ulps of
+// the result, whose relative ulp u lies in [2^-24, 2^-23]:
+//   rcp:   e^2 <= 2^-26 (<= 0.25 u) + the fma's rounding of 2 - x r (~1, so <= 2^-24 <= 1 u)
+//          + the product's (0.5 u) + the reference's (0.5 u): 2.25 ulps;
+//   rsqrt: 1.5 e^2 (<= 0.375 u) + (0.5 x) r rounded and multiplied by r (0.5 u) + the fma's
+//          rounding (1 u) + the product's (0.5 u) + the reference's (0.5 u): 2.875 ulps.
+// (Measured with the hardware estimates of the machines seen: 2 ulps or less.)
+TEST(Lanes, ReciprocalEstimatesWithinTheirErrorBound) {
   std::mt19937 rng(17);
   std::uniform_real_distribution<float> E(-125.f, 122.f);
   std::uniform_real_distribution<float> M(1.f, 2.f);
@@ -1003,6 +1010,6 @@ TEST(Lanes, ReciprocalEstimatesWithin2Ulps) {
       worst_s = std::max(worst_s, std::fabs(double(ss) - es) / (std::nextafter(es, INFINITY) - es));
     }
   }
-  EXPECT_LE(worst_r, 2.0);
-  EXPECT_LE(worst_s, 2.0);
+  EXPECT_LE(worst_r, 2.25);
+  EXPECT_LE(worst_s, 2.875);
 }

@@ -333,6 +333,29 @@ TEST(TriangleArea, ChiSquareOnSubTriangles) {
 
 // =========================================================================================
 // 3. Spherical triangles
+//
+// Error analysis of the float solid angles against the double references, in roundings of
+// u = 2^-24 relative. No bound below depends on which bits a processor's reciprocal
+// estimates return: an estimate enters only through rcp_nr / rsqrt_nr, within 3 ulps of the
+// exact value for any |e| <= 2^-13 (kernels/simd.h), and these checks also run with the
+// estimates perturbed by +-2^-14 and with exact IEEE division (tuile_precision_tests_*).
+// - Triangle (Van Oosterom & Strackee, tan(Omega/2) = |det| / (1 + a.b + a.c + b.c), det =
+//   a . (eb / lb x ec / lc) from the edges eb, ec): the edges are exact for small triangles
+//   (Sterbenz) or one rounding; 1 / lb and 1 / lc two roundings each after the length's
+//   four; the cross product two per component (relative to |cross|, for triangles that are
+//   not slivers); the dot product with the unit a three, plus a's own five, amplified by
+//   1 / cos of the angle between a and the normal (under 2 for the triangles here); the
+//   denominator (about 4, all terms positive) six; the one-division atan2 about four ulps
+//   (tested above). About 20 u in all, 1.2e-6, whatever the size: tolerance 2e-6.
+// - Parallelogram with skewed edges: the sum of two such triangles (both positive): 2e-6.
+// - Sphere cone: 2 pi sin^2 / (1 + cos) with sin^2 = r^2 / |d|^2: about eight roundings and
+//   a square root whose error is halved: tolerance 2e-6 (1e-6 where the radius is exact).
+// - Rectangle (Urena): S = a01 + a23, two atan2 of O(1) arguments whose absolute error is a
+//   few u times the angles themselves; where both angles have one sign (the source straight
+//   ahead) that is relative to S, but where the rectangle is off to one side the two nearly
+//   cancel and the absolute error, about 1e-9 sr for the sources at distance 1 here, becomes
+//   a relative 1e-5 at min_sa_sample_omega. Below it the renderer samples such sources by
+//   area (the pdf then needs no Omega), and the tests only ask for a finite Omega >= 0.
 TEST(SphericalTriangle, SolidAngleMatchesClosedForm) {
   // octant: pi/2 exactly
   EXPECT_NEAR(spherical_triangle_solid_angle(vec3f(0, 0, 0), vec3f(1, 0, 0), vec3f(0, 1, 0), vec3f(0, 0, 1)),
@@ -342,7 +365,7 @@ TEST(SphericalTriangle, SolidAngleMatchesClosedForm) {
       const Tri t = rounded(make_tri(s, dist));
       const double ref = tri_omega(kOrigin, t.a, t.b, t.c);
       const float om = spherical_triangle_solid_angle(vec3f(0, 0, 0), to_f(t.a), to_f(t.b), to_f(t.c));
-      EXPECT_NEAR(om / ref, 1.0, 2e-6) << "size " << s << " dist " << dist << " omega " << ref;
+      EXPECT_NEAR(om / ref, 1.0, 2e-6) << "size " << s << " dist " << dist << " omega " << ref;  // analysis above
     }
 }
 
@@ -440,8 +463,8 @@ TEST(SphericalRectangle, SolidAngleMatchesClosedForm) {
       const Para p = rounded(make_para(s, dist));
       const double ref = para_omega(kOrigin, p.p0, p.e1, p.e2);
       const float om = spherical_rectangle_solid_angle(vec3f(0, 0, 0), to_f(p.p0), to_f(p.e1), to_f(p.e2));
-      // Urena's S = sum(gamma) - 2 pi cancels for small rectangles: accurate to 1e-5 above
-      // min_sa_sample_omega, to 1e-3 below (where the renderer samples by area).
+      // Urena's S cancels for small rectangles off to one side (section 3's analysis):
+      // accurate to 1e-5 above min_sa_sample_omega, to 1e-3 below (sampled by area there).
       EXPECT_NEAR(om / ref, 1.0, ref >= min_sa_sample_omega ? 1e-5 : 1e-3)
           << "size " << s << " dist " << dist << " omega " << ref;
       EXPECT_EQ(om, parallelogram_solid_angle(vec3f(0, 0, 0), to_f(p.p0), to_f(p.e1), to_f(p.e2)));
@@ -649,9 +672,11 @@ TEST(Extremes, TinyAndHemisphericalSourcesStayFinite) {
   // references on the float vertices the kernels see (p0 + e1 etc. rounded to float)
   const vec3f q0 = to_f(pp.p0), q1 = q0 + to_f(pp.e1), q2 = q1 + to_f(pp.e2), q3 = q0 + to_f(pp.e2);
   const double ref_p = tri_omega(kOrigin, to_d(q0), to_d(q1), to_d(q2)) + tri_omega(kOrigin, to_d(q0), to_d(q2), to_d(q3));
-  EXPECT_NEAR(om_t / tri_omega(kOrigin, t.a, t.b, t.c), 1.0, 1e-4);
-  EXPECT_NEAR(om_p / ref_p, 1.0, 1e-4);
-  EXPECT_NEAR(om_s / cone_omega(kOrigin, to_d(sc), srad), 1.0, 1e-5);
+  // Van Oosterom & Strackee's relative error does not grow as the source shrinks (section
+  // 3's analysis): the same 2e-6 as for sources of 1 sr.
+  EXPECT_NEAR(om_t / tri_omega(kOrigin, t.a, t.b, t.c), 1.0, 2e-6);
+  EXPECT_NEAR(om_p / ref_p, 1.0, 2e-6);
+  EXPECT_NEAR(om_s / cone_omega(kOrigin, to_d(sc), srad), 1.0, 2e-6);
   Rng rng(20);
   for (int i = 0; i < 20000; ++i) {
     const float u1 = rng.uf(), u2 = rng.uf();
