@@ -7,16 +7,16 @@
 #include <random>
 #include <vector>
 
-#include "../kernels/generate.h"
-#include "../kernels/hit.h"
-#include "../kernels/mis.h"
-#include "../kernels/rng.h"
-#include "../kernels/sample_cosine.h"
-#include "../kernels/sample_lights.h"
-#include "../kernels/weight.h"
-#include "embree.h"
-#include "render.h"
-#include "scene.h"
+#include "wave/generate.h"
+#include "wave/surface_hits.h"
+#include "mis.h"
+#include "sample/rng.h"
+#include "wave/sample_cosine.h"
+#include "wave/sample_lights.h"
+#include "wave/emitter_hits.h"
+#include "accel/embree.h"
+#include "render/render.h"
+#include "scene/scene.h"
 
 using namespace tuile;
 

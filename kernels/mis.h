@@ -4,7 +4,7 @@
 // Every heuristic is evaluated in ratio form (r = q_other / q_self) so pdfs from 1e-30 to
 // 1e30, zero and infinity give a finite weight in [0, 1], and w(a, b) + w(b, a) = 1.
 #pragma once
-#include "simd.h"
+#include "lanes/simd.h"
 
 namespace tuile {
 

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "../kernels/generate.h"
+#include "wave/generate.h"
 
 namespace tuile::test {
 

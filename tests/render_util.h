@@ -3,10 +3,10 @@
 #include <memory>
 #include <vector>
 
-#include "embree.h"
-#include "polygon_irradiance.h"
-#include "render.h"
-#include "scene.h"
+#include "accel/embree.h"
+#include "light/polygon_irradiance.h"
+#include "render/render.h"
+#include "scene/scene.h"
 
 namespace tuile::test {
 

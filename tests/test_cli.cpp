@@ -9,7 +9,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "image_io.h"
+#include "scene/image_io.h"
 
 namespace fs = std::filesystem;
 

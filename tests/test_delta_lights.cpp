@@ -6,7 +6,7 @@
 
 #include <cmath>
 
-#include "../kernels/generate.h"
+#include "wave/generate.h"
 #include "render_util.h"
 
 using namespace tuile;

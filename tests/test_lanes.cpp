@@ -13,14 +13,14 @@
 #include <set>
 #include <vector>
 
-#include "../kernels/accumulate.h"
-#include "../kernels/generate.h"
-#include "../kernels/hit.h"
-#include "embree.h"
-#include "../kernels/sample_cosine.h"
-#include "../kernels/sample_lights.h"
-#include "../kernels/weight.h"
-#include "render.h"
+#include "wave/accumulate.h"
+#include "wave/generate.h"
+#include "wave/surface_hits.h"
+#include "accel/embree.h"
+#include "wave/sample_cosine.h"
+#include "wave/sample_lights.h"
+#include "wave/emitter_hits.h"
+#include "render/render.h"
 #include "render_util.h"
 
 using namespace tuile;

@@ -11,13 +11,13 @@
 #include <sstream>
 #include <string>
 
-#include "cli.h"
-#include "commands.h"
-#include "embree.h"
-#include "image_io.h"
-#include "metrics.h"
-#include "plot.h"
-#include "render.h"
+#include "app/cli.h"
+#include "app/commands.h"
+#include "accel/embree.h"
+#include "scene/image_io.h"
+#include "measure/metrics.h"
+#include "measure/plot.h"
+#include "render/render.h"
 
 namespace fs = std::filesystem;
 using namespace tuile;

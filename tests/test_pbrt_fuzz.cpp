@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "pbrt.h"
+#include "scene/pbrt.h"
 
 namespace fs = std::filesystem;
 using namespace tuile;

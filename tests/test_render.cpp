@@ -5,8 +5,8 @@
 #include <cmath>
 #include <cstring>
 
-#include "../kernels/generate.h"
-#include "image_io.h"
+#include "wave/generate.h"
+#include "scene/image_io.h"
 #include "render_util.h"
 
 using namespace tuile;

@@ -24,8 +24,8 @@
 #include <random>
 #include <vector>
 
-#include "polygon_irradiance.h"
-#include "sampling.h"
+#include "light/polygon_irradiance.h"
+#include "sample/sampling.h"
 
 using namespace tuile;
 

@@ -19,9 +19,9 @@
 #include <thread>
 #include <vector>
 
-#include "../kernels/generate.h"
-#include "../kernels/sample_lights.h"
-#include "pbrt.h"
+#include "wave/generate.h"
+#include "wave/sample_lights.h"
+#include "scene/pbrt.h"
 #include "render_util.h"
 
 using namespace tuile;

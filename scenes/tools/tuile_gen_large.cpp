@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "pbrt.h"
+#include "scene/pbrt.h"
 
 namespace {
 

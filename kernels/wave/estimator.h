@@ -1,0 +1,38 @@
+// Estimator: which Monte Carlo estimator of direct lighting a render runs (technique,
+// light pick and point, MIS heuristic and mode, sample counts, sampler, seed), as the
+// stages read it.
+#pragma once
+#include <cstdint>
+
+#include "light/lights.h"
+#include "mis.h"
+#include "sample/rng.h"
+
+namespace tuile {
+
+enum class Strategy : int { light = 0, bsdf = 1, mis = 2 };
+enum class LightPick : int { all = 0, uniform = 1, area = 2, power = 3 };
+enum class MisMode : int { multi = 0, one = 1 };
+
+struct Estimator {
+  Strategy strategy = Strategy::mis;
+  LightPick pick = LightPick::power;
+  LightPoint point = LightPoint::solid_angle;
+  Heuristic heuristic = Heuristic::power;
+  MisParams mis;
+  MisMode mode = MisMode::multi;
+  int light_samples = 1;
+  int bsdf_samples = 1;
+  SamplerKind sampler = SamplerKind::sobol;
+  bool aov_mis_weight = false;  // accumulate the BSDF technique's MIS weight (AOV) at all
+  uint32_t seed = 0;
+  uint32_t spp = 16;
+
+  // probability of choosing the light technique in one-sample MIS
+  float one_sample_light_prob() const {
+    return static_cast<float>(light_samples) / static_cast<float>(light_samples + bsdf_samples);
+  }
+  bool one_sample() const { return strategy == Strategy::mis && mode == MisMode::one; }
+};
+
+}  // namespace tuile

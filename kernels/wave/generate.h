@@ -1,0 +1,61 @@
+// Stage 1, generate: camera rays for one sample of every pixel of a tile.
+// Reads the tile's pixel corners and the sampler; writes the camera packets (RayHit16,
+// Embree's layout) and clears the per-pixel radiance. pbrt-v4 perspective camera: fov
+// over the shorter axis, raster y down, box filter (one uniform point per pixel).
+#pragma once
+#include <algorithm>
+
+#include "wave/tile.h"
+#include "lanes/vec.h"
+
+namespace tuile {
+
+template <class T>
+inline void camera_ray(const CameraView& c, T rx, T ry, Vec3<T>& org, Vec3<T>& dir) {
+  const T sx = T(c.sx0) + rx * T(c.inv_w) * T(c.sx1 - c.sx0);
+  const T sy = T(c.sy1) - ry * T(c.inv_h) * T(c.sy1 - c.sy0);
+  const Vec3<T> d_cam{sx * T(c.tan_half), sy * T(c.tan_half), T(1.f)};
+  const Vec3<T> d{T(c.m[0][0]) * d_cam.x + T(c.m[0][1]) * d_cam.y + T(c.m[0][2]) * d_cam.z,
+                  T(c.m[1][0]) * d_cam.x + T(c.m[1][1]) * d_cam.y + T(c.m[1][2]) * d_cam.z,
+                  T(c.m[2][0]) * d_cam.x + T(c.m[2][1]) * d_cam.y + T(c.m[2][2]) * d_cam.z};
+  dir = normalize(d);
+  org = {T(c.m[0][3]), T(c.m[1][3]), T(c.m[2][3])};
+}
+
+// Writes lanes [i, i + width(T)) of the camera packets.
+template <class T> TUILE_FLATTEN inline void generate_lanes(const CameraView& c, TileBuffers& tb, int i) {
+  const T rx = load<T>(tb.fx + i) + load<T>(tb.u0 + i);
+  const T ry = load<T>(tb.fy + i) + load<T>(tb.u1 + i);
+  Vec3<T> o, d;
+  camera_ray(c, rx, ry, o, d);
+  RayHit16& p = tb.cam[i / packet_width];
+  const int l = i % packet_width;
+  store3(p.ray.org_x + l, p.ray.org_y + l, p.ray.org_z + l, o);
+  store3(p.ray.dir_x + l, p.ray.dir_y + l, p.ray.dir_z + l, d);
+  store(p.ray.tfar + l, T(3.0e38f));
+  store(tb.Lr + i, T(0.f));
+  store(tb.Lg + i, T(0.f));
+  store(tb.Lb + i, T(0.f));
+}
+
+// All lanes of a tile (lanes padded up to a whole packet).
+inline void generate(const CameraView& c, const Estimator& est, uint32_t sample, int lanes, TileBuffers& tb) {
+  const int padded = (lanes + packet_width - 1) / packet_width * packet_width;
+  for (int i = lanes; i < padded; ++i) {  // padding lanes: a harmless pixel, never traced
+    tb.fx[i] = tb.fx[0];
+    tb.fy[i] = tb.fy[0];
+    tb.pixel[i] = tb.pixel[0];
+  }
+  lane_pairs(est, tb, sample, 0, padded, tb.u0, tb.u1);
+  int i = 0;
+  for (; i < padded; i += simd_width) generate_lanes<vfloat>(c, tb, i);  // padded: whole packets
+  for (int k = 0; k < padded / packet_width; ++k) reset_hit(tb.cam[k]);
+  std::fill_n(tb.cam_valid, lanes, -1);
+  std::fill_n(tb.cam_valid + lanes, padded - lanes, 0);
+  if (est.aov_mis_weight) {
+    std::fill_n(tb.wsum, padded, 0.f);
+    std::fill_n(tb.wcnt, padded, 0.f);
+  }
+}
+
+}  // namespace tuile

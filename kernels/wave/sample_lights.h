@@ -1,0 +1,159 @@
+// Stage 3, sample lights: one light sample per shading point for pass j.
+// Reads the shading points, the light table and two dimension pairs of the sampler;
+// writes the shadow packets (Embree's RTCRay16 layout) and each lane's contribution if
+// the shadow ray turns out unoccluded. Lanes are independent; masks, not branches.
+// Estimator (Veach's thesis eq. 9.13 with MIS; the course's light sampling):
+//   f_r L_e cos(theta_x) w_light / (n_light p_light),  p_light = P(source) p_point(solid angle)
+// with w_light from the heuristic on q = n p of both techniques (multi-sample) or
+// q = c p (one-sample, c = choice probability, then n_light = c). Delta lights: w = 1.
+#pragma once
+#include <algorithm>
+#include <type_traits>
+
+#include "wave/tile.h"
+
+namespace tuile {
+
+struct LightPass {
+  int32_t fixed_light = -1;  // >= 0 with --light-pick all: every lane samples this source
+  float n_light = 1.f;       // n (multi-sample) or c (one-sample) of the light technique
+  float n_bsdf = 1.f;        // same for the BSDF technique (for q_bsdf)
+};
+
+// Kinds: which kinds of source can occur (kind_area, kind_delta); Pick: whether lanes pick
+// a source (false: every lane samples pass.fixed_light, as with one light or "all").
+template <class T, unsigned Kinds = kind_all, bool Pick = true>
+TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimator& est, const LightPass& pass, TileBuffers& tb,
+                                int k) {
+  constexpr float inv_pi = 0.318309886f;
+  auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.shade_count));
+  if (est.one_sample()) active = active && (load<T>(tb.choose_light + k) > T(0.5f));
+  const Vec3<T> x = load3<T>(tb.px + k, tb.py + k, tb.pz + k);
+  const Vec3<T> n = load3<T>(tb.nx + k, tb.ny + k, tb.nz + k);
+  const T eps = load<T>(tb.eps + k);
+
+  LightGeom<T> g;
+  T pick, Le_r, Le_g, Le_b;
+  if constexpr (Pick) {
+    // per-lane sources: gathers, or permutes of small and medium tables (the same values)
+    with_table_tier(L, [&](auto tier) {
+      constexpr int S = decltype(tier)::value;
+      i32_t<T> idx;
+      if (pass.fixed_light >= 0) idx = i32_t<T>(pass.fixed_light);
+      else idx = pick_light<T, S>(L, load<T>(tb.u0 + k));
+      if constexpr ((Kinds & kind_rects) != 0) g = gather_rect_light<S>(L, idx);
+      else g = gather_light<S>(L, idx);
+      gather_pick_radiance<S>(L, idx, pick, Le_r, Le_g, Le_b);
+    });
+  } else {  // every lane samples the same source: broadcasts, no gathers
+    const int32_t li = pass.fixed_light;
+    g = broadcast_light<T>(L, li);
+    pick = T(L.pick_pdf[li]);
+    Le_r = T(L.Lr[li]);
+    Le_g = T(L.Lg[li]);
+    Le_b = T(L.Lb[li]);
+  }
+  const LightPointSample<T> s =
+      sample_light_point<Kinds>(est.point, g, x, load<T>(tb.u2 + k), load<T>(tb.u3 + k));
+
+  constexpr bool rects = (Kinds & kind_rects) != 0;
+  const T cos_x = dot(n, s.wi);
+  const auto planar = rects ? mask_t<T>(true) : type_is<T>(g.type, lt_triangle) || type_is<T>(g.type, lt_parallelogram);
+  const auto front = !planar || g.two_sided > T(0.f) || dot(x - g.p0, g.n) > T(0.f);
+  const T pdf_l = pick * s.pdf_sa;
+  T w(1.f);
+  if (est.strategy == Strategy::mis) {
+    const T q_l = T(pass.n_light) * pdf_l;
+    const T q_b = T(pass.n_bsdf) * cos_x * T(inv_pi);
+    w = sel(s.is_delta, T(1.f), mis_weight(est.heuristic, q_l, q_b, est.mis));
+  } else if (est.strategy == Strategy::bsdf) {
+    w = sel(s.is_delta, T(1.f), T(0.f));  // area lights are left to the BSDF technique
+  }
+  const T denom = T(pass.n_light) * sel(s.is_delta, pick, pdf_l);
+  const auto ok = active && s.valid && front && cos_x > T(0.f) && denom > T(0.f) && w > T(0.f);
+  const T factor = sel(ok, w * cos_x * T(inv_pi) * rcp_nr(sel(ok, denom, T(1.f))) * s.scale, T(0.f));
+  const T c_r = load<T>(tb.ar + k) * Le_r * factor;
+  const T c_g = load<T>(tb.ag + k) * Le_g * factor;
+  const T c_b = load<T>(tb.ab + k) * Le_b * factor;
+  // the channels are >= 0 or NaN: their sum is finite iff each one is
+  const T c_sum = c_r + c_g + c_b;
+  const auto fin = is_finite(c_sum);
+  auto live = ok && fin && (c_sum > T(0.f));
+  store(tb.cr + k, sel(live, c_r, T(0.f)));
+  store(tb.cg + k, sel(live, c_g, T(0.f)));
+  store(tb.cb + k, sel(live, c_b, T(0.f)));
+  // count contributions dropped as non-finite where the sample itself was fine
+  if (any(ok && !fin)) tb.rejected_light += static_cast<uint64_t>(count(ok && !fin));
+
+  // Shadow ray from the offset origin to the light point, itself offset off the source
+  // towards x (pbrt's "spawn ray to"): at grazing angles the ray along wi from a lifted
+  // origin would meet the source's plane early. Embree's packet t is good to ~1e-5
+  // relative (measured), so the ray stops 2^-12 of its length short.
+  const Vec3<T> org = x + n * eps;
+  const auto is_dist = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_distant);
+  const auto is_sph = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_sphere);
+  const Vec3<T> y = x + s.wi * sel(is_dist, T(0.f), s.dist);
+  // error bound of the light point, per axis (it is p0 + u e1 + v e2, or x + t wi), with
+  // |e1| + |e2| bounding every axis's |e1_i| + |e2_i| (a sphere's |e1| is its radius)
+  const T g7 = T(gamma_err(7));
+  const T edges = g.len1 + g.len2;
+  const Vec3<T> err_y{g7 * (abs(g.p0.x) + edges + abs(y.x)), g7 * (abs(g.p0.y) + edges + abs(y.y)),
+                      g7 * (abs(g.p0.z) + edges + abs(y.z))};
+  Vec3<T> ny = sel(dot(g.n, s.wi) > T(0.f), -g.n, g.n);  // planar normal facing x
+  if (!rects && any(is_sph)) {  // outward normal; a point at the centre of a tiny sphere falls back to -wi
+    const Vec3<T> rel = y - g.p0;
+    const T rl = length(rel);
+    const auto good = rl > T(0.f) && is_finite(rl);
+    ny = sel(is_sph, sel(good, rel * (T(1.f) / sel(good, rl, T(1.f))), -s.wi), ny);
+  }
+  ny = sel(planar || is_sph, ny, Vec3<T>(T(0.f), T(0.f), T(0.f)));
+  const T eps_y = abs(ny.x) * err_y.x + abs(ny.y) * err_y.y + abs(ny.z) * err_y.z;
+  const Vec3<T> target = y + ny * eps_y;
+  const Vec3<T> to = target - org;
+  const T len2 = dot(to, to);
+  const T ilen = rsqrt_nr(sel(len2 > T(0.f), len2, T(1.f)));
+  const T len = len2 * ilen;
+  const Vec3<T> dir = sel(is_dist || !(len > T(0.f)), s.wi, to * ilen);
+  const T tfar = sel(is_dist, T(3.0e38f), len * T(1.f - 1.f / 4096.f));
+  // Embree does not skip non-finite rays: a lane whose ray is not finite is dropped (one
+  // test on the sum: a NaN or infinite term makes it non-finite)
+  const auto ray_ok = is_finite(((dir.x + dir.y) + (dir.z + tfar)) + ((org.x + org.y) + org.z));
+  if (any(live && !ray_ok)) tb.rejected_light += static_cast<uint64_t>(count(live && !ray_ok));
+  live = live && ray_ok;
+  store_rays(tb.shadow, k, org, dir, tfar);
+  store_valid(tb.valid + k, live);
+}
+
+// Draws the pass's random numbers and runs the lanes of every shading point.
+template <unsigned Kinds = kind_all, bool Pick = true>
+inline void sample_lights(const LightView& L, const Estimator& est, const LightPass& pass, uint32_t sample,
+                          uint32_t pair, TileBuffers& tb) {
+  const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
+  if (Pick && pass.fixed_light < 0)  // the pick reads the first dimension only
+    point_pairs(est, tb, sample, pair, padded, tb.u0, nullptr);
+  point_pairs(est, tb, sample, pair + 1, padded, tb.u2, tb.u3);
+  // four batches at a time (vfloat4), then two: the solid-angle maps are latency-bound
+  // chains, so interleaved batches keep the core busy (two-panels: one batch at a time
+  // 6% slower overall, four 1% faster than two)
+  for_lane_batches<vfloat4>(0, padded, [&](auto lane, int k) {
+    sample_lights_lanes<typename decltype(lane)::type, Kinds, Pick>(L, est, pass, tb, k);
+  });
+}
+
+// After the shadow query: unoccluded lanes add their contribution to their shading
+// point's sum (accumulate adds it to the pixel). Lanes that were not traced or were
+// occluded (Embree sets tfar = -inf) add nothing.
+template <class T> inline void accumulate_shadow_lanes(TileBuffers& tb, int k) {
+  const T tfar = load<T>(tb.shadow[k / packet_width].tfar + k % packet_width);
+  const auto lit = f_mask_from_i(load_i32<T>(tb.valid + k) != i32_t<T>(0)) && tfar != T(-INFINITY);
+  store(tb.Sr + k, load<T>(tb.Sr + k) + sel(lit, load<T>(tb.cr + k), T(0.f)));
+  store(tb.Sg + k, load<T>(tb.Sg + k) + sel(lit, load<T>(tb.cg + k), T(0.f)));
+  store(tb.Sb + k, load<T>(tb.Sb + k) + sel(lit, load<T>(tb.cb + k), T(0.f)));
+}
+
+template <class T = vfloat> inline void accumulate_shadow(TileBuffers& tb) {
+  const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
+  for (int k = 0; k < padded; k += lane_traits<T>::width) accumulate_shadow_lanes<T>(tb, k);
+}
+
+}  // namespace tuile

@@ -1,0 +1,296 @@
+// Stage 2b, camera hits: turns the camera packets Embree filled into compacted shading
+// points (position, facing normal, albedo, ray offset, pixel, lane), adds the radiance
+// of emitters seen directly, and draws the one-sample MIS technique choice.
+// Reads: camera packets, geometry/material/light tables (triangles flattened by
+// build_views). Writes: shading point arrays, tile radiance, rejected_camera. SIMD per
+// lane with compress stores; only texture lookups stay scalar.
+#pragma once
+#include <algorithm>
+#include <bit>
+#include <type_traits>
+
+#include "wave/tile.h"
+#include "lanes/vec.h"
+
+namespace tuile {
+
+// The texture of a hit's material, or -1 (spheres and meshes without uv have none).
+inline int32_t hit_texture(const GeomView& G, uint32_t geom) {
+  const int32_t t = G.mat_texture[G.geom_material[geom]];  // never -1 material: build_views appends a default
+  if (t < 0 || static_cast<int32_t>(geom) >= G.mesh_count || !G.uvs[geom]) return -1;
+  return t;
+}
+
+// The texel (nearest, wrap) of texture t at barycentrics (u, v) of triangle prim.
+inline const float* hit_texel(const GeomView& G, int32_t t, uint32_t geom, uint32_t prim, float u, float v) {
+  const uint32_t* idx = G.indices[geom] + 3 * prim;
+  const float* uv = G.uvs[geom];
+  const float w0 = 1.f - u - v;
+  float s = w0 * uv[2 * idx[0]] + u * uv[2 * idx[1]] + v * uv[2 * idx[2]];
+  float q = w0 * uv[2 * idx[0] + 1] + u * uv[2 * idx[1] + 1] + v * uv[2 * idx[2] + 1];
+  s -= std::floor(s);
+  q -= std::floor(q);
+  const int w = G.tex_w[t], h = G.tex_h[t];
+  const int x = std::min(w - 1, std::max(0, static_cast<int>(s * static_cast<float>(w))));
+  const int y = std::min(h - 1, std::max(0, static_cast<int>((1.f - q) * static_cast<float>(h))));
+  return G.tex_rgb[t] + 3 * (static_cast<size_t>(y) * w + x);
+}
+
+// Texels in three passes over the tile's textured shading points, each prefetching what the
+// next reads (vertex indices, then uv, then the texel), so that the cache misses of a
+// large scene overlap instead of following one another.
+inline void apply_texels(const GeomView& G, TileBuffers& tb) {
+  const int nt = tb.tex_count;
+  for (int j = 0; j < nt; ++j) {
+    const uint32_t* idx = G.indices[tb.tex_geom[j]] + 3 * tb.tex_prim[j];
+    const float* uv = G.uvs[tb.tex_geom[j]];
+    for (int c = 0; c < 3; ++c) __builtin_prefetch(uv + 2 * idx[c]);
+  }
+  for (int j = 0; j < nt; ++j) {
+    tb.texel[j] = hit_texel(G, tb.tex_id[j], tb.tex_geom[j], tb.tex_prim[j], tb.tex_u[j], tb.tex_v[j]);
+    __builtin_prefetch(tb.texel[j]);
+  }
+  for (int j = 0; j < nt; ++j) {
+    const int k = tb.tex_point[j];
+    const float* t = tb.texel[j];
+    tb.ar[k] *= t[0];
+    tb.ag[k] *= t[1];
+    tb.ab[k] *= t[2];
+  }
+}
+
+// The light a ray hit, or -1.
+inline int32_t light_of_hit(const GeomView& G, uint32_t geom, uint32_t prim) {
+  if (geom == invalid_id) return -1;
+  if (static_cast<int32_t>(geom) < G.mesh_count) return G.tri_light[G.tri_offset[geom] + static_cast<int32_t>(prim)];
+  return G.sphere_light[geom - G.mesh_count];
+}
+
+// Whether a ray from o travelling along d sees the emitting side of light l: one-sided
+// planar sources emit on the side of their normal, spheres outwards (a ray starting
+// inside a sphere light sees no emission, as in pbrt). Spheres: false when no source is a
+// sphere (the planar test alone, the same answer).
+template <class T, bool Spheres = true, int Tier = tier_gather>
+inline mask_t<T> light_front_lanes(const LightView& L, const i32_t<T>& l, const Vec3<T>& o, const Vec3<T>& d) {
+  if constexpr (Tier == tier_gather && !std::is_same_v<T, float>) {  // permutes of small and medium tables
+    if (L.tier == tier_small) return light_front_lanes<T, Spheres, tier_small>(L, l, o, d);
+    if (L.tier == tier_medium) return light_front_lanes<T, Spheres, tier_medium>(L, l, o, d);
+  }
+  auto front = dot(d, Vec3<T>{lget<Tier>(L.nx, l), lget<Tier>(L.ny, l), lget<Tier>(L.nz, l)}) < T(0.f);
+  if (L.any_two_sided) front = front || lget<Tier>(L.two_sided, l) > T(0.f);
+  if constexpr (!Spheres) return front;
+  const Vec3<T> c = o - Vec3<T>{lget<Tier>(L.p0x, l), lget<Tier>(L.p0y, l), lget<Tier>(L.p0z, l)};
+  const T r = lget<Tier>(L.e1x, l);
+  const auto sphere = f_mask_from_i(lget<Tier>(L.type, l) == i32_t<T>(lt_sphere));
+  const auto outside = dot(c, c) > r * r;
+  return sel_mask(sphere, outside, front);
+}
+inline bool light_front(const LightView& L, int32_t l, float ox, float oy, float oz, float dx, float dy, float dz) {
+  return light_front_lanes<float>(L, l, {ox, oy, oz}, {dx, dy, dz});
+}
+
+// Ray offset for a surface point: the per-axis error bound of the point projected on the
+// normal (pbrt-v4's OffsetRayOrigin), never zero so the new ray starts off the plane.
+template <class T> inline T offset_along_normal(const Vec3<T>& err, const Vec3<T>& n) {
+  return abs(n.x) * err.x + abs(n.y) * err.y + abs(n.z) * err.z + T(1e-30f);
+}
+
+// Lanes [i, i + width) of the camera packets: the hits among the first `lanes` become
+// shading points n, n + 1, ... in lane order (n is advanced). A hit with a degenerate
+// normal or distance is rejected (counted, no shading point).
+template <class T, bool Emitters>
+TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int i, int lanes,
+                                           int& n) {
+  const RayHit16& p = tb.cam[i / packet_width];
+  const int l = i % packet_width;
+  const i32_t<T> lane = i32_t<T>(i) + lane_iota_i32<T>();
+  const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(p.geomID + l));
+  const auto hit = f_mask_from_i(geom >= i32_t<T>(0) && lane < i32_t<T>(lanes));  // invalid_id reads as -1
+  const i32_t<T> gi = max(geom, i32_t<T>(0));
+  const T t = load<T>(p.ray.tfar + l);
+  const Vec3<T> o = load3<T>(p.ray.org_x + l, p.ray.org_y + l, p.ray.org_z + l);
+  const Vec3<T> d = load3<T>(p.ray.dir_x + l, p.ray.dir_y + l, p.ray.dir_z + l);
+  Vec3<T> ng = load3<T>(p.Ng_x + l, p.Ng_y + l, p.Ng_z + l);
+  const T len2 = dot(ng, ng);
+  const auto ok = hit && len2 > T(0.f) && is_finite(len2) && is_finite(t);
+  tb.rejected_camera += static_cast<uint64_t>(std::popcount(lane_bits(hit && !ok)));
+  const uint32_t keep = lane_bits(ok);
+  store(tb.shade_of + i, expand_index<T>(n, keep));
+  if (!keep) return;
+  ng = ng * rsqrt_nr(sel(ok, len2, T(1.f)));
+  // face the viewer: diffuse reflection on both sides. 0 - n, not -n: xsimd 8 negates
+  // AVX-512 lanes as 0 - x, so this keeps +0 components in every build and the reference.
+  ng = sel(dot(ng, d) > T(0.f), Vec3<T>(T(0.f), T(0.f), T(0.f)) - ng, ng);
+
+  // The hit point and its error bound (pbrt-v4): for triangles from the barycentrics,
+  // err_i = gamma(7) sum_k |b_k v_k,i|, so an axis-aligned plane at any distance keeps
+  // an exact coordinate; for spheres reprojected onto the surface, err = gamma(5) |x|.
+  const auto tri_i = i_mask_from_f(ok) && geom < i32_t<T>(G.mesh_count);
+  const auto sphere = ok && !f_mask_from_i(tri_i);
+  const i32_t<T> prim = load_i32<T>(reinterpret_cast<const int32_t*>(p.primID + l));
+  // Coherent camera rays often hit one geometry, even one triangle, in every lane: then
+  // broadcasts of the first hit's data replace the gathers (same values). Lanes without
+  // a triangle read triangle 0.
+  const int k0 = std::countr_zero(keep);
+  const int32_t g0 = static_cast<int32_t>(p.geomID[l + k0]), p0 = static_cast<int32_t>(p.primID[l + k0]);
+  const bool one_geom = all(!ok || f_mask_from_i(geom == i32_t<T>(g0)));
+  const bool one_tri = one_geom && (g0 >= G.mesh_count || all(!ok || f_mask_from_i(prim == i32_t<T>(p0))));
+  const int32_t t0 = g0 < G.mesh_count ? G.tri_offset[g0] + p0 : 0;
+  i32_t<T> tri;
+  Vec3<T> v0, v1, v2;
+  if (one_tri) {
+    const float* P = G.tri_pos + 9 * static_cast<size_t>(t0);
+    tri = i32_t<T>(t0);
+    v0 = {T(P[0]), T(P[1]), T(P[2])};
+    v1 = {T(P[3]), T(P[4]), T(P[5])};
+    v2 = {T(P[6]), T(P[7]), T(P[8])};
+  } else {
+    tri = sel(tri_i, gather(G.tri_offset, gi) + prim, i32_t<T>(0));
+    const i32_t<T> tv = tri * i32_t<T>(9);
+    v0 = gather3(G.tri_pos, G.tri_pos + 1, G.tri_pos + 2, tv);
+    v1 = gather3(G.tri_pos + 3, G.tri_pos + 4, G.tri_pos + 5, tv);
+    v2 = gather3(G.tri_pos + 6, G.tri_pos + 7, G.tri_pos + 8, tv);
+  }
+  const T b1 = load<T>(p.u + l), b2 = load<T>(p.v + l), b0 = T(1.f) - b1 - b2;
+  Vec3<T> x{b0 * v0.x + b1 * v1.x + b2 * v2.x, b0 * v0.y + b1 * v1.y + b2 * v2.y, b0 * v0.z + b1 * v1.z + b2 * v2.z};
+  const T g7(gamma_err(7));
+  Vec3<T> err{g7 * (abs(b0 * v0.x) + abs(b1 * v1.x) + abs(b2 * v2.x)),
+              g7 * (abs(b0 * v0.y) + abs(b1 * v1.y) + abs(b2 * v2.y)),
+              g7 * (abs(b0 * v0.z) + abs(b1 * v1.z) + abs(b2 * v2.z))};
+  if (any(sphere)) {
+    const i32_t<T> s4 = sel(i_mask_from_f(sphere), gi - i32_t<T>(G.mesh_count), i32_t<T>(0)) * i32_t<T>(4);
+    const Vec3<T> c = gather3(G.sphere_center, G.sphere_center + 1, G.sphere_center + 2, s4);
+    Vec3<T> rel = o + d * t - c;
+    rel = rel * (gather(G.sphere_center + 3, s4) / length(rel));
+    const Vec3<T> xs = c + rel;
+    const T g5(gamma_err(5));
+    x = sel(sphere, xs, x);
+    err = sel(sphere, Vec3<T>{g5 * abs(xs.x), g5 * abs(xs.y), g5 * abs(xs.z)}, err);
+  }
+
+  if constexpr (Emitters) {
+    i32_t<T> light = sel(tri_i, one_tri ? i32_t<T>(G.tri_light[t0]) : gather(G.tri_light, tri), i32_t<T>(-1));
+    if (any(sphere)) {
+      const i32_t<T> sl = sel(i_mask_from_f(sphere), gi - i32_t<T>(G.mesh_count), i32_t<T>(0));
+      light = sel(i_mask_from_f(sphere), gather(G.sphere_light, sl), light);
+    }
+    const auto lit = f_mask_from_i(light >= i32_t<T>(0));
+    if (any(lit)) {  // then the light table is not empty
+      const i32_t<T> li = max(light, i32_t<T>(0));
+      const auto emit = lit && light_front_lanes<T>(L, li, o, d);
+      with_table_tier(L, [&](auto tier) {
+        constexpr int S = decltype(tier)::value;
+        T Le_r, Le_g, Le_b;
+        lookup_radiance<S>(L, li, Le_r, Le_g, Le_b);
+        store(tb.Lr + i, sel(emit, load<T>(tb.Lr + i) + Le_r, load<T>(tb.Lr + i)));
+        store(tb.Lg + i, sel(emit, load<T>(tb.Lg + i) + Le_g, load<T>(tb.Lg + i)));
+        store(tb.Lb + i, sel(emit, load<T>(tb.Lb + i) + Le_b, load<T>(tb.Lb + i)));
+      });
+    }
+  }
+
+  T ar, ag, ab;
+  if (one_geom) {
+    const int32_t m = G.geom_material[g0];
+    ar = T(G.mat_r[m]);
+    ag = T(G.mat_g[m]);
+    ab = T(G.mat_b[m]);
+  } else {
+    const i32_t<T> mat = gather(G.geom_material, gi);
+    ar = gather(G.mat_r, mat);
+    ag = gather(G.mat_g, mat);
+    ab = gather(G.mat_b, mat);
+  }
+  // Textured points are only listed here (their vertex indices prefetched); camera_hits
+  // applies the texels once every batch of the tile is done (apply_texels).
+  if (G.has_textures) {
+    int m = n;
+    for (uint32_t bits = keep; bits; bits &= bits - 1, ++m) {
+      const int k = std::countr_zero(bits);
+      const uint32_t geom = p.geomID[l + k], prim = p.primID[l + k];
+      const int32_t t = hit_texture(G, geom);
+      if (t < 0) continue;
+      __builtin_prefetch(G.indices[geom] + 3 * prim);
+      const int j = tb.tex_count++;
+      tb.tex_point[j] = m;
+      tb.tex_id[j] = t;
+      tb.tex_geom[j] = geom;
+      tb.tex_prim[j] = prim;
+      tb.tex_u[j] = p.u[l + k];
+      tb.tex_v[j] = p.v[l + k];
+    }
+  }
+
+  // compaction: n <= i, so a whole batch written at n stays inside the arrays
+  compress_store(tb.px + n, x.x, keep);
+  compress_store(tb.py + n, x.y, keep);
+  compress_store(tb.pz + n, x.z, keep);
+  compress_store(tb.nx + n, ng.x, keep);
+  compress_store(tb.ny + n, ng.y, keep);
+  compress_store(tb.nz + n, ng.z, keep);
+  compress_store(tb.eps + n, offset_along_normal(err, ng), keep);
+  compress_store(tb.ar + n, ar, keep);
+  compress_store(tb.ag + n, ag, keep);
+  compress_store(tb.ab + n, ab, keep);
+  compress_store(reinterpret_cast<int32_t*>(tb.spix + n), load_i32<T>(reinterpret_cast<const int32_t*>(tb.pixel + i)),
+                 keep);
+  compress_store(tb.slane + n, lane, keep);
+  // The cached stream keys of the shading pairs: while every lane so far is a shading
+  // point (point k is lane k) the points read the lanes' keys; from the first lane that is
+  // not, they are copied and then compacted.
+  if (tb.keyed & ~1u) {
+    constexpr uint32_t all = lane_traits<T>::width == 32 ? ~0u : (1u << lane_traits<T>::width) - 1u;
+    if (tb.points_are_lanes && !(keep == all && n == i)) {
+      for (uint32_t bits = tb.keyed & ~1u; bits; bits &= bits - 1)
+        for (int f = 0; f < 3; ++f)
+          std::copy_n(tb.lane_key[std::countr_zero(bits)][f], n, tb.point_key[std::countr_zero(bits)][f]);
+      tb.points_are_lanes = false;
+    }
+    if (!tb.points_are_lanes)
+      for (uint32_t bits = tb.keyed & ~1u; bits; bits &= bits - 1) {
+        const int p = std::countr_zero(bits);
+        for (int f = 0; f < 3; ++f)
+          compress_store(reinterpret_cast<int32_t*>(tb.point_key[p][f] + n),
+                         load_i32<T>(reinterpret_cast<const int32_t*>(tb.lane_key[p][f] + i)), keep);
+      }
+  }
+  n += std::popcount(keep);
+}
+
+// The whole stage for lanes [0, lanes) of the tile. Emitters: false when the scene has
+// no area light (no emitter lookups at all). T = float is the scalar reference.
+template <bool Emitters = true, class T = vfloat>
+inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& est, uint32_t sample, int lanes,
+                        TileBuffers& tb) {
+  const int padded_lanes = (lanes + packet_width - 1) / packet_width * packet_width;
+  int n = 0;
+  tb.tex_count = 0;
+  tb.points_are_lanes = true;
+  for (int i = 0; i < padded_lanes; i += lane_traits<T>::width) camera_hit_lanes<T, Emitters>(G, L, tb, i, lanes, n);
+  tb.shade_count = n;
+  if (G.has_textures) apply_texels(G, tb);
+  // pad to whole packets with copies of a real point; padding lanes are never active
+  const int padded = (n + packet_width - 1) / packet_width * packet_width;
+  for (int k = n; k < padded; ++k) {
+    tb.px[k] = tb.py[k] = tb.pz[k] = 0.f;
+    tb.nx[k] = tb.ny[k] = 0.f;
+    tb.nz[k] = 1.f;
+    tb.eps[k] = 1e-6f;
+    tb.ar[k] = tb.ag[k] = tb.ab[k] = 0.f;
+    tb.spix[k] = n > 0 ? tb.spix[0] : 0u;
+    tb.slane[k] = -1;
+    if (!tb.points_are_lanes)  // (padded > n means n > 0; as lanes, the padding pixels are pixel 0 already)
+      for (uint32_t bits = tb.keyed & ~1u; bits; bits &= bits - 1)
+        for (int f = 0; f < 3; ++f) tb.point_key[std::countr_zero(bits)][f][k] = tb.point_key[std::countr_zero(bits)][f][0];
+  }
+  std::fill_n(tb.Sr, padded, 0.f);
+  std::fill_n(tb.Sg, padded, 0.f);
+  std::fill_n(tb.Sb, padded, 0.f);
+  if (est.one_sample()) {
+    point_pairs(est, tb, sample, 1, padded, tb.u0, nullptr);  // the choice reads one dimension
+    const float c = est.one_sample_light_prob();
+    for (int k = 0; k < padded; ++k) tb.choose_light[k] = tb.u0[k] < c ? 1.f : 0.f;
+  }
+}
+
+}  // namespace tuile

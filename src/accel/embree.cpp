@@ -1,0 +1,172 @@
+#include "accel/embree.h"
+
+#include <embree3/rtcore.h>
+
+#include <chrono>
+#include <cstddef>
+#include <cstring>
+#include <mutex>
+
+namespace tuile {
+
+static_assert(sizeof(Ray16) == sizeof(RTCRay16));
+static_assert(sizeof(RayHit16) == sizeof(RTCRayHit16));
+static_assert(offsetof(RayHit16, Ng_x) == offsetof(RTCRayHit16, hit.Ng_x));
+static_assert(offsetof(RayHit16, geomID) == offsetof(RTCRayHit16, hit.geomID));
+static_assert(offsetof(Ray16, tfar) == offsetof(RTCRay16, tfar));
+static_assert(offsetof(Ray16, flags) == offsetof(RTCRay16, flags));
+
+struct Accel::Impl {
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  RTCScene emitters = nullptr;  // geometry attached at construction, built by prepare_emitters
+  std::once_flag emitters_built;
+  std::string error;
+  RTCScene of(Target t) const { return t == Target::emitters ? emitters : scene; }
+};
+
+static void error_callback(void* user, RTCError code, const char* str) {
+  auto* impl = static_cast<Accel::Impl*>(user);
+  if (impl->error.empty()) impl->error = "Embree error " + std::to_string(static_cast<int>(code)) + ": " + (str ? str : "");
+}
+
+Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make_unique<Impl>()) {
+  const auto t0 = std::chrono::steady_clock::now();
+  impl_->device = rtcNewDevice(options.device_config.empty() ? nullptr : options.device_config.c_str());
+  if (!impl_->device) throw SceneError("Embree: cannot create a device (config '" + options.device_config + "')");
+  rtcSetDeviceErrorFunction(impl_->device, error_callback, impl_.get());
+  impl_->scene = rtcNewScene(impl_->device);
+  impl_->emitters = rtcNewScene(impl_->device);
+  for (RTCScene sc : {impl_->scene, impl_->emitters}) {
+    rtcSetSceneFlags(sc, options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
+    rtcSetSceneBuildQuality(sc, RTC_BUILD_QUALITY_MEDIUM);
+  }
+
+  // Each emitter is a second geometry object on the same shared buffers, attached to the
+  // emitters' scene under the same ID.
+  unsigned id = 0;
+  for (const Mesh& m : scene.meshes) {
+    for (RTCScene sc : {impl_->scene, impl_->emitters}) {
+      if (sc == impl_->emitters && !m.emissive()) continue;
+      RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      const size_t nv = m.positions.size() / 3, nt = m.triangle_count();
+      // Shared buffers: Embree reads the scene's own arrays (it may read 4 bytes past the
+      // last vertex; finalize_scene pads positions for that), no copy.
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, m.positions.data(), 0,
+                                 3 * sizeof(float), nv);
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.indices.data(), 0,
+                                 3 * sizeof(uint32_t), nt);
+      rtcCommitGeometry(g);
+      rtcAttachGeometryByID(sc, g, id);
+      rtcReleaseGeometry(g);
+    }
+    ++id;
+  }
+  for (const Sphere& s : scene.spheres) {
+    const bool emissive = s.emission.r > 0 || s.emission.g > 0 || s.emission.b > 0;
+    for (RTCScene sc : {impl_->scene, impl_->emitters}) {
+      if (sc == impl_->emitters && !emissive) continue;
+      RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+      auto* v = static_cast<float*>(
+          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
+      v[0] = s.center.x;
+      v[1] = s.center.y;
+      v[2] = s.center.z;
+      v[3] = s.radius;
+      rtcCommitGeometry(g);
+      rtcAttachGeometryByID(sc, g, id);
+      rtcReleaseGeometry(g);
+    }
+    ++id;
+  }
+  rtcCommitScene(impl_->scene);
+  if (!impl_->error.empty()) throw SceneError(impl_->error);
+  build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void Accel::prepare_emitters() const {
+  std::call_once(impl_->emitters_built, [this] {
+    rtcCommitScene(impl_->emitters);
+    if (!impl_->error.empty()) throw SceneError(impl_->error);
+  });
+}
+
+Accel::~Accel() {
+  if (impl_->scene) rtcReleaseScene(impl_->scene);
+  if (impl_->emitters) rtcReleaseScene(impl_->emitters);
+  if (impl_->device) rtcReleaseDevice(impl_->device);
+}
+
+void Accel::intersect16(const int32_t* valid, RayHit16& packet, bool coherent, Target target) const noexcept {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  rtcIntersect16(valid, impl_->of(target), &ctx, reinterpret_cast<RTCRayHit16*>(&packet));
+}
+
+void Accel::occluded16(const int32_t* valid, Ray16& packet, bool coherent) const noexcept {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  rtcOccluded16(valid, impl_->scene, &ctx, reinterpret_cast<RTCRay16*>(&packet));
+}
+
+static RTCRayHitNp to_np(Accel::StreamRays& r) {
+  RTCRayHitNp np;
+  np.ray = {r.org_x, r.org_y, r.org_z, r.tnear, r.dir_x, r.dir_y, r.dir_z, r.time, r.tfar, r.mask, r.id, r.flags};
+  np.hit.Ng_x = r.Ng_x;
+  np.hit.Ng_y = r.Ng_y;
+  np.hit.Ng_z = r.Ng_z;
+  np.hit.u = r.u;
+  np.hit.v = r.v;
+  np.hit.primID = r.primID;
+  np.hit.geomID = r.geomID;
+  np.hit.instID[0] = r.instID;
+  return np;
+}
+
+void Accel::intersect_stream(StreamRays& r, unsigned n, bool coherent, Target target) const noexcept {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  RTCRayHitNp np = to_np(r);
+  rtcIntersectNp(impl_->of(target), &ctx, &np, n);
+}
+
+void Accel::occluded_stream(StreamRays& r, unsigned n, bool coherent) const noexcept {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  RTCRayHitNp np = to_np(r);
+  rtcOccludedNp(impl_->scene, &ctx, &np.ray, n);
+}
+
+void Accel::intersect1(RayHit16& p, int i) const noexcept {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh;
+  rh.ray.org_x = p.ray.org_x[i];
+  rh.ray.org_y = p.ray.org_y[i];
+  rh.ray.org_z = p.ray.org_z[i];
+  rh.ray.tnear = p.ray.tnear[i];
+  rh.ray.dir_x = p.ray.dir_x[i];
+  rh.ray.dir_y = p.ray.dir_y[i];
+  rh.ray.dir_z = p.ray.dir_z[i];
+  rh.ray.time = 0;
+  rh.ray.tfar = p.ray.tfar[i];
+  rh.ray.mask = p.ray.mask[i];
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(impl_->scene, &ctx, &rh);
+  p.ray.tfar[i] = rh.ray.tfar;
+  p.geomID[i] = rh.hit.geomID;
+  p.primID[i] = rh.hit.primID;
+  p.Ng_x[i] = rh.hit.Ng_x;
+  p.Ng_y[i] = rh.hit.Ng_y;
+  p.Ng_z[i] = rh.hit.Ng_z;
+  p.u[i] = rh.hit.u;
+  p.v[i] = rh.hit.v;
+}
+
+}  // namespace tuile

@@ -1,0 +1,60 @@
+// The only door to Embree: device, scene build, and the packet queries.
+// Nothing else in tuile includes an Embree header.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "lanes/packet.h"
+#include "scene/scene.h"
+
+namespace tuile {
+
+struct EmbreeOptions {
+  bool robust = false;        // RTC_SCENE_FLAG_ROBUST: watertight, slower (FIELD-NOTES)
+  std::string device_config;  // e.g. "max_isa=avx2"
+};
+
+// Which BVH a query runs against: the whole scene, or only its emissive meshes and
+// spheres (the same geomIDs and primIDs; empty when the scene has no emitter).
+enum class Target { scene, emitters };
+
+class Accel {
+ public:
+  // Builds the BVH over every mesh and sphere of the scene, and attaches the emitters to a
+  // second scene (built by prepare_emitters). geomID == mesh index for meshes,
+  // meshes.size() + i for sphere i, in both. Throws SceneError if Embree fails.
+  Accel(const Scene& scene, const EmbreeOptions& options = {});
+  ~Accel();
+  Accel(const Accel&) = delete;
+  Accel& operator=(const Accel&) = delete;
+
+  // Builds the emitters' BVH (once; thread-safe). Queries with Target::emitters need it:
+  // a render that traces against the whole scene never pays for it.
+  void prepare_emitters() const;
+  // valid[i] = -1 for active lanes, 0 for inactive (Embree's convention).
+  void intersect16(const int32_t* valid, RayHit16& packet, bool coherent,
+                   Target target = Target::scene) const noexcept;
+  void occluded16(const int32_t* valid, Ray16& packet, bool coherent) const noexcept;
+  void intersect1(RayHit16& packet, int lane) const noexcept;  // reference path for tests
+  // The same rays through Embree's stream API (rtcIntersectNp / rtcOccludedNp on
+  // pointer-SoA arrays of n rays): used only to measure packets against streams.
+  struct StreamRays {
+    float *org_x, *org_y, *org_z, *tnear, *dir_x, *dir_y, *dir_z, *time, *tfar;
+    uint32_t *mask, *id, *flags;
+    float *Ng_x, *Ng_y, *Ng_z, *u, *v;
+    uint32_t *primID, *geomID, *instID;
+  };
+  void intersect_stream(StreamRays& rays, unsigned n, bool coherent, Target target = Target::scene) const noexcept;
+  void occluded_stream(StreamRays& rays, unsigned n, bool coherent) const noexcept;
+  double build_seconds() const { return build_seconds_; }
+
+ public:
+  struct Impl;  // opaque (public so Embree's C callbacks can name it)
+
+ private:
+  std::unique_ptr<Impl> impl_;
+  double build_seconds_ = 0;
+};
+
+}  // namespace tuile

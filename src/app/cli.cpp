@@ -1,0 +1,104 @@
+#include "app/cli.h"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace tuile {
+
+void add_render_flags(CLI::App& app, RenderFlags& f) {
+  app.add_option("scene", f.scene, "Scene: a pbrt-v4 file (.pbrt, .pbrt.gz) or built-in:two-panels / built-in:cornell")
+      ->capture_default_str();
+  app.add_option("--strategy", f.strategy, "light | bsdf | mis")->capture_default_str();
+  app.add_option("--light-pick", f.light_pick,
+                 "all (every source, N points each) | uniform (p = 1/S) | area (p = A/sum A) | power (p ~ power); "
+                 "default: the scene file's, else power");
+  app.add_option("--light-point", f.light_point, "area (uniform by area, pdf d^2/(cos A)) | solid-angle")
+      ->capture_default_str();
+  app.add_option("--heuristic", f.heuristic, "balance | power | cutoff | maximum (Veach & Guibas 1995)")
+      ->capture_default_str();
+  app.add_option("--beta", f.beta, "power heuristic exponent")->capture_default_str();
+  app.add_option("--alpha", f.alpha, "cutoff heuristic threshold")->capture_default_str();
+  app.add_option("--mis-mode", f.mis_mode, "multi (n light + m BSDF samples) | one (one technique at random)")
+      ->capture_default_str();
+  app.add_option("--light-samples", f.light_samples, "light samples per pixel sample (per source with --light-pick all)")
+      ->capture_default_str();
+  app.add_option("--bsdf-samples", f.bsdf_samples, "cosine samples per pixel sample")->capture_default_str();
+  app.add_option("--spp", f.spp, "samples per pixel (default: the scene file's, else 16)")
+      ->each([&f](const std::string&) { f.spp_given = true; });
+  app.add_option("--seed", f.seed, "random seed")->capture_default_str();
+  app.add_option("--sampler", f.sampler, "independent | stratified | sobol (default sobol)");
+  app.add_option("--threads", f.threads, "worker threads (0 = all cores)")->capture_default_str();
+  app.add_option("--tile", f.tile, "tile side in pixels (16 or 32; 1..32)")->capture_default_str();
+  app.add_option("--res", f.res, "resolution WxH, overrides the scene's film");
+  app.add_option("--aov", f.aov, "extra EXR layers: variance,mis_weight");
+  app.add_option("--pipeline", f.pipeline,
+                 "auto (specialised to the scene's features) | general (every stage, the reference)")
+      ->capture_default_str();
+  app.add_option("--bounce-rays", f.bounce_rays,
+                 "scene (nearest hit in the whole scene) | emitters (nearest emitter, then an occlusion ray to it) | "
+                 "auto (emitters when they are at most half of the primitives)")
+      ->capture_default_str();
+  app.add_flag("--quiet", f.quiet, "no progress or summary on stderr");
+  app.add_flag("--stats", f.stats, "print rejected samples, worst accident and mean variance");
+}
+
+static void check_finite(float v, const char* flag) {
+  if (!std::isfinite(v)) throw std::invalid_argument(std::string(flag) + " must be a finite number");
+}
+
+RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
+  RenderOptions o;
+  Estimator& e = o.est;
+  e.strategy = parse_strategy(f.strategy);
+  const std::string pick = !f.light_pick.empty() ? f.light_pick : !scene.file_light_pick.empty() ? scene.file_light_pick : "power";
+  e.pick = parse_light_pick(pick);
+  e.point = parse_light_point(f.light_point);
+  e.heuristic = parse_heuristic(f.heuristic);
+  e.mode = parse_mis_mode(f.mis_mode);
+  check_finite(f.beta, "--beta");
+  check_finite(f.alpha, "--alpha");
+  if (!(f.beta > 0)) throw std::invalid_argument("--beta must be > 0");
+  if (!(f.alpha >= 0 && f.alpha <= 1)) throw std::invalid_argument("--alpha must be in [0, 1]");
+  e.mis.beta = f.beta;
+  e.mis.alpha = f.alpha;
+  if (f.light_samples < 1 || f.light_samples > 4096) throw std::invalid_argument("--light-samples must be in 1..4096");
+  if (f.bsdf_samples < 1 || f.bsdf_samples > 4096) throw std::invalid_argument("--bsdf-samples must be in 1..4096");
+  e.light_samples = f.light_samples;
+  e.bsdf_samples = f.bsdf_samples;
+  if (f.spp_given && f.spp < 1) throw std::invalid_argument("--spp must be >= 1");
+  const int spp = f.spp_given ? f.spp : scene.file_spp > 0 ? scene.file_spp : 16;
+  e.spp = static_cast<uint32_t>(spp);
+  const std::string sampler = !f.sampler.empty() ? f.sampler : !scene.file_sampler.empty() ? scene.file_sampler : "sobol";
+  e.sampler = parse_sampler(sampler);
+  e.seed = f.seed;
+  if (f.threads < 0 || f.threads > 1024) throw std::invalid_argument("--threads must be in 0..1024");
+  o.threads = f.threads;
+  if (f.tile < 1 || f.tile > max_tile_side) throw std::invalid_argument("--tile must be in 1..32");
+  o.tile = f.tile;
+  if (!f.res.empty()) {
+    int w = 0, h = 0;
+    char x = 0, extra = 0;
+    if (std::sscanf(f.res.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X'))
+      throw std::invalid_argument("--res '" + f.res + "': expected WxH, e.g. 512x512");
+    if (w < 1 || h < 1 || w > 32768 || h > 32768 || static_cast<double>(w) * h > double(1u << 28))
+      throw std::invalid_argument("--res '" + f.res + "': absurd resolution (1..32768 per axis, at most 2^28 pixels)");
+    scene.camera.width = w;
+    scene.camera.height = h;
+  }
+  o.bounce = parse_bounce_trace(f.bounce_rays);
+  if (f.pipeline == "general") o.general_pipeline = true;
+  else if (f.pipeline != "auto") throw std::invalid_argument("--pipeline '" + f.pipeline + "': expected auto or general");
+  size_t start = 0;
+  while (start < f.aov.size()) {
+    size_t end = f.aov.find(',', start);
+    if (end == std::string::npos) end = f.aov.size();
+    const std::string a = f.aov.substr(start, end - start);
+    if (a == "variance") o.aov_variance = true;
+    else if (a == "mis_weight") o.aov_mis_weight = o.est.aov_mis_weight = true;
+    else if (!a.empty()) throw std::invalid_argument("--aov: unknown layer '" + a + "' (expected variance, mis_weight)");
+    start = end + 1;
+  }
+  return o;
+}
+
+}  // namespace tuile

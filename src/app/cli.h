@@ -1,0 +1,28 @@
+// Shared command-line handling: the render flags every subcommand takes, and scene +
+// accelerator set-up with clear errors.
+#pragma once
+#include <CLI/CLI.hpp>
+
+#include <string>
+
+#include "render/render.h"
+#include "scene/scene.h"
+
+namespace tuile {
+
+struct RenderFlags {
+  std::string scene = "built-in:two-panels";
+  std::string strategy = "mis", light_pick, light_point = "solid-angle", heuristic = "power", mis_mode = "multi";
+  std::string sampler, res, output, aov, pipeline = "auto", bounce_rays = "auto";
+  float beta = 2.f, alpha = 0.1f;
+  int light_samples = 1, bsdf_samples = 1, spp = 0, threads = 0, tile = 16;
+  uint32_t seed = 0;
+  bool quiet = false, stats = false, spp_given = false;
+};
+
+void add_render_flags(CLI::App& app, RenderFlags& f);
+// Applies the flags (command line over scene file over defaults) to the scene and options.
+// Throws std::invalid_argument with a message naming the flag.
+RenderOptions resolve_options(const RenderFlags& f, Scene& scene);
+
+}  // namespace tuile

@@ -1,0 +1,354 @@
+#include "app/commands.h"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+
+#include "accel/embree.h"
+#include "scene/image_io.h"
+#include "render/render.h"
+#include "measure/roofline.h"
+
+namespace tuile {
+
+void add_bench_flags(CLI::App& app, BenchFlags& f) {
+  app.add_option("--repeat", f.repeat, "timed renders")->capture_default_str();
+  app.add_option("--warmup", f.warmup, "untimed renders first")->capture_default_str();
+  app.add_option("--json", f.json, "write the figures as JSON");
+}
+void add_profile_flags(CLI::App& app, ProfileFlags& f) {
+  app.add_option("--trace", f.trace, "Chrome trace-event JSON");
+  app.add_flag("--roofline", f.roofline, "compare with Embree alone on the same rays");
+}
+static double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+static std::string with_extension(const std::string& path, const char* ext) {
+  return std::filesystem::path(path).replace_extension(ext).string();
+}
+
+namespace {
+// Scene + resolved options + BVH, with load and build times.
+struct Prepared {
+  Scene scene;
+  RenderOptions opt;
+  std::unique_ptr<Accel> accel;
+  double load_seconds = 0, bvh_seconds = 0;
+};
+
+Prepared prepare(const RenderFlags& f) {
+  Prepared p;
+  const auto t0 = std::chrono::steady_clock::now();
+  p.scene = load_scene(f.scene);
+  p.opt = resolve_options(f, p.scene);
+  p.load_seconds = seconds_since(t0);
+  const auto t1 = std::chrono::steady_clock::now();
+  p.accel = std::make_unique<Accel>(p.scene);
+  p.bvh_seconds = seconds_since(t1);
+  return p;
+}
+
+}  // namespace
+
+// Renders all samples; on a terminal, renders longer than a second report progress
+// (percent, samples/s, ETA) on stderr. Samples are added in chunks of whole passes, which
+// gives the same image as one call: each pixel's samples still arrive in order.
+static RenderStats render_with_progress(Renderer& renderer, Film& film, uint32_t spp, bool progress) {
+  if (!progress || spp < 2) return renderer.render(film, 0, spp);
+  RenderStats total;
+  const uint64_t pixels = static_cast<uint64_t>(film.width) * film.height;
+  uint32_t chunk = 1, done = 0;
+  bool shown = false;
+  while (done < spp) {
+    const uint32_t end = std::min(spp, done + chunk);
+    const uint32_t passes = end - done;
+    const RenderStats st = renderer.render(film, done, end);
+    total.add_counts(st);
+    total.worst_ratio = st.worst_ratio;
+    total.pipeline = st.pipeline;
+    done = end;
+    // aim at about four updates a second
+    const double per_pass = st.seconds / passes;
+    chunk = std::max<uint32_t>(1, static_cast<uint32_t>(0.25 / std::max(per_pass, 1e-9)));
+    if (total.seconds > 1.0 || shown) {
+      const double rate = static_cast<double>(total.samples) / total.seconds;
+      const double eta = static_cast<double>((spp - done) * pixels) / rate;
+      std::fprintf(stderr, "\rtuile: %5.1f%%  %.2f M samples/s  ETA %.1f s   ", 100.0 * done / spp, rate * 1e-6, eta);
+      shown = true;
+    }
+  }
+  if (shown) std::fprintf(stderr, "\n");
+  return total;
+}
+
+int run_render(const RenderFlags& f) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Prepared p = prepare(f);
+  const Scene& scene = p.scene;
+  const RenderOptions& opt = p.opt;
+  for (const std::string& w : scene.warnings)
+    if (!f.quiet) std::cerr << "tuile: warning: " << w << "\n";
+  if (scene.lights.empty() && !f.quiet) std::cerr << "tuile: warning: the scene has no light; the image is black\n";
+  // -o, else the scene's Film "filename" (as an .exr), else tuile.exr
+  std::string out = "tuile.exr";
+  if (!f.output.empty()) {
+    out = f.output;
+  } else if (!scene.file_output.empty()) {
+    out = with_extension(scene.file_output, ".exr");
+  }
+  Renderer renderer(scene, *p.accel, opt);
+  Film film;
+  film.reset(scene.camera.width, scene.camera.height);
+  const double setup = seconds_since(t0);
+  const RenderStats st = render_with_progress(renderer, film, opt.est.spp, !f.quiet && isatty(2));
+  std::vector<ImageLayer> layers;
+  if (opt.aov_variance) layers.push_back({"variance", 3, film.variance_of_mean()});
+  if (opt.aov_mis_weight) layers.push_back({"mis_weight", 1, film.mis_weight()});
+  const std::vector<float> img = film.mean();
+  write_exr(out, film.width, film.height, img, layers);
+  write_png(with_extension(out, ".png"), film.width, film.height, img);
+  if (!f.quiet) {
+    std::fprintf(stderr, "tuile: %s %dx%d, %u spp, %s\n", scene.source.c_str(), film.width, film.height, opt.est.spp,
+                 describe(opt.est).c_str());
+    std::fprintf(stderr, "tuile: setup %.3f s, render %.3f s, %.2f M samples/s -> %s\n", setup, st.seconds,
+                 st.seconds > 0 ? static_cast<double>(st.samples) / st.seconds * 1e-6 : 0.0, out.c_str());
+  }
+  if (f.stats) {
+    const std::vector<float> var = film.variance_of_mean();
+    double mv = 0;
+    for (float v : var) mv += v;
+    mv /= var.empty() ? 1.0 : static_cast<double>(var.size());
+    std::printf("rejected_nonfinite camera=%llu light=%llu bsdf=%llu\n",
+                static_cast<unsigned long long>(st.rejected_camera), static_cast<unsigned long long>(st.rejected_light),
+                static_cast<unsigned long long>(st.rejected_bsdf));
+    std::printf("worst_accident %.6g (largest single-sample luminance / its pixel's mean)\n", st.worst_ratio);
+    std::printf("mean_variance_of_mean %.6g\n", mv);
+  }
+  return 0;
+}
+
+int run_info(const RenderFlags& f) {
+  const Prepared p = prepare(f);
+  const Scene& scene = p.scene;
+  const RenderOptions& opt = p.opt;
+  const Accel& accel = *p.accel;
+  const double load = p.load_seconds, bvh = p.bvh_seconds;
+  size_t area = 0, delta = 0;
+  for (const Light& l : scene.lights) (is_delta(l.type) ? delta : area)++;
+  std::printf("scene: %s\n", scene.source.c_str());
+  std::printf("resolution: %dx%d\n", scene.camera.width, scene.camera.height);
+  std::printf("triangles: %zu\nspheres: %zu\nmeshes: %zu\nmaterials: %zu\ntextures: %zu\n", scene.triangle_count(),
+              scene.spheres.size(), scene.meshes.size(), scene.materials.size(), scene.textures.size());
+  std::printf("lights: %zu (area sources %zu, delta %zu)\n", scene.lights.size(), area, delta);
+  std::printf("features:");
+  const char* names[] = {"area-lights", "delta-lights", "single-light", "textures", "spheres", "visible-emitters"};
+  for (int i = 0; i < 6; ++i)
+    if (scene.features & (1u << i)) std::printf(" %s", names[i]);
+  std::printf("\nestimator: %s\n", describe(opt.est).c_str());
+  {
+    Renderer r(scene, accel, opt);
+    std::string why;
+    const std::string name = r.pipeline_name(&why);
+    std::printf("pipeline: %s (%s)\n", name.c_str(), why.c_str());
+    std::printf("bounce rays: against the %s\n", r.bounce_emitters() ? "emitters, then occlusion rays" : "whole scene");
+  }
+  for (const std::string& w : scene.warnings) std::printf("approximation: %s\n", w.c_str());
+  std::printf("load: %.3f s\nbvh build: %.3f s\n", load, bvh);
+  return 0;
+}
+
+namespace {
+
+size_t peak_memory_bytes() {
+  struct rusage ru;
+  getrusage(RUSAGE_SELF, &ru);
+  return static_cast<size_t>(ru.ru_maxrss) * 1024;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+std::string json_escape(const std::string& s) {
+  std::string o;
+  for (char ch : s) {
+    if (ch == '"' || ch == '\\') o += '\\';
+    if (static_cast<unsigned char>(ch) < 0x20) continue;
+    o += ch;
+  }
+  return o;
+}
+
+}  // namespace
+
+int run_bench(const BenchFlags& f) {
+  if (f.repeat < 1 || f.repeat > 1000) throw std::invalid_argument("--repeat must be in 1..1000");
+  if (f.warmup < 0 || f.warmup > 1000) throw std::invalid_argument("--warmup must be in 0..1000");
+  const auto start = std::chrono::steady_clock::now();
+  Prepared p = prepare(f.render);
+  Renderer renderer(p.scene, *p.accel, p.opt);
+  const double first_pixel = seconds_since(start);  // load + BVH + light tables
+  const uint32_t spp = p.opt.est.spp;
+  std::vector<double> sps, cam, sh, bo;
+  RenderStats last;
+  for (int r = 0; r < f.warmup + f.repeat; ++r) {
+    Film film;
+    film.reset(p.scene.camera.width, p.scene.camera.height);
+    const RenderStats st = renderer.render(film, 0, spp);
+    if (r < f.warmup) continue;
+    sps.push_back(static_cast<double>(st.samples) / st.seconds);
+    cam.push_back(static_cast<double>(st.rays_camera) / st.seconds);
+    sh.push_back(static_cast<double>(st.rays_shadow) / st.seconds);
+    bo.push_back(static_cast<double>(st.rays_bounce) / st.seconds);
+    last = st;
+  }
+  const double med = median(sps);
+  const double mn = *std::min_element(sps.begin(), sps.end()), mx = *std::max_element(sps.begin(), sps.end());
+  const int threads = p.opt.threads > 0 ? p.opt.threads : static_cast<int>(std::thread::hardware_concurrency());
+  std::printf("scene: %s (%zu triangles, %zu lights)\n", p.scene.source.c_str(), p.scene.triangle_count(),
+              p.scene.lights.size());
+  std::printf("pipeline: %s, bounce rays against the %s\nestimator: %s\n", last.pipeline.c_str(),
+              last.bounce_emitters ? "emitters" : "scene", describe(p.opt.est).c_str());
+  std::printf("resolution %dx%d, %u spp, %d thread(s), %d runs after %d warm-up\n", p.scene.camera.width,
+              p.scene.camera.height, spp, threads, f.repeat, f.warmup);
+  std::printf("samples/s: median %.4g  min %.4g  max %.4g\n", med, mn, mx);
+  std::printf("rays/s (median): camera %.4g  shadow %.4g  bounce %.4g\n", median(cam), median(sh), median(bo));
+  std::printf("time to first pixel: %.3f s (load %.3f s, BVH %.3f s)\n", first_pixel, p.load_seconds, p.bvh_seconds);
+  std::printf("peak memory: %.1f MiB\n", static_cast<double>(peak_memory_bytes()) / (1024.0 * 1024.0));
+  if (!f.json.empty()) {
+    std::ofstream js(f.json);
+    if (!js) throw std::runtime_error(f.json + ": cannot open for writing");
+    js << "{\n";
+    js << "  \"samples_per_second\": {\"median\": " << med << ", \"min\": " << mn << ", \"max\": " << mx << "},\n";
+    js << "  \"rays_per_second\": {\"camera\": " << median(cam) << ", \"shadow\": " << median(sh)
+       << ", \"bounce\": " << median(bo) << "},\n";
+    js << "  \"time_to_first_pixel\": " << first_pixel << ",\n";
+    js << "  \"load_seconds\": " << p.load_seconds << ",\n";
+    js << "  \"bvh_seconds\": " << p.bvh_seconds << ",\n";
+    js << "  \"peak_memory_bytes\": " << peak_memory_bytes() << ",\n";
+    js << "  \"scene\": \"" << json_escape(p.scene.source) << "\",\n";
+    js << "  \"triangles\": " << p.scene.triangle_count() << ",\n";
+    js << "  \"lights\": " << p.scene.lights.size() << ",\n";
+    js << "  \"width\": " << p.scene.camera.width << ", \"height\": " << p.scene.camera.height << ",\n";
+    js << "  \"spp\": " << spp << ", \"threads\": " << threads << ", \"repeat\": " << f.repeat
+       << ", \"warmup\": " << f.warmup << ",\n";
+    js << "  \"pipeline\": \"" << json_escape(last.pipeline) << "\",\n";
+    js << "  \"bounce_rays\": \"" << (last.bounce_emitters ? "emitters" : "scene") << "\",\n";
+    js << "  \"estimator\": \"" << json_escape(describe(p.opt.est)) << "\",\n";
+    js << "  \"runs_samples_per_second\": [";
+    for (size_t i = 0; i < sps.size(); ++i) js << (i ? ", " : "") << sps[i];
+    js << "]\n}\n";
+  }
+  return 0;
+}
+
+int run_profile(const ProfileFlags& f) {
+  Prepared p = prepare(f.render);
+  Renderer renderer(p.scene, *p.accel, p.opt);
+  const uint32_t spp = p.opt.est.spp;
+  // a warm-up, then unprofiled and profiled renders alternately (3 each; medians), so the
+  // cost of profiling is measured under the same machine load
+  Film film;
+  film.reset(p.scene.camera.width, p.scene.camera.height);
+  renderer.render(film, 0, spp);
+  std::vector<double> plain_s, prof_s, shares;
+  Profile prof;
+  RenderStats st;
+  for (int r = 0; r < 3; ++r) {
+    film.reset(p.scene.camera.width, p.scene.camera.height);
+    plain_s.push_back(renderer.render(film, 0, spp).seconds);
+    Profile pr;
+    pr.trace = !f.trace.empty() && r == 2;
+    pr.record_rays = f.roofline && r == 2;
+    film.reset(p.scene.camera.width, p.scene.camera.height);
+    const RenderStats s2 = renderer.render(film, 0, spp, &pr);
+    prof_s.push_back(s2.seconds);
+    shares.push_back((pr.stage_seconds[static_cast<int>(Stage::intersect_camera)] +
+                      pr.stage_seconds[static_cast<int>(Stage::intersect_shadow)] +
+                      pr.stage_seconds[static_cast<int>(Stage::intersect_bounce)]) /
+                     (s2.seconds * pr.threads));
+    if (r == 2) {
+      prof = std::move(pr);
+      st = s2;
+    }
+  }
+  RenderStats plain = st;
+  plain.seconds = median(plain_s);
+  const double samples = static_cast<double>(st.samples);
+  double stage_total = 0;
+  for (double v : prof.stage_seconds) stage_total += v;
+  const double thread_seconds = st.seconds * prof.threads;
+  std::printf("scene: %s, %dx%d, %u spp, %d thread(s), pipeline %s, bounce rays against the %s\n",
+              p.scene.source.c_str(), p.scene.camera.width, p.scene.camera.height, spp, prof.threads,
+              st.pipeline.c_str(), st.bounce_emitters ? "emitters" : "scene");
+  std::printf("%-18s %10s %7s %10s %10s\n", "stage", "ms", "%", "ns/sample", "Mrays/s");
+  auto row = [&](const char* name, double sec, double rays) {
+    std::printf("%-18s %10.2f %6.1f%% %10.2f", name, sec * 1e3, 100.0 * sec / thread_seconds, sec * 1e9 / samples);
+    if (rays > 0) std::printf(" %10.2f", rays / sec * 1e-6);
+    std::printf("\n");
+  };
+  for (int k = 0; k < stage_count; ++k) {
+    const Stage s = static_cast<Stage>(k);
+    double rays = 0;
+    if (s == Stage::intersect_camera) rays = static_cast<double>(st.rays_camera);
+    if (s == Stage::intersect_shadow) rays = static_cast<double>(st.rays_shadow);
+    // bounce rays and, when they run against the emitters, their visibility rays
+    if (s == Stage::intersect_bounce) rays = static_cast<double>(st.rays_bounce + st.rays_bounce_visibility);
+    row(stage_name(s), prof.stage_seconds[k], rays);
+  }
+  row("scheduling", std::max(0.0, thread_seconds - stage_total), 0);
+  // the share as the median of the three profiled runs (the table above is the last one's)
+  std::printf("total: %.2f ms wall, %.4g samples/s; Embree share %.1f%% of thread time (median of 3 profiled runs, "
+              "%.1f-%.1f%%)\n",
+              st.seconds * 1e3, samples / st.seconds, 100.0 * median(shares),
+              100.0 * *std::min_element(shares.begin(), shares.end()),
+              100.0 * *std::max_element(shares.begin(), shares.end()));
+  std::printf("profiling cost: %.4g samples/s unprofiled vs %.4g profiled (%+.1f%%)\n",
+              samples / plain.seconds, samples / st.seconds, 100.0 * (plain.seconds / st.seconds - 1.0));
+  if (f.roofline) {
+    // median of 3 replays of the first pass's packets through Embree alone
+    std::vector<double> t;
+    for (int r = 0; r < 3; ++r) t.push_back(replay_rays(*p.accel, prof.rays, prof.threads));
+    const double pass_samples = static_cast<double>(p.scene.camera.width) * p.scene.camera.height;
+    const double bound = pass_samples / median(t);
+    const double ours = samples / plain.seconds;
+    std::vector<double> ts;
+    for (int r = 0; r < 3; ++r) ts.push_back(replay_rays_stream(*p.accel, prof.rays, prof.threads));
+    std::printf("packets vs streams: the pass's rays take %.2f ms as 16-wide packets (tuile's layout), %.2f ms as "
+                "rtcIntersectNp/rtcOccludedNp streams of one tile (medians of 3)\n",
+                median(t) * 1e3, median(ts) * 1e3);
+    std::printf("roofline: Embree alone on one pass's %zu camera, %zu shadow, %zu bounce packets: %.4g samples/s; "
+                "tuile %.4g samples/s = %.1f%% of that bound\n",
+                prof.rays.camera.size(), prof.rays.shadow.size(), prof.rays.bounce.size(), bound, ours,
+                100.0 * ours / bound);
+  }
+  if (!f.trace.empty()) {
+    std::ofstream js(f.trace);
+    if (!js) throw std::runtime_error(f.trace + ": cannot open for writing");
+    js << "{\"traceEvents\":[\n";
+    bool first = true;
+    for (const TraceEvent& e : prof.events) {
+      js << (first ? "" : ",\n") << "{\"name\":\"" << stage_name(e.stage) << "\",\"cat\":\"stage\",\"ph\":\"X\",\"ts\":"
+         << e.start_us << ",\"dur\":" << e.dur_us << ",\"pid\":1,\"tid\":" << e.thread << ",\"args\":{\"tile\":"
+         << e.tile << "}}";
+      first = false;
+    }
+    js << "\n],\"displayTimeUnit\":\"ms\"}\n";
+    std::printf("trace: %zu events -> %s\n", prof.events.size(), f.trace.c_str());
+  }
+  return 0;
+}
+
+}  // namespace tuile

@@ -1,0 +1,84 @@
+// tuile: one binary, subcommands render | info | bench | profile | converge | figures | diff.
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include "app/cli.h"
+#include "app/commands.h"
+#include "accel/embree.h"
+#include "scene/image_io.h"
+#include "render/render.h"
+#include "scene/scene.h"
+
+using namespace tuile;
+
+int main(int argc, char** argv) {
+  CLI::App app{"tuile: a SIMD tile renderer for Monte Carlo direct lighting with variance reduction"};
+  app.set_version_flag("--version", std::string("tuile ") + TUILE_VERSION);
+  app.require_subcommand(1);
+
+  RenderFlags rf;
+  CLI::App* render = app.add_subcommand("render", "render a scene to OpenEXR (+ PNG preview)");
+  add_render_flags(*render, rf);
+  render->add_option("-o,--output", rf.output,
+                     "output .exr (a .png preview is written beside it); default: the scene's Film filename, else tuile.exr");
+
+  RenderFlags inf;
+  CLI::App* info = app.add_subcommand("info", "scene statistics, detected features and the pipeline that will run");
+  add_render_flags(*info, inf);
+
+  BenchFlags bf;
+  CLI::App* bench = app.add_subcommand("bench", "samples per second over repeated renders");
+  add_render_flags(*bench, bf.render);
+  add_bench_flags(*bench, bf);
+
+  ProfileFlags pf;
+  CLI::App* profile = app.add_subcommand("profile", "time per kernel stage");
+  add_render_flags(*profile, pf.render);
+  add_profile_flags(*profile, pf);
+
+  ConvergeFlags cf;
+  CLI::App* converge = app.add_subcommand("converge", "error against run time per strategy");
+  add_render_flags(*converge, cf.render);
+  add_converge_flags(*converge, cf);
+
+  FiguresFlags ff;
+  CLI::App* figures = app.add_subcommand("figures", "the course's figures as labelled PNG contact sheets");
+  add_figures_flags(*figures, ff);
+
+  DiffFlags df;
+  CLI::App* diff = app.add_subcommand("diff", "compare two EXR images: identical bits, or by how much they differ");
+  add_diff_flags(*diff, df);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
+    std::cerr << "tuile: error: " << e.what() << "\nRun with --help for more information.\n";
+    return 1;
+  }
+  try {
+    if (*render) return run_render(rf);
+    if (*info) return run_info(inf);
+    if (*bench) return run_bench(bf);
+    if (*profile) return run_profile(pf);
+    if (*converge) return run_converge(cf);
+    if (*figures) return run_figures(ff);
+    if (*diff) return run_diff(df);
+  } catch (const SceneError& e) {
+    std::cerr << "tuile: " << e.what() << "\n";
+    return 1;
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "tuile: error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "tuile: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,292 @@
+// tuile figures: the course's experiments as labelled PNG contact sheets.
+//   a-noise.png              noise at 1, 4, 16, 64, 256, 1024 spp (noise-room)
+//   b-points-per-source.png  1 / 16 / 64 points per source, every source, 1 spp (noise-room)
+//   c-light-pdfs.png         p = 1/S 1/A, p = 1/sum A, solid angle (two-panels)
+//   d-mis.png                light alone, BSDF alone, MIS balance and power, BSDF weight (near-far)
+//   e-warmup.png/.svg        RMS error of the mean of N random values against N
+// Scenes come from scenes/course/ of the source tree (TUILE_SOURCE_DIR); when a file is
+// missing the built-in two-panels scene stands in and the sheet says so.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+#include "app/commands.h"
+#include "accel/embree.h"
+#include "scene/image_io.h"
+#include "measure/plot.h"
+#include "render/render.h"
+
+#ifndef TUILE_SOURCE_DIR
+#define TUILE_SOURCE_DIR "."
+#endif
+
+namespace tuile {
+
+namespace {
+
+struct Panel {
+  std::string label;
+  int width = 0, height = 0;
+  std::vector<unsigned char> rgb8;
+};
+
+unsigned char encode_srgb(float v) {
+  if (!(v > 0)) return 0;
+  if (v >= 1) return 255;
+  const float s = v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1 / 2.4f) - 0.055f;
+  return static_cast<unsigned char>(std::lround(s * 255.f));
+}
+
+Panel srgb_panel(std::string label, int w, int h, const std::vector<float>& rgb) {
+  Panel p{std::move(label), w, h, std::vector<unsigned char>(rgb.size())};
+  for (size_t i = 0; i < rgb.size(); ++i) p.rgb8[i] = encode_srgb(rgb[i]);
+  return p;
+}
+
+// A [0, 1] quantity (an MIS weight) shown linearly as grey.
+Panel grey_panel(std::string label, int w, int h, const std::vector<float>& y) {
+  Panel p{std::move(label), w, h, std::vector<unsigned char>(y.size() * 3)};
+  for (size_t i = 0; i < y.size(); ++i) {
+    const float v = std::clamp(std::isfinite(y[i]) ? y[i] : 0.f, 0.f, 1.f);
+    const unsigned char g = static_cast<unsigned char>(std::lround(v * 255.f));
+    p.rgb8[3 * i] = p.rgb8[3 * i + 1] = p.rgb8[3 * i + 2] = g;
+  }
+  return p;
+}
+
+// Panels in rows of at most `columns`, each under its label, under a title.
+void write_sheet(const std::string& path, const std::string& title, const std::vector<Panel>& panels, int scale,
+                 int columns) {
+  const int pad = 4 * scale, label_h = (font_height + 4) * scale;
+  int cell_w = 0, cell_h = 0;
+  for (const Panel& p : panels) {
+    cell_w = std::max({cell_w, p.width, text_width(p.label, scale)});
+    cell_h = std::max(cell_h, p.height);
+  }
+  cell_h += label_h;
+  columns = std::max(1, std::min<int>(columns, static_cast<int>(panels.size())));
+  const int rows = (static_cast<int>(panels.size()) + columns - 1) / columns;
+  const int title_h = (font_height + 6) * scale;
+  const int W = std::max(columns * (cell_w + pad) + pad, text_width(title, scale) + 2 * pad);
+  const int H = title_h + rows * (cell_h + pad) + pad;
+  Canvas c(W, H, Color{32, 32, 32});
+  draw_text(c, pad, 3 * scale, title, Color{255, 255, 255}, scale);
+  for (size_t i = 0; i < panels.size(); ++i) {
+    const Panel& p = panels[i];
+    const int col = static_cast<int>(i) % columns, row = static_cast<int>(i) / columns;
+    const int x = pad + col * (cell_w + pad), y = title_h + row * (cell_h + pad);
+    draw_text(c, x, y + scale, p.label, Color{255, 230, 120}, scale);
+    c.blit(x, y + label_h, p.width, p.height, p.rgb8.data());
+  }
+  write_png8(path, c.width, c.height, c.rgb);
+  std::printf("figures: %s\n", path.c_str());
+}
+
+std::string course_scene(const std::string& name, std::string& note) {
+  const std::string path = std::string(TUILE_SOURCE_DIR) + "/scenes/course/" + name;
+  if (std::filesystem::exists(path)) return path;
+  note = " (" + name + " not found: built-in two-panels)";
+  return "built-in:two-panels";
+}
+
+// One scene and its BVH, rendered under several flag sets.
+struct SceneSetup {
+  Scene scene;
+  std::unique_ptr<Accel> accel;
+  int threads = 0;
+  std::string res;
+  SceneSetup(const std::string& path, int w, int h, int threads_) : scene(load_scene(path)), threads(threads_) {
+    res = std::to_string(w) + "x" + std::to_string(h);
+    accel = std::make_unique<Accel>(scene);
+  }
+  RenderFlags flags() const {
+    RenderFlags f;
+    f.scene = scene.source;
+    f.res = res;
+    f.threads = threads;
+    f.quiet = true;
+    return f;
+  }
+  // Renders samples [0, spp) under the flags into a fresh film.
+  Film render(const RenderFlags& f, uint32_t spp, bool mis_weight = false) {
+    RenderOptions o = resolve_options(f, scene);
+    o.aov_mis_weight = mis_weight;
+    Renderer r(scene, *accel, o);
+    Film film;
+    film.reset(scene.camera.width, scene.camera.height);
+    r.render(film, 0, spp);
+    return film;
+  }
+};
+
+// (e) the error of the mean of N values against N, over many trials
+struct SplitMix {
+  uint64_t s;
+  uint64_t next() {
+    uint64_t z = (s += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+  }
+  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }  // [0, 1)
+};
+
+void warmup_plot(const std::string& out, bool quick) {
+  const int max_log2 = quick ? 10 : 14, trials = quick ? 200 : 2000;
+  Plot p;
+  p.title = "Error of the mean of N random values";
+  p.xlabel = "N (values averaged)";
+  p.ylabel = "RMS error";
+  p.guide_slope = -0.5;
+  p.guide_label = "1/sqrt(N)";
+  const char* names[3] = {"U[-1,1]", "U[-10,10]", "U[-1,1], 1% in U[-10,10]"};
+  for (int kind = 0; kind < 3; ++kind) {
+    PlotSeries s;
+    s.name = names[kind];
+    SplitMix rng{0x1234567ull + static_cast<uint64_t>(kind) * 0x1000193ull};
+    for (int k = 0; k <= max_log2; ++k) {
+      const int n = 1 << k;
+      double sq = 0;
+      for (int t = 0; t < trials; ++t) {
+        double sum = 0;
+        for (int i = 0; i < n; ++i) {
+          double half = kind == 1 ? 10 : 1;
+          if (kind == 2 && rng.uniform() < 0.01) half = 10;  // an accident
+          sum += (2 * rng.uniform() - 1) * half;
+        }
+        const double err = sum / n;  // the true mean is 0
+        sq += err * err;
+      }
+      s.x.push_back(n);
+      s.y.push_back(std::sqrt(sq / trials));
+    }
+    p.series.push_back(std::move(s));
+  }
+  write_plot_png(out + "/e-warmup.png", p);
+  std::printf("figures: %s/e-warmup.png\n", out.c_str());
+  write_plot_svg(out + "/e-warmup.svg", p);
+  std::printf("figures: %s/e-warmup.svg\n", out.c_str());
+}
+
+}  // namespace
+
+void add_figures_flags(CLI::App& app, FiguresFlags& f) {
+  app.add_option("--out", f.out, "output folder")->capture_default_str();
+  app.add_option("--threads", f.threads, "worker threads (0 = all cores)");
+  app.add_flag("--quick", f.quick, "small images and sample counts");
+  app.footer(
+      "Writes a-noise.png (1..1024 spp), b-points-per-source.png (1/16/64 points per source, 1 spp),\n"
+      "c-light-pdfs.png (p = 1/S 1/A, p = 1/sum A, solid angle), d-mis.png (light, BSDF, MIS balance/power,\n"
+      "BSDF weight as grey) and e-warmup.png/.svg (error of the mean of N values against N).");
+}
+
+int run_figures(const FiguresFlags& f) {
+  if (f.threads < 0 || f.threads > 1024) throw std::invalid_argument("--threads must be in 0..1024");
+  std::filesystem::create_directories(f.out);
+  const bool q = f.quick;
+  const int scale = q ? 1 : 2;
+
+  // (a) noise against samples per pixel: one progressive render, snapshots at 4^k
+  {
+    std::string note;
+    const std::string path = course_scene("noise-room.pbrt", note);
+    SceneSetup st(path, q ? 40 : 256, q ? 40 : 256, f.threads);
+    RenderFlags rf = st.flags();
+    RenderOptions o = resolve_options(rf, st.scene);
+    Renderer r(st.scene, *st.accel, o);
+    Film film;
+    film.reset(st.scene.camera.width, st.scene.camera.height);
+    std::vector<Panel> panels;
+    uint32_t done = 0;
+    for (uint32_t spp : {1u, 4u, 16u, 64u, 256u, 1024u}) {
+      r.render(film, done, spp);
+      done = spp;
+      panels.push_back(srgb_panel(std::to_string(spp) + " spp", film.width, film.height, film.mean()));
+    }
+    write_sheet(f.out + "/a-noise.png", "(a) Noise against samples per pixel, MIS power heuristic" + note, panels,
+                scale, 3);
+  }
+
+  // (b) N points on every source at 1 spp
+  {
+    std::string note;
+    const std::string path = course_scene("noise-room.pbrt", note);
+    SceneSetup st(path, q ? 40 : 256, q ? 40 : 256, f.threads);
+    std::vector<Panel> panels;
+    for (int n : {1, 16, 64}) {
+      RenderFlags rf = st.flags();
+      rf.strategy = "light";
+      rf.light_pick = "all";
+      rf.light_samples = n;
+      const Film film = st.render(rf, 1);
+      panels.push_back(srgb_panel(std::to_string(n) + (n == 1 ? " point" : " points") + " per source",
+                                  film.width, film.height, film.mean()));
+    }
+    write_sheet(f.out + "/b-points-per-source.png", "(b) Points per source, every source, 1 spp" + note, panels,
+                scale, 3);
+  }
+
+  // (c) how the light point is chosen: p = 1/S 1/A, p = 1/sum A, solid angle
+  {
+    std::string note;
+    const std::string path = course_scene("two-panels.pbrt", note);
+    SceneSetup st(path, q ? 72 : 450, q ? 24 : 150, f.threads);
+    const uint32_t spp = q ? 4 : 16;
+    struct Case {
+      const char* label;
+      const char* pick;
+      const char* point;
+    };
+    const Case cases[] = {{"p = 1/S * 1/A", "uniform", "area"},
+                          {"p = 1/sum A", "area", "area"},
+                          {"solid angle", "area", "solid-angle"}};
+    std::vector<Panel> panels;
+    for (const Case& c : cases) {
+      RenderFlags rf = st.flags();
+      rf.strategy = "light";
+      rf.light_pick = c.pick;
+      rf.light_point = c.point;
+      const Film film = st.render(rf, spp);
+      panels.push_back(srgb_panel(c.label, film.width, film.height, film.mean()));
+    }
+    write_sheet(f.out + "/c-light-pdfs.png",
+                "(c) Light sampling pdfs, " + std::to_string(spp) + " spp" + note, panels, scale, 3);
+  }
+
+  // (d) MIS on near-far
+  {
+    std::string note;
+    const std::string path = course_scene("near-far.pbrt", note);
+    SceneSetup st(path, q ? 40 : 320, q ? 30 : 240, f.threads);
+    const uint32_t spp = q ? 4 : 16;
+    std::vector<Panel> panels;
+    RenderFlags rf = st.flags();
+    rf.strategy = "light";
+    Film film = st.render(rf, spp);
+    panels.push_back(srgb_panel("1: light alone", film.width, film.height, film.mean()));
+    rf.strategy = "bsdf";
+    film = st.render(rf, spp);
+    panels.push_back(srgb_panel("2: BSDF alone", film.width, film.height, film.mean()));
+    rf.strategy = "mis";
+    rf.mis_mode = "multi";
+    rf.heuristic = "balance";
+    film = st.render(rf, spp, true);
+    panels.push_back(srgb_panel("MIS balance", film.width, film.height, film.mean()));
+    const Panel weight = grey_panel("weight of 2 (balance)", film.width, film.height, film.mis_weight());
+    rf.heuristic = "power";
+    film = st.render(rf, spp);
+    panels.push_back(srgb_panel("MIS power", film.width, film.height, film.mean()));
+    panels.push_back(weight);
+    write_sheet(f.out + "/d-mis.png", "(d) Multiple importance sampling, " + std::to_string(spp) + " spp" + note,
+                panels, scale, 3);
+  }
+
+  // (e) the 1D warm-up
+  warmup_plot(f.out, q);
+  return 0;
+}
+
+}  // namespace tuile

@@ -1,0 +1,45 @@
+// Film: the per-pixel double sums a render adds to, and the images made from them.
+#include "render/film.h"
+
+#include <cmath>
+
+namespace tuile {
+
+void Film::reset(int w, int h) {
+  width = w;
+  height = h;
+  samples = 0;
+  const size_t n = static_cast<size_t>(w) * h;
+  sum.assign(3 * n, 0.0);
+  sum_sq.assign(3 * n, 0.0);
+  w_sum.assign(n, 0.0);
+  w_cnt.assign(n, 0.0);
+  max_sample.assign(n, 0.f);
+}
+
+std::vector<float> Film::mean() const {
+  std::vector<float> out(sum.size(), 0.f);
+  if (samples == 0) return out;
+  for (size_t i = 0; i < sum.size(); ++i) out[i] = mean_of(i);
+  return out;
+}
+
+std::vector<float> Film::variance_of_mean() const {
+  std::vector<float> out(sum.size(), 0.f);
+  if (samples < 2) return out;
+  const double n = static_cast<double>(samples);
+  for (size_t i = 0; i < sum.size(); ++i) {
+    const double m = sum[i] / n;
+    const double var = std::max(0.0, (sum_sq[i] / n - m * m)) * n / (n - 1);
+    out[i] = static_cast<float>(var / n);
+  }
+  return out;
+}
+
+std::vector<float> Film::mis_weight() const {
+  std::vector<float> out(w_sum.size(), 0.f);
+  for (size_t i = 0; i < w_sum.size(); ++i) out[i] = w_cnt[i] > 0 ? static_cast<float>(w_sum[i] / w_cnt[i]) : 0.f;
+  return out;
+}
+
+}  // namespace tuile

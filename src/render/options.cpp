@@ -1,0 +1,69 @@
+// The estimator and renderer options by the names the command line and scene files use.
+#include "render/options.h"
+
+#include <stdexcept>
+
+namespace tuile {
+
+Strategy parse_strategy(const std::string& s) {
+  if (s == "light") return Strategy::light;
+  if (s == "bsdf") return Strategy::bsdf;
+  if (s == "mis") return Strategy::mis;
+  throw std::invalid_argument("unknown strategy '" + s + "' (expected light, bsdf or mis)");
+}
+LightPick parse_light_pick(const std::string& s) {
+  if (s == "all") return LightPick::all;
+  if (s == "uniform") return LightPick::uniform;
+  if (s == "area") return LightPick::area;
+  if (s == "power") return LightPick::power;
+  throw std::invalid_argument("unknown light pick '" + s + "' (expected all, uniform, area or power)");
+}
+LightPoint parse_light_point(const std::string& s) {
+  if (s == "area") return LightPoint::area;
+  if (s == "solid-angle") return LightPoint::solid_angle;
+  throw std::invalid_argument("unknown light point '" + s + "' (expected area or solid-angle)");
+}
+Heuristic parse_heuristic(const std::string& s) {
+  if (s == "balance") return Heuristic::balance;
+  if (s == "power") return Heuristic::power;
+  if (s == "cutoff") return Heuristic::cutoff;
+  if (s == "maximum") return Heuristic::maximum;
+  throw std::invalid_argument("unknown heuristic '" + s + "' (expected balance, power, cutoff or maximum)");
+}
+MisMode parse_mis_mode(const std::string& s) {
+  if (s == "multi") return MisMode::multi;
+  if (s == "one") return MisMode::one;
+  throw std::invalid_argument("unknown MIS mode '" + s + "' (expected multi or one)");
+}
+BounceTrace parse_bounce_trace(const std::string& s) {
+  if (s == "auto") return BounceTrace::automatic;
+  if (s == "scene") return BounceTrace::scene;
+  if (s == "emitters") return BounceTrace::emitters;
+  throw std::invalid_argument("unknown bounce-rays mode '" + s + "' (expected auto, scene or emitters)");
+}
+
+SamplerKind parse_sampler(const std::string& s) {
+  if (s == "independent") return SamplerKind::independent;
+  if (s == "stratified") return SamplerKind::stratified;
+  if (s == "sobol") return SamplerKind::sobol;
+  throw std::invalid_argument("unknown sampler '" + s + "' (expected independent, stratified or sobol)");
+}
+
+std::string describe(const Estimator& e) {
+  static const char* strategies[] = {"light", "bsdf", "mis"};
+  static const char* picks[] = {"all", "uniform", "area", "power"};
+  static const char* points[] = {"area", "solid-angle"};
+  static const char* heuristics[] = {"balance", "power", "cutoff", "maximum"};
+  static const char* samplers[] = {"independent", "stratified", "sobol"};
+  std::string s = std::string("strategy=") + strategies[static_cast<int>(e.strategy)] +
+                  " light-pick=" + picks[static_cast<int>(e.pick)] + " light-point=" + points[static_cast<int>(e.point)];
+  if (e.strategy == Strategy::mis)
+    s += std::string(" heuristic=") + heuristics[static_cast<int>(e.heuristic)] +
+         (e.mode == MisMode::one ? " mis-mode=one" : " mis-mode=multi");
+  s += " light-samples=" + std::to_string(e.light_samples) + " bsdf-samples=" + std::to_string(e.bsdf_samples) +
+       " sampler=" + samplers[static_cast<int>(e.sampler)] + " spp=" + std::to_string(e.spp) +
+       " seed=" + std::to_string(e.seed);
+  return s;
+}
+
+}  // namespace tuile

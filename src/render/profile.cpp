@@ -1,0 +1,13 @@
+// The profiled stages' names.
+#include "render/profile.h"
+
+namespace tuile {
+
+const char* stage_name(Stage s) {
+  static const char* names[] = {"generate",       "intersect camera", "camera hits", "sample lights",
+                                "intersect shadow", "sample cosine",  "intersect bounce", "MIS weight",
+                                "accumulate"};
+  return names[static_cast<int>(s)];
+}
+
+}  // namespace tuile

@@ -1,0 +1,58 @@
+// What `tuile profile` collects from a render: time per stage, trace events, and the
+// packets traced (for the roofline replay).
+#pragma once
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "lanes/packet.h"
+
+namespace tuile {
+
+// The stages of a tile, as profiled.
+enum class Stage : int {
+  generate = 0,
+  intersect_camera,
+  camera_hits,
+  sample_lights,
+  intersect_shadow,
+  sample_cosine,
+  intersect_bounce,
+  mis_weight,
+  accumulate,
+};
+inline constexpr int stage_count = 9;
+const char* stage_name(Stage s);
+
+struct TraceEvent {
+  Stage stage;
+  int tile;
+  double start_us, dur_us;
+  int thread = 0;
+};
+
+template <class P> struct RecordedPacket {
+  P packet;
+  int32_t valid[packet_width];
+};
+// The packets one pass traces, in order (profile --roofline).
+struct RayRecord {
+  std::vector<RecordedPacket<RayHit16>> camera, bounce;
+  std::vector<RecordedPacket<Ray16>> shadow;  // shadow rays and bounce visibility rays
+  bool bounce_emitters = false;               // bounce rays were traced against the emitters
+};
+
+// Filled by Renderer::render when given: time per stage summed over threads, and
+// optionally one trace event per stage call.
+struct Profile {
+  bool trace = false;
+  size_t max_events = 2000000;  // per thread
+  int threads = 1;
+  double wall_seconds = 0;
+  double stage_seconds[stage_count] = {};
+  std::vector<TraceEvent> events;
+  bool record_rays = false;  // keep the first pass's packets in `rays`
+  RayRecord rays;
+};
+
+}  // namespace tuile

@@ -1,0 +1,64 @@
+// The tile renderer: owns the views the kernels read and the oneTBB scheduling of
+// tiles. One render adds [sample_begin, sample_end) samples per pixel to a film.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "accel/embree.h"
+#include "render/film.h"
+#include "render/options.h"
+#include "render/profile.h"
+#include "render/views.h"
+#include "scene/scene.h"
+
+namespace tuile {
+
+struct RenderStats {
+  double seconds = 0;
+  uint64_t samples = 0;  // camera samples
+  uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0;
+  uint64_t rays_bounce_visibility = 0;  // occlusion rays of bounce rays that reached an emitter
+  uint64_t rejected_camera = 0, rejected_light = 0, rejected_bsdf = 0;
+  double worst_ratio = 0;  // largest single-sample luminance relative to its pixel mean
+  std::string pipeline;
+  bool bounce_emitters = false;  // bounce rays were traced against the emitters only
+  // Adds the counters of another render (seconds and samples included).
+  void add_counts(const RenderStats& o) {
+    seconds += o.seconds;
+    samples += o.samples;
+    rays_camera += o.rays_camera;
+    rays_shadow += o.rays_shadow;
+    rays_bounce += o.rays_bounce;
+    rays_bounce_visibility += o.rays_bounce_visibility;
+    rejected_camera += o.rejected_camera;
+    rejected_light += o.rejected_light;
+    rejected_bsdf += o.rejected_bsdf;
+  }
+};
+
+class Renderer {
+ public:
+  Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options);
+  ~Renderer();
+  // Adds samples [begin, end) of every pixel to the film. Not reentrant: the per-thread
+  // tile buffers are kept from one call to the next (progressive renders and converge
+  // do not pay for them again).
+  RenderStats render(Film& film, uint32_t begin, uint32_t end, Profile* profile = nullptr);
+  // The pipeline this scene and estimator select, and why.
+  std::string pipeline_name(std::string* why = nullptr) const;
+  // Whether bounce rays run against the emitters (BounceTrace resolved for this scene).
+  bool bounce_emitters() const { return bounce_emitters_; }
+  const RenderOptions& options() const { return opt_; }
+
+ private:
+  const Scene& scene_;
+  const Accel& accel_;
+  RenderOptions opt_;
+  std::unique_ptr<SceneViews> views_;
+  bool bounce_emitters_ = false;
+  struct BufferPool;  // per-thread TileBuffers, made on a thread's first tile
+  std::unique_ptr<BufferPool> pool_;
+};
+
+}  // namespace tuile

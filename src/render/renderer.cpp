@@ -1,0 +1,152 @@
+// Renderer: one render of [begin, end) samples per pixel, as oneTBB tasks of one tile
+// each on per-worker tile buffers kept from one render to the next.
+#include "render/render.h"
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+#include <x86intrin.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "render/tile_pipeline.h"
+#include "wave/accumulate.h"
+
+namespace tuile {
+
+using clock_type = std::chrono::steady_clock;
+
+// Each worker's tile buffers (about 0.7 MB), made once and reused by every render: making
+// them per render (zeroed, so page faults on every call) cost a measurable share of short
+// progressive renders.
+struct Renderer::BufferPool {
+  tbb::enumerable_thread_specific<std::unique_ptr<TileBuffers>> buffers{[] { return std::make_unique<TileBuffers>(); }};
+};
+
+Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options)
+    : scene_(scene), accel_(accel), opt_(options), views_(std::make_unique<SceneViews>()),
+      pool_(std::make_unique<BufferPool>()) {
+  if (opt_.tile < 1 || opt_.tile > max_tile_side) throw std::invalid_argument("tile size must be in 1..32");
+  if (opt_.est.light_samples < 1 || opt_.est.bsdf_samples < 1)
+    throw std::invalid_argument("--light-samples and --bsdf-samples must be >= 1");
+  if (!(opt_.est.mis.beta > 0) || !std::isfinite(opt_.est.mis.beta)) throw std::invalid_argument("--beta must be > 0");
+  if (!(opt_.est.mis.alpha >= 0 && opt_.est.mis.alpha <= 1)) throw std::invalid_argument("--alpha must be in [0, 1]");
+  opt_.est.aov_mis_weight = opt_.est.aov_mis_weight || opt_.aov_mis_weight;
+  *views_ = build_views(scene, opt_.est.pick);
+  if (opt_.bounce == BounceTrace::automatic) {
+    size_t all = scene.spheres.size(), emitting = 0;
+    for (const Mesh& m : scene.meshes) {
+      all += m.triangle_count();
+      if (m.emissive()) emitting += m.triangle_count();
+    }
+    for (const Sphere& sp : scene.spheres) emitting += sp.emission.r > 0 || sp.emission.g > 0 || sp.emission.b > 0;
+    bounce_emitters_ = 2 * emitting <= all;
+  } else {
+    bounce_emitters_ = opt_.bounce == BounceTrace::emitters;
+  }
+  if (bounce_emitters_) accel_.prepare_emitters();
+}
+
+Renderer::~Renderer() = default;
+
+std::string Renderer::pipeline_name(std::string* why) const {
+  std::string w;
+  const PipelineEntry e = pick_pipeline(*views_, opt_.est, opt_.general_pipeline, w);
+  if (why) *why = w;
+  return e.name;
+}
+
+RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* profile) {
+  const Camera& cam = scene_.camera;
+  if (film.width != cam.width || film.height != cam.height) film.reset(cam.width, cam.height);
+  const SceneViews& v = *views_;
+  const Estimator& est = opt_.est;
+  const bool one = est.one_sample();
+  const float c_l = one ? est.one_sample_light_prob() : 0.f;
+  const int ts = opt_.tile;
+  TileContext c{v,
+                accel_,
+                est,
+                film,
+                ts,
+                (cam.width + ts - 1) / ts,
+                cam.width,
+                cam.height,
+                (est.pick == LightPick::all ? v.lights.count : 1) * (one ? 1 : est.light_samples),
+                one ? 1 : est.bsdf_samples,
+                v.lights.count,
+                one ? c_l : static_cast<float>(est.light_samples),
+                one ? 1.f - c_l : static_cast<float>(est.bsdf_samples),
+                bounce_emitters_,
+                film.samples == 0,
+                profile,
+                __rdtsc()};
+  std::string why;
+  const PipelineEntry pipe = pick_pipeline(v, est, opt_.general_pipeline, why);
+  const int tiles = c.tiles_x * ((cam.height + ts - 1) / ts);
+
+  auto& buffers = pool_->buffers;
+  for (auto& p : buffers) p->reset_statistics();
+  tbb::enumerable_thread_specific<ThreadProfile> profiles;
+  const auto t0 = clock_type::now();
+  const uint64_t ticks0 = __rdtsc();
+  const int threads = opt_.threads > 0 ? opt_.threads : tbb::this_task_arena::max_concurrency();
+  tbb::task_arena arena(threads);
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
+                      [&](const tbb::blocked_range<int>& r) {
+                        TileBuffers& tb = *buffers.local();
+                        ThreadProfile* tp = profile ? &profiles.local() : nullptr;
+                        for (int t = r.begin(); t < r.end(); ++t) pipe.fn(c, tb, tp, t, begin, end);
+                      },
+                      tbb::simple_partitioner());
+  });
+  RenderStats st;
+  st.seconds = std::chrono::duration<double>(clock_type::now() - t0).count();
+  const double sec_per_tick = st.seconds / static_cast<double>(std::max<uint64_t>(1, __rdtsc() - ticks0));
+  st.pipeline = pipe.name;
+  st.bounce_emitters = bounce_emitters_;
+  film.samples += end - begin;
+  st.samples = static_cast<uint64_t>(end - begin) * static_cast<uint64_t>(cam.width) * cam.height;
+  for (auto& p : buffers) {
+    st.rays_camera += p->rays_camera;
+    st.rays_shadow += p->rays_shadow;
+    st.rays_bounce += p->rays_bounce;
+    st.rays_bounce_visibility += p->rays_bounce_visibility;
+    st.rejected_camera += p->rejected_camera;
+    st.rejected_light += p->rejected_light;
+    st.rejected_bsdf += p->rejected_bsdf;
+  }
+  if (profile) {
+    profile->threads = threads;
+    profile->wall_seconds += st.seconds;
+    int tid = 0;
+    for (ThreadProfile& tp : profiles) {
+      for (int k = 0; k < stage_count; ++k)
+        profile->stage_seconds[k] += static_cast<double>(tp.stage_ticks[k]) * sec_per_tick;
+      for (TraceEvent e : tp.events) {
+        e.thread = tid;
+        e.start_us *= sec_per_tick * 1e6;  // recorded in ticks
+        e.dur_us *= sec_per_tick * 1e6;
+        profile->events.push_back(e);
+      }
+      auto append = [](auto& dst, auto& src) { dst.insert(dst.end(), src.begin(), src.end()); };
+      append(profile->rays.camera, tp.rays.camera);
+      append(profile->rays.shadow, tp.rays.shadow);
+      append(profile->rays.bounce, tp.rays.bounce);
+      profile->rays.bounce_emitters = bounce_emitters_;
+      ++tid;
+    }
+  }
+  // the worst accident, from the pixel means (no mean image allocated)
+  for (size_t i = 0; i < film.max_sample.size() && film.samples > 0; ++i) {
+    const float y = luminance(film.mean_of(3 * i), film.mean_of(3 * i + 1), film.mean_of(3 * i + 2));
+    if (y > 0) st.worst_ratio = std::max(st.worst_ratio, static_cast<double>(film.max_sample[i] / y));
+  }
+  return st;
+}
+
+}  // namespace tuile

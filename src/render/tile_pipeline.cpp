@@ -1,0 +1,281 @@
+// run_tile: one tile's stages back to back (generate, trace camera rays, camera hits,
+// sample lights, trace shadow rays, sample cosine, trace bounce rays, MIS weight,
+// accumulate), instantiated per scene shape; and the list of instantiated pipelines.
+#include "render/tile_pipeline.h"
+
+#include <x86intrin.h>
+
+#include <algorithm>
+#include <cstring>
+
+#include "wave/accumulate.h"
+#include "wave/emitter_hits.h"
+#include "wave/generate.h"
+#include "wave/sample_cosine.h"
+#include "wave/sample_lights.h"
+#include "wave/surface_hits.h"
+
+namespace tuile {
+
+namespace {
+
+// Keeps a copy of a packet about to be traced, for the roofline replay (first pass only).
+template <class P> inline void record(std::vector<RecordedPacket<P>>& out, const P& p, const int32_t* valid) {
+  RecordedPacket<P> r;
+  r.packet = p;
+  std::memcpy(r.valid, valid, sizeof(r.valid));
+  out.push_back(r);
+}
+
+// Times the stages of a tile when profiling; a single well-predicted branch otherwise. Reads
+// the time-stamp counter once per stage boundary (about 8.5 ns in this VM; clock_gettime
+// costs several times more), converted to seconds with the ratio of counter ticks to wall
+// time over the whole render. What is left for the "scheduling" row is the time between
+// tiles (task scheduling).
+struct StageTimer {
+  ThreadProfile* tp;
+  const TileContext& c;
+  int tile;
+  uint64_t t0 = 0;
+  StageTimer(ThreadProfile* p, const TileContext& ctx, int t) : tp(p), c(ctx), tile(t) {}
+  void start() {
+#ifndef TUILE_NO_PROFILE_HOOKS
+    if (tp) t0 = __rdtsc();
+#endif
+  }
+  // Runs f outside the current stage's time (the roofline's packet copies).
+  template <class F> void untimed(F&& f) {
+    const uint64_t a = __rdtsc();
+    f();
+    t0 += __rdtsc() - a;
+  }
+  // Ends the running stage as s and starts the next one: one counter read per stage
+  // boundary, and no time falls between stages.
+  void lap([[maybe_unused]] Stage s) {
+#ifdef TUILE_NO_PROFILE_HOOKS
+    return;
+#endif
+    if (!tp) return;
+    const uint64_t t1 = __rdtsc();
+    tp->stage_ticks[static_cast<int>(s)] += t1 - t0;
+    if (c.profile->trace && tp->events.size() < c.profile->max_events)
+      tp->events.push_back({s, tile, static_cast<double>(t0 - c.origin_ticks), static_cast<double>(t1 - t0)});
+    t0 = t1;
+  }
+};
+
+inline int active_lanes(const int32_t* valid) {
+  if constexpr (packet_width % simd_width == 0) {
+    int n = 0;
+    for (int l = 0; l < packet_width; l += simd_width)
+      n += count(f_mask_from_i(load_i32<vfloat>(valid + l) != vint(0)));
+    return n;
+  }
+  int n = 0;
+  for (int l = 0; l < packet_width; ++l) n += valid[l] != 0;
+  return n;
+}
+
+// The tile pipeline, instantiated per scene shape (DESIGN.md: leave out what a scene does
+// not need). Kinds: kinds of source present; Light/Bsdf: whether the technique's stages
+// run; Pick: whether lanes pick a source; Emitters: whether hits look up emitters.
+template <unsigned Kinds, bool Light, bool Bsdf, bool Pick, bool Emitters>
+void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile, uint32_t begin, uint32_t end) {
+  const SceneViews& v = c.v;
+  const Estimator& est = c.est;
+  Film& film = c.film;
+  const int ts = c.tile_size;
+  const int x0 = (tile % c.tiles_x) * ts, y0 = (tile / c.tiles_x) * ts;
+  const int tw = std::min(ts, c.width - x0), th = std::min(ts, c.height - y0);
+  const int lanes = tw * th;
+  StageTimer timer(tp, c, tile);
+  timer.start();
+  // Lane order: 4x4 pixel blocks, one per packet of 16 (a smaller footprint than a row of
+  // 16, so Embree's packets are more coherent), where the tile divides into them; rows
+  // otherwise. Every lane's numbers depend on its pixel only, so the image does not change.
+  const bool blocks = tw % 4 == 0 && th % 4 == 0 && packet_width == 16;
+  int i = 0;
+  auto set_lane = [&](int x, int y) {
+    tb.fx[i] = static_cast<float>(x);
+    tb.fy[i] = static_cast<float>(y);
+    tb.pixel[i++] = static_cast<uint32_t>(y) * static_cast<uint32_t>(c.width) + static_cast<uint32_t>(x);
+  };
+  if (blocks) {
+    for (int by = y0; by < y0 + th; by += 4)
+      for (int bx = x0; bx < x0 + tw; bx += 4)
+        for (int j = 0; j < 16; ++j) set_lane(bx + j % 4, by + j / 4);
+  } else {
+    for (int y = y0; y < y0 + th; ++y)
+      for (int x = x0; x < x0 + tw; ++x) set_lane(x, y);
+  }
+  const int cam_packets = (lanes + packet_width - 1) / packet_width;
+  timer.lap(Stage::generate);
+  clear_tile_sums(tb, lanes);
+  timer.lap(Stage::accumulate);
+  // The sampler's keys of the pairs this pipeline draws (pair numbers as below), hashed
+  // once per pixel for all of the tile's samples.
+  tb.keyed = 0;
+  if (cacheable(est.sampler)) {
+    uint32_t want = 1u;  // camera
+    if (est.one_sample()) want |= 2u;
+    if (Bsdf)
+      for (int m = 0; m < c.bsdf_passes; ++m) want |= 1u << std::min(2 + m, 31);
+    if (Light)
+      for (int j = 0; j < c.light_passes; ++j) {
+        const int pair = 2 + est.bsdf_samples + 2 * j;
+        if (Pick && est.pick != LightPick::all) want |= 1u << std::min(pair, 31);
+        want |= 1u << std::min(pair + 1, 31);
+      }
+    want &= (1u << TileBuffers::key_pairs) - 1u;
+    const int padded = cam_packets * packet_width;
+    for (int i = lanes; i < padded; ++i) tb.pixel[i] = tb.pixel[0];  // as generate pads
+    for (uint32_t bits = want; bits; bits &= bits - 1) {
+      const int p = std::countr_zero(bits);
+      make_pair_keys(est.seed, tb.pixel, static_cast<uint32_t>(p), padded, tb.lane_keys(p));
+    }
+    tb.keyed = want;
+  }
+  timer.lap(Stage::generate);
+  for (uint32_t s = begin; s < end; ++s) {
+    generate(v.camera, est, s, lanes, tb);
+    timer.lap(Stage::generate);
+    const bool rec = tp && c.profile->record_rays && s == begin;
+    clear_high_vector_registers();
+    for (int p = 0; p < cam_packets; ++p) {
+      if (rec) timer.untimed([&] { record(tp->rays.camera, tb.cam[p], tb.cam_valid + p * packet_width); });
+      c.accel.intersect16(tb.cam_valid + p * packet_width, tb.cam[p], true);
+    }
+    tb.rays_camera += static_cast<uint64_t>(lanes);
+    timer.lap(Stage::intersect_camera);
+    camera_hits<Emitters>(v.geom, v.lights, est, s, lanes, tb);
+    timer.lap(Stage::camera_hits);
+    const int packets = (tb.shade_count + packet_width - 1) / packet_width;
+    if constexpr (Light) {
+      if (tb.shade_count > 0) {
+        for (int j = 0; j < c.light_passes; ++j) {
+          LightPass pass;
+          pass.fixed_light = est.pick == LightPick::all ? j % c.S : (Pick ? -1 : 0);
+          pass.n_light = c.n_light;
+          pass.n_bsdf = c.n_bsdf;
+          sample_lights<Kinds, Pick>(v.lights, est, pass, s, static_cast<uint32_t>(2 + est.bsdf_samples + 2 * j), tb);
+          timer.lap(Stage::sample_lights);
+          clear_high_vector_registers();
+          for (int p = 0; p < packets; ++p) {
+            const int32_t* valid = tb.valid + p * packet_width;
+            const int active = active_lanes(valid);
+            if (!active) continue;
+            if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], valid); });
+            c.accel.occluded16(valid, tb.shadow[p], false);
+            tb.rays_shadow += static_cast<uint64_t>(active);
+          }
+          timer.lap(Stage::intersect_shadow);
+          accumulate_shadow(tb);
+          timer.lap(Stage::accumulate);
+        }
+      }
+    }
+    if constexpr (Bsdf) {
+      if (tb.shade_count > 0) {
+        for (int m = 0; m < c.bsdf_passes; ++m) {
+          sample_cosine(est, s, static_cast<uint32_t>(2 + m), tb);
+          timer.lap(Stage::sample_cosine);
+          clear_high_vector_registers();
+          const Target target = c.bounce_emitters ? Target::emitters : Target::scene;
+          for (int p = 0; p < packets; ++p) {
+            const int32_t* valid = tb.valid + p * packet_width;
+            const int active = active_lanes(valid);
+            if (!active) continue;
+            if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
+            c.accel.intersect16(valid, tb.bounce[p], false, target);
+            tb.rays_bounce += static_cast<uint64_t>(active);
+          }
+          timer.lap(Stage::intersect_bounce);
+          queue_bounce_hits<vfloat, Kinds>(v.geom, v.lights, tb, c.bounce_emitters);
+          if (c.bounce_emitters && tb.queue_count > 0) {
+            const int qpackets = bounce_visibility_rays(tb);
+            timer.lap(Stage::mis_weight);
+            clear_high_vector_registers();
+            for (int p = 0; p < qpackets; ++p) {
+              if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], tb.qvalid + p * packet_width); });
+              c.accel.occluded16(tb.qvalid + p * packet_width, tb.shadow[p], false);
+            }
+            tb.rays_bounce_visibility += static_cast<uint64_t>(tb.queue_count);
+            timer.lap(Stage::intersect_bounce);
+            read_bounce_visibility(tb);
+          }
+          weight_queue<Kinds>(v.lights, est, c.n_light, c.n_bsdf, tb);
+          timer.lap(Stage::mis_weight);
+        }
+      }
+    }
+    // one sample of every pixel into the tile's double sums
+    accumulate_samples(tb, lanes, est.aov_mis_weight);
+    timer.lap(Stage::accumulate);
+  }
+  // The tile's sums into the film, once. Each pixel belongs to one tile, so the film
+  // gets the same bits for any thread count and tile order. A fresh film (0) gets the
+  // bits of adding sample by sample; a film that already holds samples (progressive
+  // renders) gets its old sum plus this render's partial sum: other rounding than adding
+  // one sample at a time, equally deterministic.
+  const FilmSums fs{film.sum.data(),    film.sum_sq.data(),           film.w_sum.data(), film.w_cnt.data(),
+                    film.max_sample.data(), static_cast<size_t>(c.width)};
+  if (c.fresh_film && blocks && can_stream_tile(x0, tw, th, fs)) stream_tile_to_film(tb, x0, y0, th, fs, est.aov_mis_weight);
+  else add_tile_to_film(tb, lanes, fs, est.aov_mis_weight);
+  timer.lap(Stage::accumulate);
+}
+
+// The instantiated pipelines. "general" runs every stage and every lookup whatever the
+// scene: it is the reference the specialised ones must match.
+template <unsigned K, bool L, bool B, bool P, bool E> constexpr TileFn tile_fn() { return &run_tile<K, L, B, P, E>; }
+
+// The pipelines of scenes with area lights only (kinds K): MIS, light or BSDF technique,
+// with or without a per-lane pick; names in that order (mis pick, mis single, light pick,
+// light single, bsdf).
+template <unsigned K>
+PipelineEntry area_pipeline(const char* const (&names)[5], bool light, bool bsdf, bool pick) {
+  if (light && bsdf)
+    return pick ? PipelineEntry{names[0], tile_fn<K, true, true, true, true>()}
+                : PipelineEntry{names[1], tile_fn<K, true, true, false, true>()};
+  if (light)
+    return pick ? PipelineEntry{names[2], tile_fn<K, true, false, true, true>()}
+                : PipelineEntry{names[3], tile_fn<K, true, false, false, true>()};
+  return {names[4], tile_fn<K, false, true, false, true>()};
+}
+
+}  // namespace
+
+PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool general, std::string& why) {
+  if (general) {
+    why = "forced with --pipeline general";
+    return {"general", tile_fn<kind_all, true, true, true, true>()};
+  }
+  const bool area = v.has_area, delta = v.has_delta;
+  const bool light = v.lights.count > 0 && (est.strategy != Strategy::bsdf || delta);
+  const bool bsdf = area && est.strategy != Strategy::light;
+  const bool pick = v.lights.count > 1 && est.pick != LightPick::all;
+  why = std::string(area ? "area lights" : "no area light") + ", " + (delta ? "delta lights" : "no delta light") + ", " +
+        std::to_string(v.lights.count) + " light(s), pick " + (pick ? "per lane" : "none") + ", strategy " +
+        (est.strategy == Strategy::mis ? "mis" : est.strategy == Strategy::light ? "light" : "bsdf");
+  if (!area && !delta) return {"no-lights", tile_fn<kind_all, false, false, false, false>()};
+  if (!area) {  // only delta lights: no BSDF rays, no MIS, no emitter lookups
+    return pick ? PipelineEntry{"delta/light/pick", tile_fn<kind_delta, true, false, true, false>()}
+                : PipelineEntry{"delta/light/single", tile_fn<kind_delta, true, false, false, false>()};
+  }
+  if (!delta && v.all_rects) {  // rectangles only: no dispatch on the kind of source
+    static constexpr const char* names[5] = {"rect/mis/pick", "rect/mis/single", "rect/light/pick",
+                                             "rect/light/single", "rect/bsdf"};
+    return area_pipeline<kind_area | kind_rects>(names, light, bsdf, pick);
+  }
+  if (!delta) {
+    static constexpr const char* names[5] = {"area/mis/pick", "area/mis/single", "area/light/pick",
+                                             "area/light/single", "area/bsdf"};
+    return area_pipeline<kind_area>(names, light, bsdf, pick);
+  }
+  if (bsdf)
+    return pick ? PipelineEntry{"mixed/mis/pick", tile_fn<kind_all, true, true, true, true>()}
+                : PipelineEntry{"mixed/mis/single", tile_fn<kind_all, true, true, false, true>()};
+  return pick ? PipelineEntry{"mixed/light/pick", tile_fn<kind_all, true, false, true, true>()}
+              : PipelineEntry{"mixed/light/single", tile_fn<kind_all, true, false, false, true>()};
+}
+
+}  // namespace tuile

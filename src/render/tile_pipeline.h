@@ -1,0 +1,49 @@
+// The tile pipelines: what one render shares with its tile tasks, and the registry of
+// instantiated pipelines (run_tile specialised to the features a scene has) from which
+// the renderer picks one per render. Internal to src/render.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "accel/embree.h"
+#include "render/film.h"
+#include "render/profile.h"
+#include "render/views.h"
+#include "wave/tile.h"
+
+namespace tuile {
+
+// What one render shares with its tile tasks.
+struct TileContext {
+  const SceneViews& v;
+  const Accel& accel;
+  const Estimator& est;
+  Film& film;
+  int tile_size, tiles_x, width, height;
+  int light_passes, bsdf_passes, S;
+  float n_light, n_bsdf;
+  bool bounce_emitters;   // bounce rays against the emitters, then visibility rays
+  bool fresh_film;        // the film held no samples (zeros) when the render began
+  Profile* profile;       // null when not profiling
+  uint64_t origin_ticks;
+};
+
+// Per-thread profiling state.
+struct ThreadProfile {
+  uint64_t stage_ticks[stage_count] = {};
+  std::vector<TraceEvent> events;
+  RayRecord rays;
+};
+
+struct PipelineEntry;
+using TileFn = void (*)(const TileContext&, TileBuffers&, ThreadProfile*, int, uint32_t, uint32_t);
+struct PipelineEntry {
+  const char* name;
+  TileFn fn;
+};
+
+// The pipeline for this scene and estimator ("general" when forced), and why.
+PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool general, std::string& why);
+
+}  // namespace tuile

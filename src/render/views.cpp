@@ -1,0 +1,222 @@
+// build_views: the scene as the kernels read it (SoA light table with its pick
+// distribution and alias table, flattened triangles, per-geometry lookups, camera).
+#include "render/views.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+namespace tuile {
+
+// Vose's alias method: O(1) sampling of a discrete distribution.
+static void build_alias(const std::vector<float>& p, std::vector<float>& prob, std::vector<int32_t>& alias) {
+  const size_t n = p.size();
+  prob.assign(n, 1.f);
+  alias.resize(n);
+  std::iota(alias.begin(), alias.end(), 0);
+  std::vector<double> scaled(n);
+  std::vector<int32_t> small, large;
+  for (size_t i = 0; i < n; ++i) {
+    scaled[i] = static_cast<double>(p[i]) * static_cast<double>(n);
+    (scaled[i] < 1.0 ? small : large).push_back(static_cast<int32_t>(i));
+  }
+  while (!small.empty() && !large.empty()) {
+    const int32_t s = small.back(), l = large.back();
+    small.pop_back();
+    prob[s] = static_cast<float>(scaled[s]);
+    alias[s] = l;
+    scaled[l] = (scaled[l] + scaled[s]) - 1.0;
+    if (scaled[l] < 1.0) {
+      large.pop_back();
+      small.push_back(l);
+    }
+  }
+  for (int32_t i : large) prob[i] = 1.f;
+  for (int32_t i : small) prob[i] = 1.f;  // numerical leftovers
+}
+
+
+SceneViews build_views(const Scene& scene, LightPick pick) {
+  SceneViews out;
+  SceneViews& v = out;
+  const auto& lights = scene.lights;
+  const size_t n = lights.size();
+  v.lights.any_two_sided = false;
+  for (const Light& l : lights) {
+    v.type.push_back(static_cast<int32_t>(l.type));
+    v.p0x.push_back(l.p0.x); v.p0y.push_back(l.p0.y); v.p0z.push_back(l.p0.z);
+    v.e1x.push_back(l.e1.x); v.e1y.push_back(l.e1.y); v.e1z.push_back(l.e1.z);
+    v.e2x.push_back(l.e2.x); v.e2y.push_back(l.e2.y); v.e2z.push_back(l.e2.z);
+    v.Lr.push_back(l.radiance.r); v.Lg.push_back(l.radiance.g); v.Lb.push_back(l.radiance.b);
+    v.two_sided.push_back(l.two_sided ? 1.f : 0.f);
+    v.lights.any_two_sided = v.lights.any_two_sided || l.two_sided;
+    LightGeom<float> g;
+    g.type = static_cast<int32_t>(l.type);
+    g.e1 = l.e1;
+    g.e2 = l.e2;
+    g.area = l.area;
+    light_geom_derive(g);
+    v.area.push_back(g.area);
+    v.len1.push_back(g.len1); v.len2.push_back(g.len2);
+    v.inv_len1.push_back(g.inv_len1); v.inv_len2.push_back(g.inv_len2);
+    v.rect.push_back(g.rect);
+    v.exx.push_back(g.ex.x); v.exy.push_back(g.ex.y); v.exz.push_back(g.ex.z);
+    v.eyx.push_back(g.ey.x); v.eyy.push_back(g.ey.y); v.eyz.push_back(g.ey.z);
+    // the emitting side's unit normal; a rectangle's is cross(ex, ey), which rectangle
+    // pipelines compute from the unit edges instead of reading it (the same bits)
+    vec3f nn{0, 0, 0};
+    if (g.rect > 0.5f) nn = cross(g.ex, g.ey);
+    else if (l.type == LightType::triangle || l.type == LightType::parallelogram) nn = normalize(cross(l.e1, l.e2));
+    v.nx.push_back(nn.x); v.ny.push_back(nn.y); v.nz.push_back(nn.z);
+    (is_delta(l.type) ? v.has_delta : v.has_area) = true;
+    v.all_rects = v.all_rects && l.type == LightType::parallelogram && g.rect > 0.5f;
+  }
+  // pick distribution
+  v.pick_pdf.assign(n, 0.f);
+  if (n > 0) {
+    std::vector<double> weight(n, 1.0);
+    if (pick == LightPick::area) {
+      double mean_area = 0;
+      int na = 0;
+      for (const Light& l : lights)
+        if (!is_delta(l.type)) mean_area += l.area, ++na;
+      mean_area = na ? mean_area / na : 1.0;
+      for (size_t i = 0; i < n; ++i) weight[i] = is_delta(lights[i].type) ? mean_area : lights[i].area;
+    } else if (pick == LightPick::power) {
+      for (size_t i = 0; i < n; ++i) weight[i] = std::max(0.f, lights[i].power);
+    }
+    double total = 0;
+    for (double w : weight) total += w;
+    if (!(total > 0) || !std::isfinite(total)) {
+      std::fill(weight.begin(), weight.end(), 1.0);
+      total = static_cast<double>(n);
+    }
+    for (size_t i = 0; i < n; ++i)
+      v.pick_pdf[i] = pick == LightPick::all ? 1.f : static_cast<float>(weight[i] / total);
+    std::vector<float> p(n);
+    for (size_t i = 0; i < n; ++i) p[i] = static_cast<float>(weight[i] / total);
+    build_alias(p, v.alias_prob, v.alias_idx);
+  }
+  // Small and medium tables are read with permutes of vector loads (lookup_small,
+  // lookup_medium): pad them to their tier's size so that those loads stay inside.
+  const int tier = table_tier(n);
+  if (n > 0 && tier != tier_gather) {
+    const size_t padded = static_cast<size_t>(tier == tier_small ? small_table_size : medium_table_size);
+    for (auto* f : {&v.p0x, &v.p0y, &v.p0z, &v.e1x, &v.e1y, &v.e1z, &v.e2x, &v.e2y, &v.e2z, &v.nx, &v.ny, &v.nz, &v.Lr,
+                    &v.Lg, &v.Lb, &v.area, &v.two_sided, &v.len1, &v.len2, &v.inv_len1, &v.inv_len2, &v.rect,
+                    &v.exx, &v.exy, &v.exz, &v.eyx, &v.eyy, &v.eyz,
+                    &v.pick_pdf, &v.alias_prob})
+      f->resize(padded, 0.f);
+    v.type.resize(padded, 0);
+    v.alias_idx.resize(padded, 0);
+  }
+  LightView& L = v.lights;
+  L.count = static_cast<int32_t>(n);
+  L.tier = tier;
+  L.type = v.type.data();
+  L.p0x = v.p0x.data(); L.p0y = v.p0y.data(); L.p0z = v.p0z.data();
+  L.e1x = v.e1x.data(); L.e1y = v.e1y.data(); L.e1z = v.e1z.data();
+  L.e2x = v.e2x.data(); L.e2y = v.e2y.data(); L.e2z = v.e2z.data();
+  L.nx = v.nx.data(); L.ny = v.ny.data(); L.nz = v.nz.data();
+  L.Lr = v.Lr.data(); L.Lg = v.Lg.data(); L.Lb = v.Lb.data();
+  L.one_radiance = n > 0;
+  for (size_t i = 1; i < n; ++i)
+    L.one_radiance = L.one_radiance && v.Lr[i] == v.Lr[0] && v.Lg[i] == v.Lg[0] && v.Lb[i] == v.Lb[0];
+  L.area = v.area.data();
+  L.two_sided = v.two_sided.data();
+  L.len1 = v.len1.data(); L.len2 = v.len2.data();
+  L.inv_len1 = v.inv_len1.data(); L.inv_len2 = v.inv_len2.data();
+  L.rect = v.rect.data();
+  L.exx = v.exx.data(); L.exy = v.exy.data(); L.exz = v.exz.data();
+  L.eyx = v.eyx.data(); L.eyy = v.eyy.data(); L.eyz = v.eyz.data();
+  L.pick_pdf = v.pick_pdf.data();
+  L.alias_prob = v.alias_prob.data();
+  L.alias_idx = v.alias_idx.data();
+
+  const int32_t default_material = static_cast<int32_t>(scene.materials.size());
+  // Flattened triangles, gathered by the camera-hit stage at 9 * triangle in int32 lanes.
+  size_t tris = 0;
+  for (const Mesh& m : scene.meshes) tris += m.triangle_count();
+  if (9 * (tris + 1) > static_cast<size_t>(INT32_MAX))
+    throw std::runtime_error("scene has " + std::to_string(tris) + " triangles; at most " +
+                             std::to_string(INT32_MAX / 9 - 1) + " are supported");
+  v.tri_pos.reserve(9 * (tris + 1));
+  v.tri_light.reserve(tris + 1);
+  for (const Mesh& m : scene.meshes) {
+    v.geom_material.push_back(m.material >= 0 ? m.material : default_material);
+    v.tri_offset.push_back(static_cast<int32_t>(v.tri_light.size()));
+    for (size_t t = 0; t < m.triangle_count(); ++t) {
+      for (int k = 0; k < 3; ++k) {
+        const float* p = m.positions.data() + 3 * static_cast<size_t>(m.indices[3 * t + k]);
+        v.tri_pos.insert(v.tri_pos.end(), p, p + 3);
+      }
+      v.tri_light.push_back(m.prim_light.empty() ? -1 : m.prim_light[t]);
+    }
+    v.indices.push_back(m.indices.data());
+    v.positions.push_back(m.positions.data());
+    v.uvs.push_back(m.uvs.empty() ? nullptr : m.uvs.data());
+  }
+  for (const Sphere& s : scene.spheres) {
+    v.geom_material.push_back(s.material >= 0 ? s.material : default_material);
+    v.sphere_center.insert(v.sphere_center.end(), {s.center.x, s.center.y, s.center.z, s.radius});
+    v.sphere_light.push_back(s.light);
+    v.tri_offset.push_back(0);
+  }
+  v.sphere_light.push_back(-1);  // never empty
+  v.tri_pos.insert(v.tri_pos.end(), 9, 0.f);  // a spare triangle: never empty
+  v.tri_light.push_back(-1);
+  for (const Material& m : scene.materials) {
+    v.mat_r.push_back(m.reflectance.r);
+    v.mat_g.push_back(m.reflectance.g);
+    v.mat_b.push_back(m.reflectance.b);
+    v.mat_texture.push_back(m.texture);
+    v.geom.has_textures |= m.texture >= 0;
+  }
+  v.mat_r.push_back(0.5f);  // the default material
+  v.mat_g.push_back(0.5f);
+  v.mat_b.push_back(0.5f);
+  v.mat_texture.push_back(-1);
+  for (const Texture& t : scene.textures) {
+    v.tex_rgb.push_back(t.rgb.data());
+    v.tex_w.push_back(t.width);
+    v.tex_h.push_back(t.height);
+  }
+  GeomView& G = v.geom;
+  G.mesh_count = static_cast<int32_t>(scene.meshes.size());
+  G.geom_material = v.geom_material.data();
+  G.sphere_center = v.sphere_center.data();
+  G.tri_offset = v.tri_offset.data();
+  G.tri_pos = v.tri_pos.data();
+  G.tri_light = v.tri_light.data();
+  G.sphere_light = v.sphere_light.data();
+  G.mat_r = v.mat_r.data();
+  G.mat_g = v.mat_g.data();
+  G.mat_b = v.mat_b.data();
+  G.mat_texture = v.mat_texture.data();
+  G.indices = v.indices.data();
+  G.positions = v.positions.data();
+  G.uvs = v.uvs.data();
+  G.tex_rgb = v.tex_rgb.data();
+  G.tex_w = v.tex_w.data();
+  G.tex_h = v.tex_h.data();
+
+  const Camera& c = scene.camera;
+  CameraView& cv = v.camera;
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 4; ++k) cv.m[r][k] = c.world_from_camera[r][k];
+  const float aspect = static_cast<float>(c.width) / static_cast<float>(c.height);
+  if (c.screen[0] != 0 || c.screen[1] != 0 || c.screen[2] != 0 || c.screen[3] != 0) {
+    cv.sx0 = c.screen[0]; cv.sx1 = c.screen[1]; cv.sy0 = c.screen[2]; cv.sy1 = c.screen[3];
+  } else if (aspect > 1.f) {
+    cv.sx0 = -aspect; cv.sx1 = aspect; cv.sy0 = -1; cv.sy1 = 1;
+  } else {
+    cv.sx0 = -1; cv.sx1 = 1; cv.sy0 = -1 / aspect; cv.sy1 = 1 / aspect;
+  }
+  cv.tan_half = std::tan(0.5f * c.fov_deg * 3.14159265f / 180.f);
+  cv.inv_w = 1.f / static_cast<float>(c.width);
+  cv.inv_h = 1.f / static_cast<float>(c.height);
+  return out;
+}
+
+}  // namespace tuile

@@ -1,0 +1,45 @@
+// SceneViews: the scene as the kernels read it, built once per renderer.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "scene/scene.h"
+#include "wave/tile.h"
+
+namespace tuile {
+
+// The scene as the kernels read it: SoA light table (with the pick distribution and its
+// alias table), per-geometry lookups, camera. The views point into the vectors here and
+// into the Scene, which must outlive them.
+struct SceneViews {
+  // light table, SoA
+  std::vector<int32_t> type;
+  SceneViews() = default;
+  SceneViews(const SceneViews&) = delete;
+  SceneViews& operator=(const SceneViews&) = delete;
+  SceneViews(SceneViews&&) = default;
+  SceneViews& operator=(SceneViews&&) = default;
+  std::vector<float> p0x, p0y, p0z, e1x, e1y, e1z, e2x, e2y, e2z, nx, ny, nz, Lr, Lg, Lb, area, two_sided;
+  std::vector<float> len1, len2, inv_len1, inv_len2, rect, exx, exy, exz, eyx, eyy, eyz;
+  std::vector<float> pick_pdf, alias_prob;
+  std::vector<int32_t> alias_idx;
+  LightView lights;
+  // geometry
+  std::vector<float> sphere_center;
+  std::vector<int32_t> geom_material, sphere_light, mat_texture, tex_w, tex_h;
+  std::vector<int32_t> tri_offset, tri_light;
+  std::vector<float> tri_pos;
+  std::vector<const uint32_t*> indices;
+  std::vector<const float*> positions;
+  std::vector<const float*> uvs, tex_rgb;
+  std::vector<float> mat_r, mat_g, mat_b;
+  GeomView geom;
+  CameraView camera;
+  bool has_area = false, has_delta = false;
+  bool all_rects = true;  // every source is a rectangle (Urena's map, no type dispatch)
+};
+
+
+SceneViews build_views(const Scene& scene, LightPick pick);
+
+}  // namespace tuile

@@ -1,0 +1,213 @@
+#include "scene/scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "scene/pbrt.h"
+
+namespace tuile {
+
+void camera_look_at(Camera& cam, vec3f eye, vec3f look, vec3f up) {
+  const vec3f dir = normalize(look - eye);
+  const vec3f up_n = normalize(up);
+  vec3f right = cross(up_n, dir);
+  if (!(length(right) > 1e-12f)) throw SceneError("LookAt: the up vector is parallel to the viewing direction");
+  right = normalize(right);
+  const vec3f new_up = cross(dir, right);
+  const vec3f cols[4] = {right, new_up, dir, eye};
+  for (int c = 0; c < 4; ++c) {
+    cam.world_from_camera[0][c] = cols[c].x;
+    cam.world_from_camera[1][c] = cols[c].y;
+    cam.world_from_camera[2][c] = cols[c].z;
+  }
+}
+
+size_t Scene::triangle_count() const {
+  size_t n = 0;
+  for (const Mesh& m : meshes) n += m.triangle_count();
+  return n;
+}
+
+static float luminance(const Rgb& c) { return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b; }
+
+static vec3f vertex(const Mesh& m, uint32_t i) {
+  return {m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]};
+}
+
+static bool finite3(vec3f v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+// Degenerate for lighting: zero or non-finite area relative to the edge lengths.
+static bool degenerate(vec3f e1, vec3f e2) {
+  const float a2 = length_sq(cross(e1, e2));
+  const float scale = length_sq(e1) * length_sq(e2);
+  return !(a2 > 1e-12f * scale) || !(a2 > 0.f) || !std::isfinite(a2);
+}
+
+// Triangles t and t+1 of a mesh forming a parallelogram with a shared diagonal become
+// one parallelogram source (sampled as a spherical rectangle when its edges are orthogonal).
+static bool match_parallelogram(const Mesh& m, size_t t, vec3f& p0, vec3f& e1, vec3f& e2) {
+  if (t + 1 >= m.triangle_count()) return false;
+  const uint32_t* a = &m.indices[3 * t];
+  const uint32_t* b = &m.indices[3 * t + 3];
+  // find the vertex of t not shared with t+1, and the vertex of t+1 not in t
+  int lone_a = -1, shared = 0;
+  for (int i = 0; i < 3; ++i) {
+    bool in_b = a[i] == b[0] || a[i] == b[1] || a[i] == b[2];
+    if (in_b) ++shared;
+    else lone_a = i;
+  }
+  if (shared != 2 || lone_a < 0) return false;
+  int lone_b = -1;
+  for (int i = 0; i < 3; ++i)
+    if (b[i] != a[0] && b[i] != a[1] && b[i] != a[2]) lone_b = i;
+  if (lone_b < 0) return false;
+  const vec3f o = vertex(m, a[lone_a]);
+  const vec3f x = vertex(m, a[(lone_a + 1) % 3]);
+  const vec3f y = vertex(m, a[(lone_a + 2) % 3]);
+  const vec3f q = vertex(m, b[lone_b]);
+  const vec3f d = (x + y - o) - q;
+  // relative to the edges, plus the rounding of the coordinates themselves
+  const float size = std::max(length(x - o), length(y - o));
+  const float coord = std::max({max_abs(o), max_abs(x), max_abs(y), max_abs(q)});
+  if (!(length(d) <= 1e-5f * size + 0x1p-20f * coord)) return false;
+  // same orientation for both triangles
+  const vec3f na = cross(vertex(m, a[1]) - vertex(m, a[0]), vertex(m, a[2]) - vertex(m, a[0]));
+  const vec3f nb = cross(vertex(m, b[1]) - vertex(m, b[0]), vertex(m, b[2]) - vertex(m, b[0]));
+  if (!(dot(na, nb) > 0.f)) return false;
+  p0 = o;
+  e1 = x - o;
+  e2 = y - o;
+  if (dot(cross(e1, e2), na) < 0.f) std::swap(e1, e2);
+  return true;
+}
+
+void finalize_scene(Scene& scene) {
+  // validation: numbers and indices
+  for (Mesh& m : scene.meshes) {
+    if (m.positions.size() % 3 != 0 && m.positions.size() % 3 != 1)
+      throw SceneError(m.name + ": error: vertex positions are not a multiple of 3");
+    if (m.indices.size() % 3 != 0) throw SceneError(m.name + ": error: triangle indices are not a multiple of 3");
+    const size_t nv = m.positions.size() / 3;
+    for (size_t i = 0; i < 3 * nv; ++i)
+      if (!std::isfinite(m.positions[i]))
+        throw SceneError(m.name + ": error: vertex " + std::to_string(i / 3) + " has a NaN or infinite coordinate");
+    for (size_t i = 0; i < m.indices.size(); ++i)
+      if (m.indices[i] >= nv)
+        throw SceneError(m.name + ": error: index " + std::to_string(m.indices[i]) + " out of range (" +
+                         std::to_string(nv) + " vertices)");
+    if (!m.uvs.empty() && m.uvs.size() != 2 * nv) throw SceneError(m.name + ": error: uv count does not match vertices");
+    if (m.material >= static_cast<int>(scene.materials.size()))
+      throw SceneError(m.name + ": error: material index out of range");
+    for (float c : {m.emission.r, m.emission.g, m.emission.b})
+      if (!std::isfinite(c) || c < 0) throw SceneError(m.name + ": error: emitted radiance must be finite and >= 0");
+    // Embree may read 4 bytes past the last float3 vertex of a shared buffer.
+    if (m.positions.size() % 3 == 0) m.positions.push_back(0.f);
+  }
+  for (const Sphere& s : scene.spheres)
+    if (!finite3(s.center) || !std::isfinite(s.radius) || !(s.radius > 0))
+      throw SceneError("sphere: error: centre and radius must be finite, radius > 0");
+  for (const Material& mt : scene.materials)
+    if (mt.texture >= static_cast<int>(scene.textures.size())) throw SceneError("material: error: texture index out of range");
+  const Camera& c = scene.camera;
+  if (c.width < 1 || c.height < 1 || c.width > 32768 || c.height > 32768 ||
+      static_cast<double>(c.width) * c.height > double(1u << 28))
+    throw SceneError(scene.source + ": error: absurd image resolution " + std::to_string(c.width) + "x" +
+                     std::to_string(c.height) + " (expected 1..32768 per axis, at most 2^28 pixels)");
+  if (!(c.fov_deg > 0 && c.fov_deg < 180)) throw SceneError(scene.source + ": error: camera fov must be in (0, 180)");
+
+  // lights: keep the delta lights the loader gave, derive the area lights
+  std::vector<Light> lights;
+  for (const Light& l : scene.lights)
+    if (is_delta(l.type)) lights.push_back(l);
+  for (size_t mi = 0; mi < scene.meshes.size(); ++mi) {
+    Mesh& m = scene.meshes[mi];
+    m.prim_light.clear();
+    if (!m.emissive()) continue;
+    m.prim_light.assign(m.triangle_count(), -1);
+    const float sign = m.reverse_orientation ? -1.f : 1.f;
+    for (size_t t = 0; t < m.triangle_count(); ++t) {
+      Light l;
+      l.radiance = m.emission;
+      l.two_sided = m.two_sided;
+      l.mesh = static_cast<int>(mi);
+      l.prim = static_cast<int>(t);
+      vec3f p0, e1, e2;
+      const bool quad = match_parallelogram(m, t, p0, e1, e2);
+      if (!quad) {
+        p0 = vertex(m, m.indices[3 * t]);
+        e1 = vertex(m, m.indices[3 * t + 1]) - p0;
+        e2 = vertex(m, m.indices[3 * t + 2]) - p0;
+      }
+      if (degenerate(e1, e2)) continue;  // a zero-area emitter emits nothing
+      l.type = quad ? LightType::parallelogram : LightType::triangle;
+      if (sign < 0) std::swap(e1, e2);  // emission side follows cross(e1, e2)
+      l.p0 = p0;
+      l.e1 = e1;
+      l.e2 = e2;
+      l.area = length(cross(e1, e2)) * (quad ? 1.f : 0.5f);
+      l.power = luminance(l.radiance) * 3.14159265f * l.area * (l.two_sided ? 2.f : 1.f);
+      m.prim_light[t] = static_cast<int32_t>(lights.size());
+      if (quad) m.prim_light[t + 1] = static_cast<int32_t>(lights.size());
+      lights.push_back(l);
+      if (quad) ++t;
+    }
+  }
+  for (size_t si = 0; si < scene.spheres.size(); ++si) {
+    Sphere& s = scene.spheres[si];
+    s.light = -1;
+    if (!(s.emission.r > 0 || s.emission.g > 0 || s.emission.b > 0)) continue;
+    if (s.reverse_orientation) {
+      scene.warnings.push_back("sphere emitting inwards: not supported as a light, its emission is ignored");
+      continue;
+    }
+    Light l;
+    l.type = LightType::sphere;
+    l.p0 = s.center;
+    l.e1 = {s.radius, 0, 0};
+    l.radiance = s.emission;
+    l.area = 4.f * 3.14159265f * s.radius * s.radius;
+    l.power = luminance(l.radiance) * 3.14159265f * l.area;
+    l.sphere = static_cast<int>(si);
+    s.light = static_cast<int>(lights.size());
+    lights.push_back(l);
+  }
+  // scene bounds for the power of distant lights
+  vec3f lo{1e30f, 1e30f, 1e30f}, hi{-1e30f, -1e30f, -1e30f};
+  for (const Mesh& m : scene.meshes)
+    for (size_t i = 0; i + 2 < m.positions.size(); i += 3) {
+      lo = {std::min(lo.x, m.positions[i]), std::min(lo.y, m.positions[i + 1]), std::min(lo.z, m.positions[i + 2])};
+      hi = {std::max(hi.x, m.positions[i]), std::max(hi.y, m.positions[i + 1]), std::max(hi.z, m.positions[i + 2])};
+    }
+  const float radius = hi.x >= lo.x ? 0.5f * length(hi - lo) : 1.f;
+  for (Light& l : lights) {
+    for (float v : {l.radiance.r, l.radiance.g, l.radiance.b})
+      if (!std::isfinite(v) || v < 0) throw SceneError(scene.source + ": error: light intensity must be finite and >= 0");
+    if (l.type == LightType::point) l.power = 4.f * 3.14159265f * luminance(l.radiance);
+    if (l.type == LightType::spot)
+      l.power = 2.f * 3.14159265f * luminance(l.radiance) * (1.f - 0.5f * (l.e2.x + l.e2.y));
+    if (l.type == LightType::distant) l.power = 3.14159265f * radius * radius * luminance(l.radiance);
+  }
+  scene.lights = std::move(lights);
+
+  uint32_t f = 0;
+  bool any_area = false, any_delta = false;
+  for (const Light& l : scene.lights) (is_delta(l.type) ? any_delta : any_area) = true;
+  if (any_area) f |= feat_area_lights | feat_visible_emitters;
+  if (any_delta) f |= feat_delta_lights;
+  if (scene.lights.size() == 1) f |= feat_single_light;
+  for (const Material& mt : scene.materials)
+    if (mt.texture >= 0) f |= feat_textures;
+  if (!scene.spheres.empty()) f |= feat_spheres;
+  scene.features = f;
+}
+
+Scene load_scene(const std::string& path) {
+  Scene s;
+  if (path.rfind("built-in:", 0) == 0) s = builtin_scene(path.substr(9));
+  else s = load_pbrt(path);
+  finalize_scene(s);
+  return s;
+}
+
+}  // namespace tuile

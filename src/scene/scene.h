@@ -1,0 +1,136 @@
+// The scene as the renderer sees it: plain arrays with int handles, made once at load.
+// Loaders (the built-in scenes, the pbrt-v4 reader) fill Meshes, Spheres, Materials,
+// Textures, point-like lights and the Camera; finalize_scene() then derives the light
+// table (one source per emissive triangle, or per emissive parallelogram when two
+// triangles of a mesh form one) and the scene's feature set.
+#pragma once
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "lanes/vec.h"
+
+namespace tuile {
+
+struct Rgb {
+  float r = 0, g = 0, b = 0;
+};
+
+// An error that names where it came from (scene file and line, or the option).
+struct SceneError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct Texture {
+  std::string name;
+  int width = 0, height = 0;
+  std::vector<float> rgb;  // linear RGB, row-major, top row first
+};
+
+struct Material {
+  Rgb reflectance{0.5f, 0.5f, 0.5f};
+  int texture = -1;  // index into Scene::textures, multiplies... replaces reflectance when >= 0
+  std::string approximated_from;  // non-empty when a non-diffuse material was approximated
+};
+
+struct Mesh {
+  std::string name;                // for messages (file name or "trianglemesh at f.pbrt:12")
+  std::vector<float> positions;    // x y z per vertex, world space
+  std::vector<uint32_t> indices;   // 3 per triangle
+  std::vector<float> uvs;          // u v per vertex, optional (empty)
+  int material = -1;
+  Rgb emission;                    // radiance L when emissive (all zero otherwise)
+  bool two_sided = false;          // emits on both sides
+  bool reverse_orientation = false;  // emission on the side opposite the geometric normal
+  // filled by finalize_scene: light index of each triangle or -1
+  std::vector<int32_t> prim_light;
+  size_t triangle_count() const { return indices.size() / 3; }
+  bool emissive() const { return emission.r > 0 || emission.g > 0 || emission.b > 0; }
+};
+
+struct Sphere {
+  vec3f center{0, 0, 0};
+  float radius = 1;
+  int material = -1;
+  Rgb emission;
+  bool reverse_orientation = false;  // emit inwards
+  int light = -1;  // filled by finalize_scene
+};
+
+enum class LightType : int32_t {
+  triangle = 0,       // p0, p0+e1, p0+e2
+  parallelogram = 1,  // p0 + u e1 + v e2, u,v in [0,1]
+  sphere = 2,         // centre p0, radius in e1.x
+  point = 3,          // position p0, intensity in radiance
+  spot = 4,           // position p0, axis e1 (unit), cos of cone start/end in e2.x/e2.y
+  distant = 5,        // direction the light travels *from*: towards the light is e1 (unit)
+};
+
+inline bool is_delta(LightType t) { return t == LightType::point || t == LightType::spot || t == LightType::distant; }
+
+struct Light {
+  LightType type = LightType::point;
+  vec3f p0{0, 0, 0}, e1{0, 0, 0}, e2{0, 0, 0};
+  Rgb radiance;       // L for area lights, I (W/sr) for point and spot, E (irradiance) for distant
+  bool two_sided = false;
+  float area = 0;     // of the emitting surface (0 for delta lights)
+  float power = 0;    // emitted power (luminance of radiance times pi A for one-sided area lights)
+  int mesh = -1, prim = -1;  // where it came from (-1 for spheres/delta lights)
+  int sphere = -1;
+};
+
+// pbrt-v4's perspective camera: world_from_camera is affine (3 rows of 4).
+struct Camera {
+  float world_from_camera[3][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}};
+  float fov_deg = 90;           // over the shorter image axis (pbrt-v4)
+  float screen[4] = {0, 0, 0, 0};  // xmin xmax ymin ymax; all zero = derive from the aspect ratio
+  int width = 512, height = 512;
+};
+
+// Sets the camera from pbrt's LookAt (camera space: +z forward, +y up, +x = up x dir).
+void camera_look_at(Camera& cam, vec3f eye, vec3f look, vec3f up);
+
+// Scene feature bits, detected once by finalize_scene (DESIGN.md: specialisation).
+enum SceneFeature : uint32_t {
+  feat_area_lights = 1u << 0,
+  feat_delta_lights = 1u << 1,
+  feat_single_light = 1u << 2,
+  feat_textures = 1u << 3,
+  feat_spheres = 1u << 4,
+  feat_visible_emitters = 1u << 5,
+};
+
+struct RenderSettings;  // options a scene file may set (defined in options.h)
+
+struct Scene {
+  std::string source;  // file name or "built-in:NAME"
+  Camera camera;
+  std::vector<Mesh> meshes;
+  std::vector<Sphere> spheres;
+  std::vector<Material> materials;  // meshes with material -1 use a default grey 0.5
+  std::vector<Texture> textures;
+  std::vector<Light> lights;        // delta lights are added by loaders; area lights by finalize_scene
+  std::vector<std::string> warnings;  // approximations made at load, one per kind
+  // Settings from the file (pbrt Sampler/Film/Integrator); the command line overrides them.
+  int file_spp = 0;
+  std::string file_sampler;       // "", "independent", "stratified", "sobol"
+  std::string file_light_pick;    // "", "uniform", "power", "area"
+  std::string file_output;        // Film "filename"
+  uint32_t features = 0;
+  size_t triangle_count() const;
+};
+
+// Derives the light table and features; validates (NaN/Inf vertices, indices in range).
+// Throws SceneError naming the mesh on bad data. Degenerate triangles are kept for
+// geometry but never become light sources.
+void finalize_scene(Scene& scene);
+
+// Built-in scenes (compiled in). Names: "two-panels" (the default), "cornell".
+Scene builtin_scene(const std::string& name);
+std::vector<std::string> builtin_scene_names();
+
+// Loads a scene: "built-in:NAME" or a pbrt-v4 file (.pbrt or .pbrt.gz). Calls finalize_scene.
+Scene load_scene(const std::string& path);
+
+}  // namespace tuile
