@@ -1,10 +1,14 @@
-// Specialised pipelines (DESIGN.md: leave out what a scene does not need) give the same
-// image as the general reference pipeline from the same seed, bit for bit: they skip
-// stages and lookups whose results cannot change the image.
+// Specialised pipelines (wave/features.h: leave out what a scene does not need) give the
+// same image as the general reference pipeline from the same seed, bit for bit: they skip
+// stages and lookups whose results cannot change the image. Every combination of
+// features a scene and estimator can ask for is registered.
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <set>
+#include <string>
 
+#include "render/tile_pipeline.h"
 #include "render_util.h"
 
 using namespace tuile;
@@ -170,4 +174,37 @@ TEST(Pipeline, BounceRaysAutomatic) {
     Renderer r(s, accel, o);
     EXPECT_EQ(r.bounce_emitters(), std::string(name) == "cornell") << name;
   }
+}
+
+TEST(Pipeline, EveryReachableFeatureSetIsRegisteredAndNamed) {
+  std::set<std::string> names;
+  for (int area = 0; area < 2; ++area)
+    for (int delta = 0; delta < 2; ++delta)
+      for (int rects = 0; rects < 2; ++rects)
+        for (int count : {0, 1, 5})
+          for (Strategy st : {Strategy::light, Strategy::bsdf, Strategy::mis})
+            for (LightPick pk : {LightPick::all, LightPick::uniform, LightPick::power}) {
+              if ((count == 0) != (!area && !delta)) continue;  // a scene with sources has a kind
+              SceneViews v;
+              v.has_area = area;
+              v.has_delta = delta;
+              v.all_rects = rects;
+              v.lights.count = count;
+              Estimator est;
+              est.strategy = st;
+              est.pick = pk;
+              std::string why;
+              const Features f = pipeline_features(v, est, false, why);
+              EXPECT_TRUE(pipeline_registered(f)) << features_name(f) << " (" << why << ")";
+              names.insert(pick_pipeline(v, est, false, why).name);
+            }
+  // the names of the specialised pipelines, derived from their features
+  for (const char* n : {"no-lights", "delta/light/pick", "delta/light/single", "rect/mis/pick", "rect/mis/single",
+                        "rect/light/pick", "rect/light/single", "rect/bsdf", "area/mis/pick", "area/bsdf",
+                        "mixed/mis/pick", "mixed/light/single"})
+    EXPECT_EQ(names.count(n), 1u) << n;
+  std::string why;
+  SceneViews v;
+  EXPECT_EQ(pick_pipeline(v, Estimator{}, true, why).name, "general");
+  EXPECT_EQ(pipeline_features(v, Estimator{}, true, why), general_features);
 }

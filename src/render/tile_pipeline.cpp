@@ -6,7 +6,11 @@
 #include <x86intrin.h>
 
 #include <algorithm>
+#include <array>
 #include <cstring>
+#include <iterator>
+#include <stdexcept>
+#include <utility>
 
 #include "wave/accumulate.h"
 #include "wave/emitter_hits.h"
@@ -76,10 +80,9 @@ inline int active_lanes(const int32_t* valid) {
   return n;
 }
 
-// The tile pipeline, instantiated per scene shape (DESIGN.md: leave out what a scene does
-// not need). Kinds: kinds of source present; Light/Bsdf: whether the technique's stages
-// run; Pick: whether lanes pick a source; Emitters: whether hits look up emitters.
-template <unsigned Kinds, bool Light, bool Bsdf, bool Pick, bool Emitters>
+// The tile pipeline, instantiated per Features (wave/features.h): it leaves out what its
+// scenes do not need.
+template <Features F>
 void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile, uint32_t begin, uint32_t end) {
   const SceneViews& v = c.v;
   const Estimator& est = c.est;
@@ -118,12 +121,12 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   if (cacheable(est.sampler)) {
     uint32_t want = 1u;  // camera
     if (est.one_sample()) want |= 2u;
-    if (Bsdf)
+    if constexpr (F.bsdf)
       for (int m = 0; m < c.bsdf_passes; ++m) want |= 1u << std::min(2 + m, 31);
-    if (Light)
+    if constexpr (F.light)
       for (int j = 0; j < c.light_passes; ++j) {
         const int pair = 2 + est.bsdf_samples + 2 * j;
-        if (Pick && est.pick != LightPick::all) want |= 1u << std::min(pair, 31);
+        if (F.pick && est.pick != LightPick::all) want |= 1u << std::min(pair, 31);
         want |= 1u << std::min(pair + 1, 31);
       }
     want &= (1u << TileBuffers::key_pairs) - 1u;
@@ -147,17 +150,17 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     }
     tb.rays_camera += static_cast<uint64_t>(lanes);
     timer.lap(Stage::intersect_camera);
-    camera_hits<Emitters>(v.geom, v.lights, est, s, lanes, tb);
+    camera_hits<F.emitter_lookup>(v.geom, v.lights, est, s, lanes, tb);
     timer.lap(Stage::camera_hits);
     const int packets = (tb.shade_count + packet_width - 1) / packet_width;
-    if constexpr (Light) {
+    if constexpr (F.light) {
       if (tb.shade_count > 0) {
         for (int j = 0; j < c.light_passes; ++j) {
           LightPass pass;
-          pass.fixed_light = est.pick == LightPick::all ? j % c.S : (Pick ? -1 : 0);
+          pass.fixed_light = est.pick == LightPick::all ? j % c.S : (F.pick ? -1 : 0);
           pass.n_light = c.n_light;
           pass.n_bsdf = c.n_bsdf;
-          sample_lights<Kinds, Pick>(v.lights, est, pass, s, static_cast<uint32_t>(2 + est.bsdf_samples + 2 * j), tb);
+          sample_lights<F.kinds, F.pick>(v.lights, est, pass, s, static_cast<uint32_t>(2 + est.bsdf_samples + 2 * j), tb);
           timer.lap(Stage::sample_lights);
           clear_high_vector_registers();
           for (int p = 0; p < packets; ++p) {
@@ -174,7 +177,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
         }
       }
     }
-    if constexpr (Bsdf) {
+    if constexpr (F.bsdf) {
       if (tb.shade_count > 0) {
         for (int m = 0; m < c.bsdf_passes; ++m) {
           sample_cosine(est, s, static_cast<uint32_t>(2 + m), tb);
@@ -190,7 +193,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
             tb.rays_bounce += static_cast<uint64_t>(active);
           }
           timer.lap(Stage::intersect_bounce);
-          queue_bounce_hits<vfloat, Kinds>(v.geom, v.lights, tb, c.bounce_emitters);
+          queue_bounce_hits<vfloat, F.kinds>(v.geom, v.lights, tb, c.bounce_emitters);
           if (c.bounce_emitters && tb.queue_count > 0) {
             const int qpackets = bounce_visibility_rays(tb);
             timer.lap(Stage::mis_weight);
@@ -203,7 +206,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
             timer.lap(Stage::intersect_bounce);
             read_bounce_visibility(tb);
           }
-          weight_queue<Kinds>(v.lights, est, c.n_light, c.n_bsdf, tb);
+          weight_queue<F.kinds>(v.lights, est, c.n_light, c.n_bsdf, tb);
           timer.lap(Stage::mis_weight);
         }
       }
@@ -224,58 +227,58 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   timer.lap(Stage::accumulate);
 }
 
-// The instantiated pipelines. "general" runs every stage and every lookup whatever the
-// scene: it is the reference the specialised ones must match.
-template <unsigned K, bool L, bool B, bool P, bool E> constexpr TileFn tile_fn() { return &run_tile<K, L, B, P, E>; }
+// The instantiated pipelines, one list. pick_pipeline chooses among them by the features a
+// scene and estimator need; a combination missing here is a bug (it throws).
+constexpr Features registered_pipelines[] = {
+    general_features,                                                     // also mixed/mis/pick
+    {kind_all, false, false, false, false},                               // no-lights
+    {kind_delta, true, false, true, false},  {kind_delta, true, false, false, false},
+    {kind_area | kind_rects, true, true, true, true},  {kind_area | kind_rects, true, true, false, true},
+    {kind_area | kind_rects, true, false, true, true}, {kind_area | kind_rects, true, false, false, true},
+    {kind_area | kind_rects, false, true, false, true},
+    {kind_area, true, true, true, true},  {kind_area, true, true, false, true},
+    {kind_area, true, false, true, true}, {kind_area, true, false, false, true},
+    {kind_area, false, true, false, true},
+    {kind_all, true, true, false, true},  {kind_all, true, false, true, true}, {kind_all, true, false, false, true},
+};
+constexpr size_t pipeline_count = std::size(registered_pipelines);
 
-// The pipelines of scenes with area lights only (kinds K): MIS, light or BSDF technique,
-// with or without a per-lane pick; names in that order (mis pick, mis single, light pick,
-// light single, bsdf).
-template <unsigned K>
-PipelineEntry area_pipeline(const char* const (&names)[5], bool light, bool bsdf, bool pick) {
-  if (light && bsdf)
-    return pick ? PipelineEntry{names[0], tile_fn<K, true, true, true, true>()}
-                : PipelineEntry{names[1], tile_fn<K, true, true, false, true>()};
-  if (light)
-    return pick ? PipelineEntry{names[2], tile_fn<K, true, false, true, true>()}
-                : PipelineEntry{names[3], tile_fn<K, true, false, false, true>()};
-  return {names[4], tile_fn<K, false, true, false, true>()};
+template <size_t... I> constexpr std::array<TileFn, sizeof...(I)> pipeline_functions(std::index_sequence<I...>) {
+  return {&run_tile<registered_pipelines[I]>...};
 }
+constexpr std::array<TileFn, pipeline_count> registered_functions =
+    pipeline_functions(std::make_index_sequence<pipeline_count>());
 
 }  // namespace
 
-PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool general, std::string& why) {
+Features pipeline_features(const SceneViews& v, const Estimator& est, bool general, std::string& why) {
   if (general) {
     why = "forced with --pipeline general";
-    return {"general", tile_fn<kind_all, true, true, true, true>()};
+    return general_features;
   }
   const bool area = v.has_area, delta = v.has_delta;
-  const bool light = v.lights.count > 0 && (est.strategy != Strategy::bsdf || delta);
-  const bool bsdf = area && est.strategy != Strategy::light;
-  const bool pick = v.lights.count > 1 && est.pick != LightPick::all;
+  Features f;
+  f.light = v.lights.count > 0 && (est.strategy != Strategy::bsdf || delta);
+  f.bsdf = area && est.strategy != Strategy::light;
+  f.pick = f.light && v.lights.count > 1 && est.pick != LightPick::all;
+  f.emitter_lookup = area;  // only area sources are seen by camera and bounce rays
+  f.kinds = !area && !delta ? kind_all : !area ? kind_delta : delta ? kind_all : v.all_rects ? kind_area | kind_rects : kind_area;
+  if (!f.light && !f.bsdf) f = Features{kind_all, false, false, false, false};
   why = std::string(area ? "area lights" : "no area light") + ", " + (delta ? "delta lights" : "no delta light") + ", " +
-        std::to_string(v.lights.count) + " light(s), pick " + (pick ? "per lane" : "none") + ", strategy " +
+        std::to_string(v.lights.count) + " light(s), pick " + (f.pick ? "per lane" : "none") + ", strategy " +
         (est.strategy == Strategy::mis ? "mis" : est.strategy == Strategy::light ? "light" : "bsdf");
-  if (!area && !delta) return {"no-lights", tile_fn<kind_all, false, false, false, false>()};
-  if (!area) {  // only delta lights: no BSDF rays, no MIS, no emitter lookups
-    return pick ? PipelineEntry{"delta/light/pick", tile_fn<kind_delta, true, false, true, false>()}
-                : PipelineEntry{"delta/light/single", tile_fn<kind_delta, true, false, false, false>()};
-  }
-  if (!delta && v.all_rects) {  // rectangles only: no dispatch on the kind of source
-    static constexpr const char* names[5] = {"rect/mis/pick", "rect/mis/single", "rect/light/pick",
-                                             "rect/light/single", "rect/bsdf"};
-    return area_pipeline<kind_area | kind_rects>(names, light, bsdf, pick);
-  }
-  if (!delta) {
-    static constexpr const char* names[5] = {"area/mis/pick", "area/mis/single", "area/light/pick",
-                                             "area/light/single", "area/bsdf"};
-    return area_pipeline<kind_area>(names, light, bsdf, pick);
-  }
-  if (bsdf)
-    return pick ? PipelineEntry{"mixed/mis/pick", tile_fn<kind_all, true, true, true, true>()}
-                : PipelineEntry{"mixed/mis/single", tile_fn<kind_all, true, true, false, true>()};
-  return pick ? PipelineEntry{"mixed/light/pick", tile_fn<kind_all, true, false, true, true>()}
-              : PipelineEntry{"mixed/light/single", tile_fn<kind_all, true, false, false, true>()};
+  return f;
+}
+
+PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool general, std::string& why) {
+  const Features f = pipeline_features(v, est, general, why);
+  for (size_t i = 0; i < pipeline_count; ++i)
+    if (registered_pipelines[i] == f) return {general ? std::string("general") : features_name(f), registered_functions[i]};
+  throw std::logic_error("no registered pipeline for " + features_name(f));
+}
+
+bool pipeline_registered(const Features& f) {
+  return std::find(std::begin(registered_pipelines), std::end(registered_pipelines), f) != std::end(registered_pipelines);
 }
 
 }  // namespace tuile

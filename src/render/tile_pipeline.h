@@ -10,6 +10,7 @@
 #include "render/film.h"
 #include "render/profile.h"
 #include "render/views.h"
+#include "wave/features.h"
 #include "wave/tile.h"
 
 namespace tuile {
@@ -36,14 +37,17 @@ struct ThreadProfile {
   RayRecord rays;
 };
 
-struct PipelineEntry;
 using TileFn = void (*)(const TileContext&, TileBuffers&, ThreadProfile*, int, uint32_t, uint32_t);
 struct PipelineEntry {
-  const char* name;
+  std::string name;
   TileFn fn;
 };
 
-// The pipeline for this scene and estimator ("general" when forced), and why.
+// The features this scene and estimator need (general_features when forced), and why.
+Features pipeline_features(const SceneViews& v, const Estimator& est, bool general, std::string& why);
+// The registered pipeline with those features, named after them ("general" when forced).
 PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool general, std::string& why);
+// Whether a pipeline with these features is instantiated.
+bool pipeline_registered(const Features& f);
 
 }  // namespace tuile
