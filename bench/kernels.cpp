@@ -34,38 +34,38 @@ struct Fixture {
     est.point = point;
     std::mt19937 rng(1);
     std::uniform_real_distribution<float> U(0.f, 1.f);
-    tb->shade_count = lanes;
+    tb->points.count = lanes;
     for (int k = 0; k < max_tile_lanes; ++k) {
-      tb->px[k] = 0.1f + 0.8f * U(rng);
-      tb->py[k] = 0.f;
-      tb->pz[k] = 0.1f + 0.8f * U(rng);
-      tb->nx[k] = 0.f;
-      tb->ny[k] = 1.f;
-      tb->nz[k] = 0.f;
-      tb->eps[k] = 1e-6f;
-      tb->ar[k] = tb->ag[k] = tb->ab[k] = 0.7f;
-      tb->spix[k] = static_cast<uint32_t>(k);
-      tb->slane[k] = k;
-      tb->u0[k] = U(rng);
-      tb->u1[k] = U(rng);
-      tb->u2[k] = U(rng);
-      tb->u3[k] = U(rng);
-      tb->fx[k] = static_cast<float>(k % 16);
-      tb->fy[k] = static_cast<float>(k / 16);
-      tb->pixel[k] = static_cast<uint32_t>(k);
-      tb->qlight[k] = 0;
-      tb->qx[k] = tb->px[k];
-      tb->qy[k] = 0.f;
-      tb->qz[k] = tb->pz[k];
-      tb->qnx[k] = tb->qnz[k] = 0.f;
-      tb->qny[k] = 1.f;
-      tb->qdx[k] = 0.f;
-      tb->qdy[k] = 1.f;
-      tb->qdz[k] = 0.f;
-      tb->qdist[k] = 1.f;
-      tb->qar[k] = tb->qag[k] = tb->qab[k] = 0.7f;
+      tb->points.px[k] = 0.1f + 0.8f * U(rng);
+      tb->points.py[k] = 0.f;
+      tb->points.pz[k] = 0.1f + 0.8f * U(rng);
+      tb->points.nx[k] = 0.f;
+      tb->points.ny[k] = 1.f;
+      tb->points.nz[k] = 0.f;
+      tb->points.eps[k] = 1e-6f;
+      tb->points.ar[k] = tb->points.ag[k] = tb->points.ab[k] = 0.7f;
+      tb->points.pixel[k] = static_cast<uint32_t>(k);
+      tb->points.lane[k] = k;
+      tb->tech.u0[k] = U(rng);
+      tb->tech.u1[k] = U(rng);
+      tb->tech.u2[k] = U(rng);
+      tb->tech.u3[k] = U(rng);
+      tb->lanes.fx[k] = static_cast<float>(k % 16);
+      tb->lanes.fy[k] = static_cast<float>(k / 16);
+      tb->lanes.pixel[k] = static_cast<uint32_t>(k);
+      tb->queue.light[k] = 0;
+      tb->queue.x[k] = tb->points.px[k];
+      tb->queue.y[k] = 0.f;
+      tb->queue.z[k] = tb->points.pz[k];
+      tb->queue.nx[k] = tb->queue.nz[k] = 0.f;
+      tb->queue.ny[k] = 1.f;
+      tb->queue.dx[k] = 0.f;
+      tb->queue.dy[k] = 1.f;
+      tb->queue.dz[k] = 0.f;
+      tb->queue.dist[k] = 1.f;
+      tb->queue.ar[k] = tb->queue.ag[k] = tb->queue.ab[k] = 0.7f;
     }
-    tb->queue_count = lanes;
+    tb->queue.count = lanes;
   }
 };
 
@@ -76,7 +76,7 @@ template <class T> void BM_sample_lights(benchmark::State& state) {
   constexpr int w = lane_traits<T>::width;
   for (auto _ : state) {
     for (int k = 0; k < lanes; k += w) sample_lights_lanes<T, kind_area, false>(f.views.lights, f.est, pass, *f.tb, k);
-    benchmark::DoNotOptimize(f.tb->cr[0]);
+    benchmark::DoNotOptimize(f.tb->tech.cr[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }
@@ -89,7 +89,7 @@ template <class T, bool Pick> void BM_sample_lights_rect(benchmark::State& state
   for (auto _ : state) {
     for (int k = 0; k < lanes; k += lane_traits<T>::width)
       sample_lights_lanes<T, kind_area | kind_rects, Pick>(f.views.lights, f.est, pass, *f.tb, k);
-    benchmark::DoNotOptimize(f.tb->cr[0]);
+    benchmark::DoNotOptimize(f.tb->tech.cr[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }
@@ -101,15 +101,15 @@ template <class T> void BM_rectangle_map(benchmark::State& state) {
   constexpr int w = lane_traits<T>::width;
   for (auto _ : state) {
     for (int k = 0; k < lanes; k += w) {
-      const Vec3<T> x = load3<T>(f.tb->px + k, f.tb->py + k, f.tb->pz + k);
+      const Vec3<T> x = load3<T>(f.tb->points.px + k, f.tb->points.py + k, f.tb->points.pz + k);
       const SphericalRectangle<T> r =
           spherical_rectangle_setup_unit(x, g.p0, g.ex, g.ey, g.len1, g.len2);
       Vec3<T> d;
       T t;
-      sample_spherical_rectangle(r, load<T>(f.tb->u2 + k), load<T>(f.tb->u3 + k), d, t);
-      store(f.tb->cr + k, d.x + d.y + d.z + t + r.omega);
+      sample_spherical_rectangle(r, load<T>(f.tb->tech.u2 + k), load<T>(f.tb->tech.u3 + k), d, t);
+      store(f.tb->tech.cr + k, d.x + d.y + d.z + t + r.omega);
     }
-    benchmark::DoNotOptimize(f.tb->cr[0]);
+    benchmark::DoNotOptimize(f.tb->tech.cr[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }
@@ -119,12 +119,12 @@ template <class T> void BM_light_point(benchmark::State& state) {
   constexpr int w = lane_traits<T>::width;
   for (auto _ : state) {
     for (int k = 0; k < lanes; k += w) {
-      const Vec3<T> x = load3<T>(f.tb->px + k, f.tb->py + k, f.tb->pz + k);
+      const Vec3<T> x = load3<T>(f.tb->points.px + k, f.tb->points.py + k, f.tb->points.pz + k);
       const LightPointSample<T> s = sample_light_point<kind_area>(LightPoint::solid_angle, g, x,
-                                                                   load<T>(f.tb->u2 + k), load<T>(f.tb->u3 + k));
-      store(f.tb->cr + k, s.wi.x + s.wi.y + s.wi.z + s.dist + s.pdf_sa);
+                                                                   load<T>(f.tb->tech.u2 + k), load<T>(f.tb->tech.u3 + k));
+      store(f.tb->tech.cr + k, s.wi.x + s.wi.y + s.wi.z + s.dist + s.pdf_sa);
     }
-    benchmark::DoNotOptimize(f.tb->cr[0]);
+    benchmark::DoNotOptimize(f.tb->tech.cr[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }
@@ -142,7 +142,7 @@ template <class T> void BM_mis_weight(benchmark::State& state) {
   constexpr int w = lane_traits<T>::width;
   for (auto _ : state) {
     for (int k = 0; k < lanes; k += w) weight_lanes<T>(f.views.lights, f.est, 1.f, 1.f, *f.tb, k);
-    benchmark::DoNotOptimize(f.tb->cr[0]);
+    benchmark::DoNotOptimize(f.tb->tech.cr[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }
@@ -160,14 +160,14 @@ template <class T> void BM_camera_hits(benchmark::State& state) {
   Fixture f;
   Accel accel(f.scene);
   for (int k = 0; k < lanes; ++k) {
-    f.tb->fx[k] = static_cast<float>(f.scene.camera.width / 2 - 8 + k % 16);
-    f.tb->fy[k] = static_cast<float>(f.scene.camera.height / 2 - 8 + k / 16);
+    f.tb->lanes.fx[k] = static_cast<float>(f.scene.camera.width / 2 - 8 + k % 16);
+    f.tb->lanes.fy[k] = static_cast<float>(f.scene.camera.height / 2 - 8 + k / 16);
   }
   generate(f.views.camera, f.est, 0, lanes, *f.tb);
-  for (int p = 0; p < lanes / packet_width; ++p) accel.intersect16(f.tb->cam_valid + p * packet_width, f.tb->cam[p], true);
+  for (int p = 0; p < lanes / packet_width; ++p) accel.intersect16(f.tb->lanes.cam_valid + p * packet_width, f.tb->cam[p], true);
   for (auto _ : state) {
     camera_hits<true, T>(f.views.geom, f.views.lights, f.est, 0, lanes, *f.tb);
-    benchmark::DoNotOptimize(f.tb->px[0]);
+    benchmark::DoNotOptimize(f.tb->points.px[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }
@@ -187,8 +187,8 @@ void BM_sampler(benchmark::State& state) {
   const SamplerKind kind = static_cast<SamplerKind>(state.range(0));
   uint32_t s = 0;
   for (auto _ : state) {
-    sample_pairs(kind, 1, f.tb->pixel, s++, 64, 3, lanes, f.tb->u0, f.tb->u1);
-    benchmark::DoNotOptimize(f.tb->u0[0]);
+    sample_pairs(kind, 1, f.tb->lanes.pixel, s++, 64, 3, lanes, f.tb->tech.u0, f.tb->tech.u1);
+    benchmark::DoNotOptimize(f.tb->tech.u0[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }
@@ -200,11 +200,11 @@ void BM_sampler_keyed(benchmark::State& state) {
   const SamplerKind kind = static_cast<SamplerKind>(state.range(0));
   std::vector<uint32_t> key(lanes), ku(lanes), kv(lanes);
   const PairKeys keys{key.data(), ku.data(), kv.data()};
-  make_pair_keys(1, f.tb->pixel, 3, lanes, keys);
+  make_pair_keys(1, f.tb->lanes.pixel, 3, lanes, keys);
   uint32_t s = 0;
   for (auto _ : state) {
-    sample_pairs_keyed(kind, 1, s++, 3, keys, lanes, f.tb->u0, state.range(1) ? f.tb->u1 : nullptr);
-    benchmark::DoNotOptimize(f.tb->u0[0]);
+    sample_pairs_keyed(kind, 1, s++, 3, keys, lanes, f.tb->tech.u0, state.range(1) ? f.tb->tech.u1 : nullptr);
+    benchmark::DoNotOptimize(f.tb->tech.u0[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }

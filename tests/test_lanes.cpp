@@ -102,27 +102,27 @@ Scene all_lights_scene(bool extras = false) {
 
 void fill_shading_points(TileBuffers& tb, std::mt19937& rng, int n) {
   std::uniform_real_distribution<float> U(0.f, 1.f);
-  tb.shade_count = n;
+  tb.points.count = n;
   for (int k = 0; k < max_tile_lanes; ++k) {
-    tb.px[k] = -2 + 4 * U(rng);
-    tb.py[k] = U(rng) < 0.2f ? 1.0f : 0.f;  // some points in the plane of a source
-    tb.pz[k] = -2 + 4 * U(rng);
+    tb.points.px[k] = -2 + 4 * U(rng);
+    tb.points.py[k] = U(rng) < 0.2f ? 1.0f : 0.f;  // some points in the plane of a source
+    tb.points.pz[k] = -2 + 4 * U(rng);
     vec3f nn = normalize(vec3f{0.2f * (U(rng) - 0.5f), 1.f, 0.2f * (U(rng) - 0.5f)});
     if (U(rng) < 0.1f) nn = -nn;
-    tb.nx[k] = nn.x;
-    tb.ny[k] = nn.y;
-    tb.nz[k] = nn.z;
-    tb.eps[k] = 1e-5f;
-    tb.ar[k] = U(rng);
-    tb.ag[k] = U(rng);
-    tb.ab[k] = U(rng);
-    tb.spix[k] = static_cast<uint32_t>(k * 7);
-    tb.slane[k] = k;
-    tb.choose_light[k] = U(rng) < 0.5f ? 1.f : 0.f;
-    tb.u0[k] = U(rng);
-    tb.u1[k] = U(rng);
-    tb.u2[k] = U(rng);
-    tb.u3[k] = U(rng);
+    tb.points.nx[k] = nn.x;
+    tb.points.ny[k] = nn.y;
+    tb.points.nz[k] = nn.z;
+    tb.points.eps[k] = 1e-5f;
+    tb.points.ar[k] = U(rng);
+    tb.points.ag[k] = U(rng);
+    tb.points.ab[k] = U(rng);
+    tb.points.pixel[k] = static_cast<uint32_t>(k * 7);
+    tb.points.lane[k] = k;
+    tb.points.choose_light[k] = U(rng) < 0.5f ? 1.f : 0.f;
+    tb.tech.u0[k] = U(rng);
+    tb.tech.u1[k] = U(rng);
+    tb.tech.u2[k] = U(rng);
+    tb.tech.u3[k] = U(rng);
   }
 }
 
@@ -270,10 +270,10 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
         auto a = std::make_unique<TileBuffers>();
         fill_shading_points(*a, rng, 200);
         for (int k = 0; k < max_tile_lanes; ++k) {
-          a->py[k] *= 0.8f;  // some points in the sources' plane
+          a->points.py[k] *= 0.8f;  // some points in the sources' plane
           if (two_sided && k % 3 == 0) {  // some points above the sources, facing their backs
-            a->py[k] = 1.6f;
-            a->ny[k] = -std::abs(a->ny[k]);
+            a->points.py[k] = 1.6f;
+            a->points.ny[k] = -std::abs(a->points.ny[k]);
           }
         }
         auto b = std::make_unique<TileBuffers>(*a), c = std::make_unique<TileBuffers>(*a),
@@ -302,11 +302,11 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
         }
         int lit = 0;
         for (const TileBuffers* t : {b.get(), c.get(), d.get(), e.get()}) {
-          expect_same_floats(t->cr, a->cr, n, name);
-          expect_same_floats(t->cb, a->cb, n, name);
+          expect_same_floats(t->tech.cr, a->tech.cr, n, name);
+          expect_same_floats(t->tech.cb, a->tech.cb, n, name);
           for (int k = 0; k < n; ++k) {
-            ASSERT_EQ(t->valid[k], a->valid[k]) << name() << " lane " << k;
-            if (!a->valid[k]) continue;
+            ASSERT_EQ(t->tech.valid[k], a->tech.valid[k]) << name() << " lane " << k;
+            if (!a->tech.valid[k]) continue;
             const Ray16 &rt = t->shadow[k / packet_width], &ra = a->shadow[k / packet_width];
             const int l = k % packet_width;
             expect_same_floats(&rt.org_y[l], &ra.org_y[l], 1, name);
@@ -320,21 +320,21 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
         // the MIS weight of hits of every source, on a synthetic queue
         for (Strategy strategy : {Strategy::light, Strategy::bsdf, Strategy::mis}) {
           est.strategy = strategy;
-          a->queue_count = n - 3;
+          a->queue.count = n - 3;
           for (int j = 0; j < n; ++j) {
-            a->qlight[j] = static_cast<int32_t>(rng() % 101);
-            a->qx[j] = a->px[j];
-            a->qy[j] = 0.f;
-            a->qz[j] = a->pz[j];
-            a->qnx[j] = a->qnz[j] = 0.f;
-            a->qny[j] = 1.f;
-            const vec3f dq = normalize(vec3f{a->u0[j] - 0.5f, 1.f, a->u1[j] - 0.5f});
-            a->qdx[j] = dq.x;
-            a->qdy[j] = dq.y;
-            a->qdz[j] = dq.z;
-            a->qdist[j] = 0.8f / dq.y;
-            a->qar[j] = a->qag[j] = a->qab[j] = 0.5f;
-            a->qvis[j] = 1.f;
+            a->queue.light[j] = static_cast<int32_t>(rng() % 101);
+            a->queue.x[j] = a->points.px[j];
+            a->queue.y[j] = 0.f;
+            a->queue.z[j] = a->points.pz[j];
+            a->queue.nx[j] = a->queue.nz[j] = 0.f;
+            a->queue.ny[j] = 1.f;
+            const vec3f dq = normalize(vec3f{a->tech.u0[j] - 0.5f, 1.f, a->tech.u1[j] - 0.5f});
+            a->queue.dx[j] = dq.x;
+            a->queue.dy[j] = dq.y;
+            a->queue.dz[j] = dq.z;
+            a->queue.dist[j] = 0.8f / dq.y;
+            a->queue.ar[j] = a->queue.ag[j] = a->queue.ab[j] = 0.5f;
+            a->queue.vis[j] = 1.f;
           }
           *b = *a;
           *c = *a;
@@ -344,8 +344,8 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
           for (int j = 0; j < n; ++j) weight_lanes<float, R>(views.lights, est, 1.f, 1.f, *c, j);
           for (int j = 0; j < n; j += 2 * simd_width) weight_lanes<vfloat2, R>(views.lights, est, 1.f, 1.f, *d, j);
           for (const TileBuffers* t : {b.get(), c.get(), d.get()}) {
-            expect_same_floats(t->cr, a->cr, n, name);
-            expect_same_floats(t->wb, a->wb, n, name);
+            expect_same_floats(t->tech.cr, a->tech.cr, n, name);
+            expect_same_floats(t->tech.wb, a->tech.wb, n, name);
           }
         }
       }
@@ -385,7 +385,7 @@ TEST(Lanes, StagesEqualScalar) {
             auto c = std::make_unique<TileBuffers>(*b);
             for (int k = 0; k < n; k += simd_width)
               sample_lights_lanes<vfloat, kind_all, false>(views.lights, est, pass, *c, k);
-            expect_same_floats(a->cr, c->cr, n, name);
+            expect_same_floats(a->tech.cr, c->tech.cr, n, name);
           }
           // four batches at a time (vfloat4), then two (vfloat2), then one, as the stage runs them
           {
@@ -397,15 +397,15 @@ TEST(Lanes, StagesEqualScalar) {
             for (; k < n; k += simd_width) sample_lights_lanes<vfloat>(views.lights, est, pass, *d, k);
           }
           for (const TileBuffers* t : {a.get(), d.get()}) {
-            expect_same_floats(t->cr, b->cr, n, name);
-            expect_same_floats(t->cg, b->cg, n, name);
-            expect_same_floats(t->cb, b->cb, n, name);
-            EXPECT_EQ(t->rejected_light, b->rejected_light) << name();
-            for (int k = 0; k < n; ++k) ASSERT_EQ(t->valid[k], b->valid[k]) << name() << " lane " << k;
+            expect_same_floats(t->tech.cr, b->tech.cr, n, name);
+            expect_same_floats(t->tech.cg, b->tech.cg, n, name);
+            expect_same_floats(t->tech.cb, b->tech.cb, n, name);
+            EXPECT_EQ(t->stats.rejected_light, b->stats.rejected_light) << name();
+            for (int k = 0; k < n; ++k) ASSERT_EQ(t->tech.valid[k], b->tech.valid[k]) << name() << " lane " << k;
             for (int p = 0; p < n / packet_width; ++p) {
               const Ray16 &ra = t->shadow[p], &rb = b->shadow[p];
               for (int l = 0; l < packet_width; ++l) {
-                if (!t->valid[p * packet_width + l]) continue;
+                if (!t->tech.valid[p * packet_width + l]) continue;
                 expect_same_floats(&ra.org_x[l], &rb.org_x[l], 1, name);
                 expect_same_floats(&ra.org_y[l], &rb.org_y[l], 1, name);
                 expect_same_floats(&ra.org_z[l], &rb.org_z[l], 1, name);
@@ -420,19 +420,19 @@ TEST(Lanes, StagesEqualScalar) {
           for (int k = 0; k < n; k += 3) a->shadow[k / packet_width].tfar[k % packet_width] = -INFINITY;
           for (int k = 0; k < n; ++k) b->shadow[k / packet_width].tfar[k % packet_width] = a->shadow[k / packet_width].tfar[k % packet_width];
           for (TileBuffers* t : {a.get(), b.get()}) {
-            std::fill_n(t->Sr, max_tile_lanes, 0.25f);
-            std::fill_n(t->Sg, max_tile_lanes, 0.f);
-            std::fill_n(t->Sb, max_tile_lanes, 1.f);
+            std::fill_n(t->points.Sr, max_tile_lanes, 0.25f);
+            std::fill_n(t->points.Sg, max_tile_lanes, 0.f);
+            std::fill_n(t->points.Sb, max_tile_lanes, 1.f);
           }
           accumulate_shadow<vfloat>(*a);
           accumulate_shadow<float>(*b);
-          expect_same_floats(a->Sr, b->Sr, max_tile_lanes, name);
-          expect_same_floats(a->Sg, b->Sg, max_tile_lanes, name);
-          expect_same_floats(a->Sb, b->Sb, max_tile_lanes, name);
+          expect_same_floats(a->points.Sr, b->points.Sr, max_tile_lanes, name);
+          expect_same_floats(a->points.Sg, b->points.Sg, max_tile_lanes, name);
+          expect_same_floats(a->points.Sb, b->points.Sb, max_tile_lanes, name);
           // an occluded lane adds nothing, a lit one its contribution
           for (int k = 0; k < n; ++k) {
-            const bool lit = a->valid[k] && k % 3 != 0;
-            ASSERT_EQ(a->Sr[k], lit ? 0.25f + a->cr[k] : 0.25f) << name() << " lane " << k;
+            const bool lit = a->tech.valid[k] && k % 3 != 0;
+            ASSERT_EQ(a->points.Sr[k], lit ? 0.25f + a->tech.cr[k] : 0.25f) << name() << " lane " << k;
           }
           // cosine stage: one batch at a time, two at a time (vfloat2, as the stage runs
           // them), and the scalar reference
@@ -448,31 +448,31 @@ TEST(Lanes, StagesEqualScalar) {
             for (int p = 0; p < n / packet_width; ++p)
               for (int l = 0; l < packet_width; ++l) {
                 const int k = p * packet_width + l;
-                ASSERT_EQ(t->valid[k], b->valid[k]) << name() << " lane " << k;
+                ASSERT_EQ(t->tech.valid[k], b->tech.valid[k]) << name() << " lane " << k;
                 const Ray16 &ra = t->bounce[p].ray, &rb = b->bounce[p].ray;
                 for (auto f : {&Ray16::org_x, &Ray16::org_y, &Ray16::org_z, &Ray16::dir_x, &Ray16::dir_y,
                                &Ray16::dir_z, &Ray16::tfar})
                   ASSERT_TRUE(std::memcmp(&(ra.*f)[l], &(rb.*f)[l], sizeof(float)) == 0) << name() << " lane " << k;
               }
           // MIS weight stage on a synthetic queue of hits of every area light
-          a->queue_count = b->queue_count = n - 5;
+          a->queue.count = b->queue.count = n - 5;
           for (int k = 0; k < n; ++k) {
             const int32_t li = static_cast<int32_t>(rng() % 4);
-            a->qlight[k] = b->qlight[k] = li;
-            a->qx[k] = b->qx[k] = a->px[k];
-            a->qy[k] = b->qy[k] = a->py[k];
-            a->qz[k] = b->qz[k] = a->pz[k];
-            a->qnx[k] = b->qnx[k] = a->nx[k];
-            a->qny[k] = b->qny[k] = a->ny[k];
-            a->qnz[k] = b->qnz[k] = a->nz[k];
-            const vec3f d = normalize(vec3f{a->u0[k] - 0.5f, 1.f, a->u1[k] - 0.5f});
-            a->qdx[k] = b->qdx[k] = d.x;
-            a->qdy[k] = b->qdy[k] = d.y;
-            a->qdz[k] = b->qdz[k] = d.z;
-            a->qdist[k] = b->qdist[k] = 0.1f + static_cast<float>(rng() % 1000) * 0.003f;
-            a->qar[k] = b->qar[k] = a->ar[k];
-            a->qag[k] = b->qag[k] = a->ag[k];
-            a->qab[k] = b->qab[k] = a->ab[k];
+            a->queue.light[k] = b->queue.light[k] = li;
+            a->queue.x[k] = b->queue.x[k] = a->points.px[k];
+            a->queue.y[k] = b->queue.y[k] = a->points.py[k];
+            a->queue.z[k] = b->queue.z[k] = a->points.pz[k];
+            a->queue.nx[k] = b->queue.nx[k] = a->points.nx[k];
+            a->queue.ny[k] = b->queue.ny[k] = a->points.ny[k];
+            a->queue.nz[k] = b->queue.nz[k] = a->points.nz[k];
+            const vec3f d = normalize(vec3f{a->tech.u0[k] - 0.5f, 1.f, a->tech.u1[k] - 0.5f});
+            a->queue.dx[k] = b->queue.dx[k] = d.x;
+            a->queue.dy[k] = b->queue.dy[k] = d.y;
+            a->queue.dz[k] = b->queue.dz[k] = d.z;
+            a->queue.dist[k] = b->queue.dist[k] = 0.1f + static_cast<float>(rng() % 1000) * 0.003f;
+            a->queue.ar[k] = b->queue.ar[k] = a->points.ar[k];
+            a->queue.ag[k] = b->queue.ag[k] = a->points.ag[k];
+            a->queue.ab[k] = b->queue.ab[k] = a->points.ab[k];
           }
           auto w2 = std::make_unique<TileBuffers>(*a);
           for (int k = 0; k < n; k += simd_width) weight_lanes<vfloat>(views.lights, est, 1.f, 1.f, *a, k);
@@ -484,9 +484,9 @@ TEST(Lanes, StagesEqualScalar) {
             for (; k < n; k += simd_width) weight_lanes<vfloat>(views.lights, est, 1.f, 1.f, *w2, k);
           }
           for (const TileBuffers* t : {a.get(), w2.get()}) {
-            expect_same_floats(t->cr, b->cr, n, name);
-            expect_same_floats(t->cb, b->cb, n, name);
-            expect_same_floats(t->wb, b->wb, n, name);
+            expect_same_floats(t->tech.cr, b->tech.cr, n, name);
+            expect_same_floats(t->tech.cb, b->tech.cb, n, name);
+            expect_same_floats(t->tech.wb, b->tech.wb, n, name);
           }
         }
   }
@@ -540,10 +540,10 @@ TEST(Lanes, CameraRays) {
   auto a = std::make_unique<TileBuffers>();
   auto b = std::make_unique<TileBuffers>();
   for (int i = 0; i < 256; ++i) {
-    a->fx[i] = b->fx[i] = static_cast<float>(i % 16);
-    a->fy[i] = b->fy[i] = static_cast<float>(i / 16);
-    a->u0[i] = b->u0[i] = static_cast<float>((i * 37) % 101) / 101.f;
-    a->u1[i] = b->u1[i] = static_cast<float>((i * 53) % 97) / 97.f;
+    a->lanes.fx[i] = b->lanes.fx[i] = static_cast<float>(i % 16);
+    a->lanes.fy[i] = b->lanes.fy[i] = static_cast<float>(i / 16);
+    a->tech.u0[i] = b->tech.u0[i] = static_cast<float>((i * 37) % 101) / 101.f;
+    a->tech.u1[i] = b->tech.u1[i] = static_cast<float>((i * 53) % 97) / 97.f;
   }
   for (int i = 0; i < 256; i += simd_width) generate_lanes<vfloat>(views.camera, *a, i);
   for (int i = 0; i < 256; ++i) generate_lanes<float>(views.camera, *b, i);
@@ -606,14 +606,14 @@ TEST(Lanes, CameraHitsEqualScalar) {
     for (int lanes : {256, 250}) {
       auto a = std::make_unique<TileBuffers>();
       for (int i = 0; i < 256; ++i) {
-        a->fx[i] = static_cast<float>(i % 16);
-        a->fy[i] = static_cast<float>(i / 16);
-        a->pixel[i] = static_cast<uint32_t>(i);
+        a->lanes.fx[i] = static_cast<float>(i % 16);
+        a->lanes.fy[i] = static_cast<float>(i / 16);
+        a->lanes.pixel[i] = static_cast<uint32_t>(i);
       }
       Estimator est;
       est.mode = mode;
       generate(views.camera, est, 0, 256, *a);
-      for (int p = 0; p < 16; ++p) accel.intersect16(a->cam_valid + p * packet_width, a->cam[p], true);
+      for (int p = 0; p < 16; ++p) accel.intersect16(a->lanes.cam_valid + p * packet_width, a->cam[p], true);
       // degenerate hits: counted as rejected, no shading point
       for (int i : {3, 40, 41, 130, 200}) {
         RayHit16& p = a->cam[i / 16];
@@ -621,42 +621,42 @@ TEST(Lanes, CameraHitsEqualScalar) {
       }
       a->cam[7].ray.tfar[9] = std::numeric_limits<float>::infinity();
       // cached sampler keys of pairs 1..4, compacted with the shading points
-      a->keyed = 0b11111u;
-      for (int p = 0; p < TileBuffers::key_pairs; ++p) make_pair_keys(est.seed, a->pixel, p, 256, a->lane_keys(p));
+      a->keys.keyed = 0b11111u;
+      for (int p = 0; p < SamplerKeys::pairs; ++p) make_pair_keys(est.seed, a->lanes.pixel, p, 256, a->keys.lane_keys(p));
       auto b = std::make_unique<TileBuffers>(*a);
       camera_hits<true, vfloat>(views.geom, views.lights, est, 0, lanes, *a);
       camera_hits<true, float>(views.geom, views.lights, est, 0, lanes, *b);
       auto name = [&] { return std::string(mode == MisMode::one ? "one" : "multi") + " lanes " + std::to_string(lanes); };
-      ASSERT_EQ(a->shade_count, b->shade_count) << name();
-      ASSERT_EQ(a->rejected_camera, b->rejected_camera) << name();
-      EXPECT_GE(a->rejected_camera, 5u) << name();
-      const int n = a->shade_count, padded = (n + packet_width - 1) / packet_width * packet_width;
+      ASSERT_EQ(a->points.count, b->points.count) << name();
+      ASSERT_EQ(a->stats.rejected_camera, b->stats.rejected_camera) << name();
+      EXPECT_GE(a->stats.rejected_camera, 5u) << name();
+      const int n = a->points.count, padded = (n + packet_width - 1) / packet_width * packet_width;
       const struct {
         const char* what;
-        float (TileBuffers::*arr)[lane_array];
-      } arrays[] = {{"px", &TileBuffers::px}, {"py", &TileBuffers::py}, {"pz", &TileBuffers::pz},
-                    {"nx", &TileBuffers::nx}, {"ny", &TileBuffers::ny}, {"nz", &TileBuffers::nz},
-                    {"eps", &TileBuffers::eps}, {"ar", &TileBuffers::ar}, {"ag", &TileBuffers::ag},
-                    {"ab", &TileBuffers::ab}};
+        float (ShadingPoints::*arr)[lane_array];
+      } arrays[] = {{"px", &ShadingPoints::px}, {"py", &ShadingPoints::py}, {"pz", &ShadingPoints::pz},
+                    {"nx", &ShadingPoints::nx}, {"ny", &ShadingPoints::ny}, {"nz", &ShadingPoints::nz},
+                    {"eps", &ShadingPoints::eps}, {"ar", &ShadingPoints::ar}, {"ag", &ShadingPoints::ag},
+                    {"ab", &ShadingPoints::ab}};
       for (const auto& f : arrays)
-        expect_same_floats((*a).*f.arr, (*b).*f.arr, padded, [&] { return name() + " " + f.what; });
+        expect_same_floats(a->points.*f.arr, b->points.*f.arr, padded, [&] { return name() + " " + f.what; });
       for (int k = 0; k < padded; ++k) {
-        ASSERT_EQ(a->spix[k], b->spix[k]) << name() << " point " << k;
-        ASSERT_EQ(a->slane[k], b->slane[k]) << name() << " point " << k;
+        ASSERT_EQ(a->points.pixel[k], b->points.pixel[k]) << name() << " point " << k;
+        ASSERT_EQ(a->points.lane[k], b->points.lane[k]) << name() << " point " << k;
       }
-      // shade_of inverts the compaction: lane i has point k exactly where slane[k] == i
+      // shade_of inverts the compaction: lane i has point k exactly where points.lane[k] == i
       for (int i = 0; i < 256; ++i) {
-        ASSERT_EQ(a->shade_of[i], b->shade_of[i]) << name() << " lane " << i;
-        if (a->shade_of[i] >= 0) {
-          ASSERT_EQ(a->slane[a->shade_of[i]], i) << name() << " lane " << i;
+        ASSERT_EQ(a->lanes.shade_of[i], b->lanes.shade_of[i]) << name() << " lane " << i;
+        if (a->lanes.shade_of[i] >= 0) {
+          ASSERT_EQ(a->points.lane[a->lanes.shade_of[i]], i) << name() << " lane " << i;
         }
       }
-      for (int k = 0; k < n; ++k) ASSERT_EQ(a->shade_of[a->slane[k]], k) << name() << " point " << k;
+      for (int k = 0; k < n; ++k) ASSERT_EQ(a->lanes.shade_of[a->points.lane[k]], k) << name() << " point " << k;
       // each point's cached keys are its pixel's, and the pairs drawn from them are too
-      for (int p = 1; p < TileBuffers::key_pairs; ++p) {
+      for (int p = 1; p < SamplerKeys::pairs; ++p) {
         std::vector<uint32_t> key(padded), ku(padded), kv(padded);
-        make_pair_keys(est.seed, a->spix, p, padded, PairKeys{key.data(), ku.data(), kv.data()});
-        const PairKeys pa = a->point_keys(p), pb = b->point_keys(p);
+        make_pair_keys(est.seed, a->points.pixel, p, padded, PairKeys{key.data(), ku.data(), kv.data()});
+        const PairKeys pa = a->keys.point_keys(p), pb = b->keys.point_keys(p);
         for (int k = 0; k < padded; ++k) {
           ASSERT_EQ(pa.key[k], key[k]) << name() << " pair " << p << " point " << k;
           ASSERT_EQ(pa.ku[k], ku[k]) << name() << " pair " << p << " point " << k;
@@ -665,16 +665,16 @@ TEST(Lanes, CameraHitsEqualScalar) {
         }
         std::vector<float> u1(padded), v1(padded), u2(padded), v2(padded);
         point_pairs(est, *a, 3, p, padded, u1.data(), v1.data());
-        sample_pairs(est.sampler, est.seed, a->spix, 3, est.spp, p, padded, u2.data(), v2.data());
+        sample_pairs(est.sampler, est.seed, a->points.pixel, 3, est.spp, p, padded, u2.data(), v2.data());
         ASSERT_EQ(std::memcmp(u1.data(), u2.data(), padded * sizeof(float)), 0) << name() << " pair " << p;
         ASSERT_EQ(std::memcmp(v1.data(), v2.data(), padded * sizeof(float)), 0) << name() << " pair " << p;
       }
-      expect_same_floats(a->Lr, b->Lr, 256, name);
-      expect_same_floats(a->Lg, b->Lg, 256, name);
-      expect_same_floats(a->Lb, b->Lb, 256, name);
+      expect_same_floats(a->lanes.Lr, b->lanes.Lr, 256, name);
+      expect_same_floats(a->lanes.Lg, b->lanes.Lg, 256, name);
+      expect_same_floats(a->lanes.Lb, b->lanes.Lb, 256, name);
       if (mode == MisMode::one) {
-        expect_same_floats(a->u0, b->u0, padded, name);
-        expect_same_floats(a->choose_light, b->choose_light, padded, name);
+        expect_same_floats(a->tech.u0, b->tech.u0, padded, name);
+        expect_same_floats(a->points.choose_light, b->points.choose_light, padded, name);
       }
       // the scene exercises every path: spheres, emitters seen from the front, textures
       int hits = 0, spheres = 0, emitted = 0, textured = 0;
@@ -683,7 +683,7 @@ TEST(Lanes, CameraHitsEqualScalar) {
         hits += g != invalid_id;
         spheres += g != invalid_id && static_cast<int32_t>(g) >= views.geom.mesh_count;
         textured += g == 2;
-        emitted += a->Lr[i] > 0.f;
+        emitted += a->lanes.Lr[i] > 0.f;
       }
       // and both the broadcast path (one triangle per batch) and the gathers
       int one = 0, mixed = 0;
@@ -696,7 +696,7 @@ TEST(Lanes, CameraHitsEqualScalar) {
       }
       EXPECT_GT(one, 0) << name();
       EXPECT_GT(mixed, 0) << name();
-      EXPECT_EQ(n, hits - static_cast<int>(a->rejected_camera)) << name();
+      EXPECT_EQ(n, hits - static_cast<int>(a->stats.rejected_camera)) << name();
       EXPECT_GT(hits, 100) << name();
       EXPECT_GT(spheres, 0) << name();
       EXPECT_GT(emitted, 0) << name();
@@ -706,7 +706,7 @@ TEST(Lanes, CameraHitsEqualScalar) {
       const Texture& tex = s.textures[0];
       int checked = 0;
       for (int k = 0; k < n; ++k) {
-        const int i = a->slane[k];
+        const int i = a->points.lane[k];
         const RayHit16& p = a->cam[i / 16];
         if (p.geomID[i % 16] != 2) continue;
         const uint32_t* idx = &s.meshes[2].indices[3 * p.primID[i % 16]];
@@ -721,9 +721,9 @@ TEST(Lanes, CameraHitsEqualScalar) {
         vv -= std::floor(vv);
         const int tx = std::clamp(static_cast<int>(uu * 4), 0, 3), ty = std::clamp(static_cast<int>((1 - vv) * 4), 0, 3);
         const float* texel = &tex.rgb[3 * (ty * 4 + tx)];
-        EXPECT_NEAR(a->ar[k], 0.9f * texel[0], 1e-6f) << name() << " point " << k;
-        EXPECT_NEAR(a->ag[k], 0.8f * texel[1], 1e-6f) << name() << " point " << k;
-        EXPECT_NEAR(a->ab[k], 0.7f * texel[2], 1e-6f) << name() << " point " << k;
+        EXPECT_NEAR(a->points.ar[k], 0.9f * texel[0], 1e-6f) << name() << " point " << k;
+        EXPECT_NEAR(a->points.ag[k], 0.8f * texel[1], 1e-6f) << name() << " point " << k;
+        EXPECT_NEAR(a->points.ab[k], 0.7f * texel[2], 1e-6f) << name() << " point " << k;
         ++checked;
       }
       EXPECT_GT(checked, 0) << name();
@@ -738,23 +738,23 @@ TEST(Lanes, CachedKeysWhereEveryLaneHits) {
   Accel accel(s);
   auto a = std::make_unique<TileBuffers>();
   for (int i = 0; i < 256; ++i) {
-    a->fx[i] = static_cast<float>(200 + i % 16);
-    a->fy[i] = static_cast<float>(200 + i / 16);
-    a->pixel[i] = static_cast<uint32_t>(200 + i / 16) * 512u + static_cast<uint32_t>(200 + i % 16);
+    a->lanes.fx[i] = static_cast<float>(200 + i % 16);
+    a->lanes.fy[i] = static_cast<float>(200 + i / 16);
+    a->lanes.pixel[i] = static_cast<uint32_t>(200 + i / 16) * 512u + static_cast<uint32_t>(200 + i % 16);
   }
   Estimator est;
   est.seed = 3;
-  a->keyed = 0b11111u;
-  for (int p = 0; p < TileBuffers::key_pairs; ++p) make_pair_keys(est.seed, a->pixel, p, 256, a->lane_keys(p));
+  a->keys.keyed = 0b11111u;
+  for (int p = 0; p < SamplerKeys::pairs; ++p) make_pair_keys(est.seed, a->lanes.pixel, p, 256, a->keys.lane_keys(p));
   generate(views.camera, est, 0, 256, *a);
-  for (int p = 0; p < 16; ++p) accel.intersect16(a->cam_valid + p * packet_width, a->cam[p], true);
+  for (int p = 0; p < 16; ++p) accel.intersect16(a->lanes.cam_valid + p * packet_width, a->cam[p], true);
   camera_hits<true, vfloat>(views.geom, views.lights, est, 0, 256, *a);
-  ASSERT_EQ(a->shade_count, 256);
-  EXPECT_TRUE(a->points_are_lanes);
-  for (int p = 1; p < TileBuffers::key_pairs; ++p) {
+  ASSERT_EQ(a->points.count, 256);
+  EXPECT_TRUE(a->keys.points_are_lanes);
+  for (int p = 1; p < SamplerKeys::pairs; ++p) {
     std::vector<float> u1(256), v1(256), u2(256), v2(256);
     point_pairs(est, *a, 5, p, 256, u1.data(), v1.data());
-    sample_pairs(est.sampler, est.seed, a->spix, 5, est.spp, p, 256, u2.data(), v2.data());
+    sample_pairs(est.sampler, est.seed, a->points.pixel, 5, est.spp, p, 256, u2.data(), v2.data());
     ASSERT_EQ(std::memcmp(u1.data(), u2.data(), 256 * sizeof(float)), 0) << "pair " << p;
     ASSERT_EQ(std::memcmp(v1.data(), v2.data(), 256 * sizeof(float)), 0) << "pair " << p;
   }
@@ -782,48 +782,48 @@ TEST(Lanes, EmitterQueueEqualScalar) {
       auto a = std::make_unique<TileBuffers>();
       fill_shading_points(*a, rng, count);
       for (int k = 0; k < max_tile_lanes; ++k) {  // points under the sources, facing them
-        a->py[k] = 0.f;
-        a->nx[k] = a->nz[k] = 0.f;
-        a->ny[k] = 1.f;
+        a->points.py[k] = 0.f;
+        a->points.nx[k] = a->points.nz[k] = 0.f;
+        a->points.ny[k] = 1.f;
         if (!rects && k % 4 == 0) {  // and some above the two-sided triangle (y = 0.2), facing its back
-          a->px[k] = 2.f + 0.1f * a->px[k];
-          a->py[k] = 0.4f;
-          a->pz[k] = -0.6f + 0.1f * a->pz[k];
-          a->ny[k] = -1.f;
+          a->points.px[k] = 2.f + 0.1f * a->points.px[k];
+          a->points.py[k] = 0.4f;
+          a->points.pz[k] = -0.6f + 0.1f * a->points.pz[k];
+          a->points.ny[k] = -1.f;
         }
       }
       sample_cosine(est, 0, 2, *a);
       const int padded = (count + packet_width - 1) / packet_width * packet_width;
-      for (int p = 0; p < padded / packet_width; ++p) accel.intersect16(a->valid + p * packet_width, a->bounce[p], false);
-      std::fill_n(a->Sr, max_tile_lanes, 0.f);
-      std::fill_n(a->Sg, max_tile_lanes, 0.f);
-      std::fill_n(a->Sb, max_tile_lanes, 0.f);
+      for (int p = 0; p < padded / packet_width; ++p) accel.intersect16(a->tech.valid + p * packet_width, a->bounce[p], false);
+      std::fill_n(a->points.Sr, max_tile_lanes, 0.f);
+      std::fill_n(a->points.Sg, max_tile_lanes, 0.f);
+      std::fill_n(a->points.Sb, max_tile_lanes, 0.f);
       auto b = std::make_unique<TileBuffers>(*a);
       if (rects) weight_bounce<vfloat, kind_area | kind_rects>(views.geom, views.lights, est, 1.f, 1.f, *a);
       else weight_bounce<vfloat>(views.geom, views.lights, est, 1.f, 1.f, *a);
       weight_bounce<float>(views.geom, views.lights, est, 1.f, 1.f, *b);
       auto name = [&] { return describe(est) + " count " + std::to_string(count) + (rects ? " rects" : ""); };
-      ASSERT_EQ(a->queue_count, b->queue_count) << name();
-      const int nq = a->queue_count;
+      ASSERT_EQ(a->queue.count, b->queue.count) << name();
+      const int nq = a->queue.count;
       queued += nq;
-      for (auto arr : {&TileBuffers::qx, &TileBuffers::qy, &TileBuffers::qz, &TileBuffers::qnx, &TileBuffers::qny,
-                       &TileBuffers::qnz, &TileBuffers::qdx, &TileBuffers::qdy, &TileBuffers::qdz, &TileBuffers::qdist,
-                       &TileBuffers::qar, &TileBuffers::qag, &TileBuffers::qab})
-        expect_same_floats((*a).*arr, (*b).*arr, nq, name);
+      for (auto arr : {&EmitterHitQueue::x, &EmitterHitQueue::y, &EmitterHitQueue::z, &EmitterHitQueue::nx, &EmitterHitQueue::ny,
+                       &EmitterHitQueue::nz, &EmitterHitQueue::dx, &EmitterHitQueue::dy, &EmitterHitQueue::dz, &EmitterHitQueue::dist,
+                       &EmitterHitQueue::ar, &EmitterHitQueue::ag, &EmitterHitQueue::ab})
+        expect_same_floats(a->queue.*arr, b->queue.*arr, nq, name);
       for (int j = 0; j < nq; ++j) {
-        ASSERT_EQ(a->qlight[j], b->qlight[j]) << name() << " entry " << j;
-        ASSERT_EQ(a->qpoint[j], b->qpoint[j]) << name() << " entry " << j;
+        ASSERT_EQ(a->queue.light[j], b->queue.light[j]) << name() << " entry " << j;
+        ASSERT_EQ(a->queue.point[j], b->queue.point[j]) << name() << " entry " << j;
       }
-      expect_same_floats(a->Sr, b->Sr, count, name);
-      expect_same_floats(a->Sg, b->Sg, count, name);
-      expect_same_floats(a->Sb, b->Sb, count, name);
+      expect_same_floats(a->points.Sr, b->points.Sr, count, name);
+      expect_same_floats(a->points.Sg, b->points.Sg, count, name);
+      expect_same_floats(a->points.Sb, b->points.Sb, count, name);
       // every queued entry is a traced ray that hit the front of an emitter, and every such
       // ray is queued; planar fronts from the scene's own sources (two-sided: either side)
       int expected = 0;
       for (int k = 0; k < count; ++k) {
         const RayHit16& r = b->bounce[k / packet_width];
         const int l = k % packet_width;
-        if (!b->valid[k]) continue;
+        if (!b->tech.valid[k]) continue;
         const int32_t li = light_of_hit(views.geom, r.geomID[l], r.primID[l]);
         if (li < 0) continue;
         const Light& src = s.lights[static_cast<size_t>(li)];
@@ -858,29 +858,29 @@ TEST(Lanes, AccumulateEqualScalar) {
         if (rng() % 17 == 0) r = std::numeric_limits<float>::quiet_NaN();
         if (rng() % 23 == 0) bl = -std::numeric_limits<float>::infinity();
         if (rng() % 5 == 0) g = 0.f;
-        a->Lr[i] = b->Lr[i] = r;
-        a->Lg[i] = b->Lg[i] = g;
-        a->Lb[i] = b->Lb[i] = bl;
-        a->wsum[i] = b->wsum[i] = U(rng);
-        a->wcnt[i] = b->wcnt[i] = static_cast<float>(rng() % 3);
+        a->lanes.Lr[i] = b->lanes.Lr[i] = r;
+        a->lanes.Lg[i] = b->lanes.Lg[i] = g;
+        a->lanes.Lb[i] = b->lanes.Lb[i] = bl;
+        a->lanes.wsum[i] = b->lanes.wsum[i] = U(rng);
+        a->lanes.wcnt[i] = b->lanes.wcnt[i] = static_cast<float>(rng() % 3);
       }
       // shading points of some lanes, compacted in lane order, with their sums
       for (int i = 0, k = 0; i < 256; ++i) {
-        a->shade_of[i] = b->shade_of[i] = rng() % 4 == 0 ? -1 : k++;
-        a->Sr[i] = b->Sr[i] = U(rng);
-        a->Sg[i] = b->Sg[i] = U(rng);
-        a->Sb[i] = b->Sb[i] = U(rng);
+        a->lanes.shade_of[i] = b->lanes.shade_of[i] = rng() % 4 == 0 ? -1 : k++;
+        a->points.Sr[i] = b->points.Sr[i] = U(rng);
+        a->points.Sg[i] = b->points.Sg[i] = U(rng);
+        a->points.Sb[i] = b->points.Sb[i] = U(rng);
       }
       accumulate_samples<vfloat>(*a, lanes, true);
       accumulate_samples<float>(*b, lanes, true);
     }
-    ASSERT_EQ(a->rejected_camera, b->rejected_camera) << lanes;
-    EXPECT_GT(a->rejected_camera, 0u) << lanes;
-    for (auto arr : {&TileBuffers::acc_r, &TileBuffers::acc_g, &TileBuffers::acc_b, &TileBuffers::acc_rr,
-                     &TileBuffers::acc_gg, &TileBuffers::acc_bb, &TileBuffers::acc_w, &TileBuffers::acc_wc})
+    ASSERT_EQ(a->stats.rejected_camera, b->stats.rejected_camera) << lanes;
+    EXPECT_GT(a->stats.rejected_camera, 0u) << lanes;
+    for (auto arr : {&TileSums::r, &TileSums::g, &TileSums::b, &TileSums::rr,
+                     &TileSums::gg, &TileSums::bb, &TileSums::w, &TileSums::wc})
       for (int i = 0; i < lanes; ++i)
-        ASSERT_TRUE(std::memcmp(&((*a).*arr)[i], &((*b).*arr)[i], sizeof(double)) == 0) << lanes << " lane " << i;
-    expect_same_floats(a->acc_max, b->acc_max, lanes, [&] { return "max lanes " + std::to_string(lanes); });
+        ASSERT_TRUE(std::memcmp(&(a->sums.*arr)[i], &(b->sums.*arr)[i], sizeof(double)) == 0) << lanes << " lane " << i;
+    expect_same_floats(a->sums.max, b->sums.max, lanes, [&] { return "max lanes " + std::to_string(lanes); });
   }
 }
 
@@ -900,35 +900,35 @@ TEST(Lanes, AccumulateSkipsEmptyBatchesExactly) {
         // batch kinds by batch and pass: empty; empty but for emission or a weight; shaded
         const int kind = (i / simd_width + pass) % 4;
         const bool shaded = kind == 3 && rng() % 3 != 0;
-        a->shade_of[i] = shaded ? k++ : -1;
-        a->Lr[i] = kind == 1 && i % 5 == 0 ? U(rng) : 0.f;
-        a->Lg[i] = a->Lb[i] = 0.f;
-        a->wsum[i] = kind == 2 && i % 7 == 0 ? U(rng) : 0.f;
-        a->wcnt[i] = a->wsum[i] > 0.f ? 1.f : 0.f;
+        a->lanes.shade_of[i] = shaded ? k++ : -1;
+        a->lanes.Lr[i] = kind == 1 && i % 5 == 0 ? U(rng) : 0.f;
+        a->lanes.Lg[i] = a->lanes.Lb[i] = 0.f;
+        a->lanes.wsum[i] = kind == 2 && i % 7 == 0 ? U(rng) : 0.f;
+        a->lanes.wcnt[i] = a->lanes.wsum[i] > 0.f ? 1.f : 0.f;
         if (shaded) {
-          a->Sr[a->shade_of[i]] = U(rng);
-          a->Sg[a->shade_of[i]] = a->Sb[a->shade_of[i]] = 0.f;
+          a->points.Sr[a->lanes.shade_of[i]] = U(rng);
+          a->points.Sg[a->lanes.shade_of[i]] = a->points.Sb[a->lanes.shade_of[i]] = 0.f;
         }
       }
       for (int i = 0; i < lanes; ++i) {  // the reference: every lane added
-        const float r = a->Lr[i] + (a->shade_of[i] >= 0 ? a->Sr[a->shade_of[i]] : 0.f);
+        const float r = a->lanes.Lr[i] + (a->lanes.shade_of[i] >= 0 ? a->points.Sr[a->lanes.shade_of[i]] : 0.f);
         sr[i] += static_cast<double>(r);
         srr[i] += static_cast<double>(r) * static_cast<double>(r);
         if (aov) {
-          sw[i] += static_cast<double>(a->wsum[i]);
-          swc[i] += static_cast<double>(a->wcnt[i]);
+          sw[i] += static_cast<double>(a->lanes.wsum[i]);
+          swc[i] += static_cast<double>(a->lanes.wcnt[i]);
         }
         mx[i] = std::max(mx[i], luminance(r, 0.f, 0.f));
       }
       accumulate_samples<vfloat>(*a, lanes, aov);
     }
     for (int i = 0; i < lanes; ++i) {
-      ASSERT_EQ(a->acc_r[i], sr[i]) << "lane " << i;
-      ASSERT_EQ(a->acc_rr[i], srr[i]) << "lane " << i;
-      ASSERT_EQ(a->acc_g[i], 0.0) << "lane " << i;
-      ASSERT_EQ(a->acc_w[i], aov ? sw[i] : 0.0) << "lane " << i;
-      ASSERT_EQ(a->acc_wc[i], aov ? swc[i] : 0.0) << "lane " << i;
-      ASSERT_EQ(a->acc_max[i], mx[i]) << "lane " << i;
+      ASSERT_EQ(a->sums.r[i], sr[i]) << "lane " << i;
+      ASSERT_EQ(a->sums.rr[i], srr[i]) << "lane " << i;
+      ASSERT_EQ(a->sums.g[i], 0.0) << "lane " << i;
+      ASSERT_EQ(a->sums.w[i], aov ? sw[i] : 0.0) << "lane " << i;
+      ASSERT_EQ(a->sums.wc[i], aov ? swc[i] : 0.0) << "lane " << i;
+      ASSERT_EQ(a->sums.max[i], mx[i]) << "lane " << i;
     }
   }
 }
@@ -948,12 +948,12 @@ TEST(Lanes, StreamedTileEqualsAddedTile) {
       for (int by = y0; by < y0 + th; by += 4)
         for (int bx = x0; bx < x0 + 16; bx += 4)
           for (int j = 0; j < 16; ++j)
-            tb->pixel[i++] = static_cast<uint32_t>((by + j / 4) * width + bx + j % 4);
+            tb->lanes.pixel[i++] = static_cast<uint32_t>((by + j / 4) * width + bx + j % 4);
       for (int k = 0; k < lanes; ++k) {
-        tb->acc_r[k] = U(rng), tb->acc_g[k] = U(rng), tb->acc_b[k] = rng() % 4 ? U(rng) : 0.0;
-        tb->acc_rr[k] = U(rng), tb->acc_gg[k] = U(rng), tb->acc_bb[k] = U(rng);
-        tb->acc_w[k] = U(rng), tb->acc_wc[k] = static_cast<double>(rng() % 5);
-        tb->acc_max[k] = rng() % 3 ? U(rng) : 0.f;
+        tb->sums.r[k] = U(rng), tb->sums.g[k] = U(rng), tb->sums.b[k] = rng() % 4 ? U(rng) : 0.0;
+        tb->sums.rr[k] = U(rng), tb->sums.gg[k] = U(rng), tb->sums.bb[k] = U(rng);
+        tb->sums.w[k] = U(rng), tb->sums.wc[k] = static_cast<double>(rng() % 5);
+        tb->sums.max[k] = rng() % 3 ? U(rng) : 0.f;
       }
       Film a, b;
       a.reset(width, height);

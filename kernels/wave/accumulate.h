@@ -52,38 +52,38 @@ inline void add_sq_f64(double* dst, double* sq, const vfloat& v) noexcept {
 
 // Lanes [i, i + width) of the tile; lanes from `lanes` on are padding (never counted).
 template <class T> TUILE_FLATTEN inline void accumulate_lanes(TileBuffers& tb, int i, int lanes, bool aov) {
-  T r = load<T>(tb.Lr + i), g = load<T>(tb.Lg + i), b = load<T>(tb.Lb + i);
+  T r = load<T>(tb.lanes.Lr + i), g = load<T>(tb.lanes.Lg + i), b = load<T>(tb.lanes.Lb + i);
   // plus what the techniques added to the lanes' shading points: camera_hits compacted
   // them in lane order, so an expand reads them back
-  const uint32_t shaded = lane_bits(f_mask_from_i(load_i32<T>(tb.shade_of + i) >= i32_t<T>(0)));
+  const uint32_t shaded = lane_bits(f_mask_from_i(load_i32<T>(tb.lanes.shade_of + i) >= i32_t<T>(0)));
   // A batch without shading points and without emission (camera rays that all missed):
   // it would add +0 to every sum and leave every maximum, so it is skipped, with the same
   // bits. (Lanes without a shading point have no MIS weight either; tested all the same.)
   if (!shaded && !any((r != T(0.f)) || (g != T(0.f)) || (b != T(0.f))) &&
-      !(aov && any((load<T>(tb.wsum + i) != T(0.f)) || (load<T>(tb.wcnt + i) != T(0.f)))))
+      !(aov && any((load<T>(tb.lanes.wsum + i) != T(0.f)) || (load<T>(tb.lanes.wcnt + i) != T(0.f)))))
     return;
   if (shaded) {
-    const int32_t first = tb.shade_of[i + std::countr_zero(shaded)];
-    r = r + expand_load<T>(tb.Sr + first, shaded);
-    g = g + expand_load<T>(tb.Sg + first, shaded);
-    b = b + expand_load<T>(tb.Sb + first, shaded);
+    const int32_t first = tb.lanes.shade_of[i + std::countr_zero(shaded)];
+    r = r + expand_load<T>(tb.points.Sr + first, shaded);
+    g = g + expand_load<T>(tb.points.Sg + first, shaded);
+    b = b + expand_load<T>(tb.points.Sb + first, shaded);
   }
   const auto finite = is_finite(r) && is_finite(g) && is_finite(b);
   const auto live = f_mask_from_i(i32_t<T>(i) + lane_iota_i32<T>() < i32_t<T>(lanes));
-  tb.rejected_camera += static_cast<uint64_t>(std::popcount(lane_bits(live && !finite)));
+  tb.stats.rejected_camera += static_cast<uint64_t>(std::popcount(lane_bits(live && !finite)));
   r = sel(finite, r, T(0.f));
   g = sel(finite, g, T(0.f));
   b = sel(finite, b, T(0.f));
-  add_sq_f64(tb.acc_r + i, tb.acc_rr + i, r);
-  add_sq_f64(tb.acc_g + i, tb.acc_gg + i, g);
-  add_sq_f64(tb.acc_b + i, tb.acc_bb + i, b);
+  add_sq_f64(tb.sums.r + i, tb.sums.rr + i, r);
+  add_sq_f64(tb.sums.g + i, tb.sums.gg + i, g);
+  add_sq_f64(tb.sums.b + i, tb.sums.bb + i, b);
   if (aov) {  // no AOV requested: none computed
-    add_f64(tb.acc_w + i, load<T>(tb.wsum + i));
-    add_f64(tb.acc_wc + i, load<T>(tb.wcnt + i));
+    add_f64(tb.sums.w + i, load<T>(tb.lanes.wsum + i));
+    add_f64(tb.sums.wc + i, load<T>(tb.lanes.wcnt + i));
   }
   const T y = luminance(r, g, b);
-  const T m = load<T>(tb.acc_max + i);
-  store(tb.acc_max + i, sel(y > m, y, m));
+  const T m = load<T>(tb.sums.max + i);
+  store(tb.sums.max + i, sel(y > m, y, m));
 }
 
 // The film's per-pixel sums: RGB interleaved (3 per pixel) for the sums and their squares,
@@ -94,23 +94,23 @@ struct FilmSums {
   size_t width;
 };
 
-// Adds the tile's sums of lanes [0, lanes) into their pixels (tb.pixel).
+// Adds the tile's sums of lanes [0, lanes) into their pixels (tb.lanes.pixel).
 inline void add_tile_to_film(const TileBuffers& tb, int lanes, const FilmSums& f, bool aov) noexcept {
   for (int i = 0; i < lanes; ++i) {
-    const size_t pix = tb.pixel[i];
+    const size_t pix = tb.lanes.pixel[i];
     double* sp = f.sum + 3 * pix;
     double* sq = f.sum_sq + 3 * pix;
-    sp[0] += tb.acc_r[i];
-    sp[1] += tb.acc_g[i];
-    sp[2] += tb.acc_b[i];
-    sq[0] += tb.acc_rr[i];
-    sq[1] += tb.acc_gg[i];
-    sq[2] += tb.acc_bb[i];
+    sp[0] += tb.sums.r[i];
+    sp[1] += tb.sums.g[i];
+    sp[2] += tb.sums.b[i];
+    sq[0] += tb.sums.rr[i];
+    sq[1] += tb.sums.gg[i];
+    sq[2] += tb.sums.bb[i];
     if (aov) {
-      f.w_sum[pix] += tb.acc_w[i];
-      f.w_cnt[pix] += tb.acc_wc[i];
+      f.w_sum[pix] += tb.sums.w[i];
+      f.w_cnt[pix] += tb.sums.wc[i];
     }
-    if (tb.acc_max[i] > f.max_sample[pix]) f.max_sample[pix] = tb.acc_max[i];
+    if (tb.sums.max[i] > f.max_sample[pix]) f.max_sample[pix] = tb.sums.max[i];
   }
 }
 
@@ -154,17 +154,17 @@ inline void stream_tile_to_film(const TileBuffers& tb, int x0, int y0, int th, c
         _mm512_stream_pd(d + 16, _mm512_permutex2var_pd(_mm512_permutex2var_pd(R, rg2, G), b2, B));
       }
     };
-    put_rgb(f.sum, tb.acc_r, tb.acc_g, tb.acc_b);
-    put_rgb(f.sum_sq, tb.acc_rr, tb.acc_gg, tb.acc_bb);
+    put_rgb(f.sum, tb.sums.r, tb.sums.g, tb.sums.b);
+    put_rgb(f.sum_sq, tb.sums.rr, tb.sums.gg, tb.sums.bb);
     if (aov)
       for (int h = 0; h < 2; ++h) {
-        _mm512_stream_pd(f.w_sum + p + 8 * h, half(tb.acc_w, h));
-        _mm512_stream_pd(f.w_cnt + p + 8 * h, half(tb.acc_wc, h));
+        _mm512_stream_pd(f.w_sum + p + 8 * h, half(tb.sums.w, h));
+        _mm512_stream_pd(f.w_cnt + p + 8 * h, half(tb.sums.wc, h));
       }
-    __m512 m = _mm512_castps128_ps512(_mm_load_ps(tb.acc_max + l0));
-    m = _mm512_insertf32x4(m, _mm_load_ps(tb.acc_max + l0 + 16), 1);
-    m = _mm512_insertf32x4(m, _mm_load_ps(tb.acc_max + l0 + 32), 2);
-    m = _mm512_insertf32x4(m, _mm_load_ps(tb.acc_max + l0 + 48), 3);
+    __m512 m = _mm512_castps128_ps512(_mm_load_ps(tb.sums.max + l0));
+    m = _mm512_insertf32x4(m, _mm_load_ps(tb.sums.max + l0 + 16), 1);
+    m = _mm512_insertf32x4(m, _mm_load_ps(tb.sums.max + l0 + 32), 2);
+    m = _mm512_insertf32x4(m, _mm_load_ps(tb.sums.max + l0 + 48), 3);
     _mm512_stream_ps(f.max_sample + p, m);
   }
   _mm_sfence();  // the streaming stores are weakly ordered: complete them before the tile ends
@@ -176,9 +176,9 @@ inline void stream_tile_to_film(const TileBuffers& tb, int x0, int y0, int th, c
 // Zeroes the tile sums of lanes [0, lanes) padded to a whole packet.
 inline void clear_tile_sums(TileBuffers& tb, int lanes) {
   const int padded = (lanes + packet_width - 1) / packet_width * packet_width;
-  for (double* a : {tb.acc_r, tb.acc_g, tb.acc_b, tb.acc_rr, tb.acc_gg, tb.acc_bb, tb.acc_w, tb.acc_wc})
+  for (double* a : {tb.sums.r, tb.sums.g, tb.sums.b, tb.sums.rr, tb.sums.gg, tb.sums.bb, tb.sums.w, tb.sums.wc})
     std::fill_n(a, padded, 0.0);
-  std::fill_n(tb.acc_max, padded, 0.f);
+  std::fill_n(tb.sums.max, padded, 0.f);
 }
 
 // One sample of every pixel of the tile. T = float is the scalar reference.

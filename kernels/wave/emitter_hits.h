@@ -16,12 +16,12 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
                          int j) {
   constexpr float inv_pi = 0.318309886f;
   const auto live =
-      (T(static_cast<float>(j)) + lane_iota<T>()) < T(static_cast<float>(tb.queue_count)) && load<T>(tb.qvis + j) > T(0.f);
-  const i32_t<T> idx = load_i32<T>(tb.qlight + j);
-  const Vec3<T> x = load3<T>(tb.qx + j, tb.qy + j, tb.qz + j);
-  const Vec3<T> n = load3<T>(tb.qnx + j, tb.qny + j, tb.qnz + j);
-  const Vec3<T> wi = load3<T>(tb.qdx + j, tb.qdy + j, tb.qdz + j);
-  const T dist = load<T>(tb.qdist + j);
+      (T(static_cast<float>(j)) + lane_iota<T>()) < T(static_cast<float>(tb.queue.count)) && load<T>(tb.queue.vis + j) > T(0.f);
+  const i32_t<T> idx = load_i32<T>(tb.queue.light + j);
+  const Vec3<T> x = load3<T>(tb.queue.x + j, tb.queue.y + j, tb.queue.z + j);
+  const Vec3<T> n = load3<T>(tb.queue.nx + j, tb.queue.ny + j, tb.queue.nz + j);
+  const Vec3<T> wi = load3<T>(tb.queue.dx + j, tb.queue.dy + j, tb.queue.dz + j);
+  const T dist = load<T>(tb.queue.dist + j);
   // gathers, or permutes of small and medium tables (the same values)
   T pdf_point, pick, Le_r, Le_g, Le_b;
   with_table_tier(L, [&](auto tier) {
@@ -40,10 +40,10 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
     w = T(0.f);  // the general pipeline traces BSDF rays even when they must not count
   }
   const T factor = sel(live, w / T(n_bsdf), T(0.f));
-  store(tb.cr + j, load<T>(tb.qar + j) * Le_r * factor);
-  store(tb.cg + j, load<T>(tb.qag + j) * Le_g * factor);
-  store(tb.cb + j, load<T>(tb.qab + j) * Le_b * factor);
-  store(tb.wb + j, w);
+  store(tb.tech.cr + j, load<T>(tb.queue.ar + j) * Le_r * factor);
+  store(tb.tech.cg + j, load<T>(tb.queue.ag + j) * Le_g * factor);
+  store(tb.tech.cb + j, load<T>(tb.queue.ab + j) * Le_b * factor);
+  store(tb.tech.wb + j, w);
 }
 
 // Lanes [k, k + width) of the bounce packets: the rays that hit the front of an emitter
@@ -55,7 +55,7 @@ TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView
   const RayHit16& r = tb.bounce[k / packet_width];
   const int l = k % packet_width;
   const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(r.geomID + l));
-  const auto traced = load_i32<T>(tb.valid + k) != i32_t<T>(0) && geom >= i32_t<T>(0);  // invalid_id reads as -1
+  const auto traced = load_i32<T>(tb.tech.valid + k) != i32_t<T>(0) && geom >= i32_t<T>(0);  // invalid_id reads as -1
   if (!any(f_mask_from_i(traced))) return;  // no hit (most rays, against the emitters only)
   const i32_t<T> gi = max(geom, i32_t<T>(0));
   const auto mesh = traced && geom < i32_t<T>(G.mesh_count);
@@ -71,89 +71,89 @@ TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView
   const Vec3<T> d = load3<T>(r.ray.dir_x + l, r.ray.dir_y + l, r.ray.dir_z + l);
   const uint32_t keep = lane_bits(lit && light_front_lanes<T, (Kinds & kind_rects) == 0>(L, li, o, d));
   if (!keep) return;
-  const Vec3<T> n = load3<T>(tb.nx + k, tb.ny + k, tb.nz + k);
-  compress_store(tb.qx + nq, load<T>(tb.px + k), keep);
-  compress_store(tb.qy + nq, load<T>(tb.py + k), keep);
-  compress_store(tb.qz + nq, load<T>(tb.pz + k), keep);
-  compress_store(tb.qnx + nq, n.x, keep);
-  compress_store(tb.qny + nq, n.y, keep);
-  compress_store(tb.qnz + nq, n.z, keep);
-  compress_store(tb.qdx + nq, d.x, keep);
-  compress_store(tb.qdy + nq, d.y, keep);
-  compress_store(tb.qdz + nq, d.z, keep);
+  const Vec3<T> n = load3<T>(tb.points.nx + k, tb.points.ny + k, tb.points.nz + k);
+  compress_store(tb.queue.x + nq, load<T>(tb.points.px + k), keep);
+  compress_store(tb.queue.y + nq, load<T>(tb.points.py + k), keep);
+  compress_store(tb.queue.z + nq, load<T>(tb.points.pz + k), keep);
+  compress_store(tb.queue.nx + nq, n.x, keep);
+  compress_store(tb.queue.ny + nq, n.y, keep);
+  compress_store(tb.queue.nz + nq, n.z, keep);
+  compress_store(tb.queue.dx + nq, d.x, keep);
+  compress_store(tb.queue.dy + nq, d.y, keep);
+  compress_store(tb.queue.dz + nq, d.z, keep);
   // distance from x itself (the ray started eps above it along n)
-  compress_store(tb.qdist + nq, load<T>(r.ray.tfar + l) + load<T>(tb.eps + k) * dot(n, d), keep);
-  compress_store(tb.qar + nq, load<T>(tb.ar + k), keep);
-  compress_store(tb.qag + nq, load<T>(tb.ag + k), keep);
-  compress_store(tb.qab + nq, load<T>(tb.ab + k), keep);
-  compress_store(tb.qlight + nq, li, keep);
-  compress_store(tb.qpoint + nq, i32_t<T>(k) + lane_iota_i32<T>(), keep);
+  compress_store(tb.queue.dist + nq, load<T>(r.ray.tfar + l) + load<T>(tb.points.eps + k) * dot(n, d), keep);
+  compress_store(tb.queue.ar + nq, load<T>(tb.points.ar + k), keep);
+  compress_store(tb.queue.ag + nq, load<T>(tb.points.ag + k), keep);
+  compress_store(tb.queue.ab + nq, load<T>(tb.points.ab + k), keep);
+  compress_store(tb.queue.light + nq, li, keep);
+  compress_store(tb.queue.point + nq, i32_t<T>(k) + lane_iota_i32<T>(), keep);
   if (vis) {
-    compress_store(tb.qox + nq, o.x, keep);
-    compress_store(tb.qoy + nq, o.y, keep);
-    compress_store(tb.qoz + nq, o.z, keep);
-    compress_store(tb.qt + nq, load<T>(r.ray.tfar + l), keep);
+    compress_store(tb.queue.ox + nq, o.x, keep);
+    compress_store(tb.queue.oy + nq, o.y, keep);
+    compress_store(tb.queue.oz + nq, o.z, keep);
+    compress_store(tb.queue.t + nq, load<T>(r.ray.tfar + l), keep);
   }
   nq += std::popcount(keep);
 }
 
-// Queues the bounce rays that hit the front of an emitter (tb.queue_count entries, all
+// Queues the bounce rays that hit the front of an emitter (tb.queue.count entries, all
 // visible until bounce_visibility says otherwise). T = float: the scalar reference. vis as
 // for queue_emitter_lanes.
 template <class T = vfloat, unsigned Kinds = kind_all>
 inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers& tb, bool vis = true) {
   int nq = 0;
-  // padding lanes past shade_count are never valid (sample_cosine)
-  const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
+  // padding lanes past points.count are never valid (sample_cosine)
+  const int padded = (tb.points.count + packet_width - 1) / packet_width * packet_width;
   for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T, Kinds>(G, L, tb, k, nq, vis);
-  tb.queue_count = nq;
+  tb.queue.count = nq;
   const int qpadded = (nq + packet_width - 1) / packet_width * packet_width;
   for (int j = nq; j < qpadded; ++j) {  // padding: a valid light index, no contribution
-    tb.qx[j] = tb.qy[j] = tb.qz[j] = 0.f;
-    tb.qnx[j] = tb.qny[j] = 0.f;
-    tb.qnz[j] = 1.f;
-    tb.qdx[j] = tb.qdy[j] = 0.f;
-    tb.qdz[j] = 1.f;
-    tb.qdist[j] = 1.f;
-    tb.qar[j] = tb.qag[j] = tb.qab[j] = 0.f;
-    tb.qlight[j] = nq > 0 ? tb.qlight[0] : 0;
-    tb.qpoint[j] = 0;
-    tb.qox[j] = tb.qoy[j] = tb.qoz[j] = 0.f;
-    tb.qt[j] = 1.f;
+    tb.queue.x[j] = tb.queue.y[j] = tb.queue.z[j] = 0.f;
+    tb.queue.nx[j] = tb.queue.ny[j] = 0.f;
+    tb.queue.nz[j] = 1.f;
+    tb.queue.dx[j] = tb.queue.dy[j] = 0.f;
+    tb.queue.dz[j] = 1.f;
+    tb.queue.dist[j] = 1.f;
+    tb.queue.ar[j] = tb.queue.ag[j] = tb.queue.ab[j] = 0.f;
+    tb.queue.light[j] = nq > 0 ? tb.queue.light[0] : 0;
+    tb.queue.point[j] = 0;
+    tb.queue.ox[j] = tb.queue.oy[j] = tb.queue.oz[j] = 0.f;
+    tb.queue.t[j] = 1.f;
   }
-  std::fill_n(tb.qvis, qpadded, 1.f);
+  std::fill_n(tb.queue.vis, qpadded, 1.f);
 }
 
 // When bounce rays were traced against the emitters only, the emitter a ray reached is
 // what it sees only if nothing of the scene lies in between: the visibility rays of the
-// queue (tb.shadow packets, tb.qvalid), from the bounce ray's origin along its direction,
+// queue (tb.shadow packets, tb.queue.valid), from the bounce ray's origin along its direction,
 // stopping 2^-12 of the distance short of the emitter as shadow rays do, so that both
 // techniques test visibility the same way. Returns the number of packets.
 inline int bounce_visibility_rays(TileBuffers& tb) {
-  const int qpadded = (tb.queue_count + packet_width - 1) / packet_width * packet_width;
+  const int qpadded = (tb.queue.count + packet_width - 1) / packet_width * packet_width;
   for (int j = 0; j < qpadded; j += simd_width) {
-    store_field(tb.shadow, &Ray16::org_x, j, load<vfloat>(tb.qox + j));
-    store_field(tb.shadow, &Ray16::org_y, j, load<vfloat>(tb.qoy + j));
-    store_field(tb.shadow, &Ray16::org_z, j, load<vfloat>(tb.qoz + j));
-    store_field(tb.shadow, &Ray16::dir_x, j, load<vfloat>(tb.qdx + j));
-    store_field(tb.shadow, &Ray16::dir_y, j, load<vfloat>(tb.qdy + j));
-    store_field(tb.shadow, &Ray16::dir_z, j, load<vfloat>(tb.qdz + j));
-    store_field(tb.shadow, &Ray16::tfar, j, load<vfloat>(tb.qt + j) * vfloat(1.f - 1.f / 4096.f));
-    store_valid(tb.qvalid + j, (vfloat(static_cast<float>(j)) + lane_iota<vfloat>()) < vfloat(static_cast<float>(tb.queue_count)));
+    store_field(tb.shadow, &Ray16::org_x, j, load<vfloat>(tb.queue.ox + j));
+    store_field(tb.shadow, &Ray16::org_y, j, load<vfloat>(tb.queue.oy + j));
+    store_field(tb.shadow, &Ray16::org_z, j, load<vfloat>(tb.queue.oz + j));
+    store_field(tb.shadow, &Ray16::dir_x, j, load<vfloat>(tb.queue.dx + j));
+    store_field(tb.shadow, &Ray16::dir_y, j, load<vfloat>(tb.queue.dy + j));
+    store_field(tb.shadow, &Ray16::dir_z, j, load<vfloat>(tb.queue.dz + j));
+    store_field(tb.shadow, &Ray16::tfar, j, load<vfloat>(tb.queue.t + j) * vfloat(1.f - 1.f / 4096.f));
+    store_valid(tb.queue.valid + j, (vfloat(static_cast<float>(j)) + lane_iota<vfloat>()) < vfloat(static_cast<float>(tb.queue.count)));
   }
   return qpadded / packet_width;
 }
 
 // After the visibility query: occluded entries (Embree sets tfar = -inf) see nothing.
 inline void read_bounce_visibility(TileBuffers& tb) {
-  for (int j = 0; j < tb.queue_count; ++j)
-    tb.qvis[j] = tb.shadow[j / packet_width].tfar[j % packet_width] == -INFINITY ? 0.f : 1.f;
+  for (int j = 0; j < tb.queue.count; ++j)
+    tb.queue.vis[j] = tb.shadow[j / packet_width].tfar[j % packet_width] == -INFINITY ? 0.f : 1.f;
 }
 
 // Weights the visible entries of the queue and adds them to their shading points.
 template <unsigned Kinds = kind_all>
 inline void weight_queue(const LightView& L, const Estimator& est, float n_light, float n_bsdf, TileBuffers& tb) {
-  const int nq = tb.queue_count;
+  const int nq = tb.queue.count;
   if (nq == 0) return;
   const int qpadded = (nq + simd_width - 1) / simd_width * simd_width;
   // two batches at a time (vfloat2) where whole: the solid-angle setup is a latency-bound
@@ -163,20 +163,20 @@ inline void weight_queue(const LightView& L, const Estimator& est, float n_light
   });
   if (est.strategy == Strategy::light) return;
   for (int j = 0; j < nq; ++j) {
-    if (!(tb.qvis[j] > 0.f)) continue;
-    const float r = tb.cr[j], g = tb.cg[j], b = tb.cb[j];
+    if (!(tb.queue.vis[j] > 0.f)) continue;
+    const float r = tb.tech.cr[j], g = tb.tech.cg[j], b = tb.tech.cb[j];
     if (!(std::isfinite(r) && std::isfinite(g) && std::isfinite(b))) {
-      ++tb.rejected_bsdf;
+      ++tb.stats.rejected_bsdf;
       continue;
     }
-    const int k = tb.qpoint[j];
-    tb.Sr[k] += r;
-    tb.Sg[k] += g;
-    tb.Sb[k] += b;
+    const int k = tb.queue.point[j];
+    tb.points.Sr[k] += r;
+    tb.points.Sg[k] += g;
+    tb.points.Sb[k] += b;
     if (est.aov_mis_weight) {
-      const int i = tb.slane[k];
-      tb.wsum[i] += tb.wb[j];
-      tb.wcnt[i] += 1.f;
+      const int i = tb.points.lane[k];
+      tb.lanes.wsum[i] += tb.tech.wb[j];
+      tb.lanes.wcnt[i] += 1.f;
     }
   }
 }

@@ -24,8 +24,8 @@ inline void camera_ray(const CameraView& c, T rx, T ry, Vec3<T>& org, Vec3<T>& d
 
 // Writes lanes [i, i + width(T)) of the camera packets.
 template <class T> TUILE_FLATTEN inline void generate_lanes(const CameraView& c, TileBuffers& tb, int i) {
-  const T rx = load<T>(tb.fx + i) + load<T>(tb.u0 + i);
-  const T ry = load<T>(tb.fy + i) + load<T>(tb.u1 + i);
+  const T rx = load<T>(tb.lanes.fx + i) + load<T>(tb.tech.u0 + i);
+  const T ry = load<T>(tb.lanes.fy + i) + load<T>(tb.tech.u1 + i);
   Vec3<T> o, d;
   camera_ray(c, rx, ry, o, d);
   RayHit16& p = tb.cam[i / packet_width];
@@ -33,28 +33,28 @@ template <class T> TUILE_FLATTEN inline void generate_lanes(const CameraView& c,
   store3(p.ray.org_x + l, p.ray.org_y + l, p.ray.org_z + l, o);
   store3(p.ray.dir_x + l, p.ray.dir_y + l, p.ray.dir_z + l, d);
   store(p.ray.tfar + l, T(3.0e38f));
-  store(tb.Lr + i, T(0.f));
-  store(tb.Lg + i, T(0.f));
-  store(tb.Lb + i, T(0.f));
+  store(tb.lanes.Lr + i, T(0.f));
+  store(tb.lanes.Lg + i, T(0.f));
+  store(tb.lanes.Lb + i, T(0.f));
 }
 
 // All lanes of a tile (lanes padded up to a whole packet).
 inline void generate(const CameraView& c, const Estimator& est, uint32_t sample, int lanes, TileBuffers& tb) {
   const int padded = (lanes + packet_width - 1) / packet_width * packet_width;
   for (int i = lanes; i < padded; ++i) {  // padding lanes: a harmless pixel, never traced
-    tb.fx[i] = tb.fx[0];
-    tb.fy[i] = tb.fy[0];
-    tb.pixel[i] = tb.pixel[0];
+    tb.lanes.fx[i] = tb.lanes.fx[0];
+    tb.lanes.fy[i] = tb.lanes.fy[0];
+    tb.lanes.pixel[i] = tb.lanes.pixel[0];
   }
-  lane_pairs(est, tb, sample, 0, padded, tb.u0, tb.u1);
+  lane_pairs(est, tb, sample, 0, padded, tb.tech.u0, tb.tech.u1);
   int i = 0;
   for (; i < padded; i += simd_width) generate_lanes<vfloat>(c, tb, i);  // padded: whole packets
   for (int k = 0; k < padded / packet_width; ++k) reset_hit(tb.cam[k]);
-  std::fill_n(tb.cam_valid, lanes, -1);
-  std::fill_n(tb.cam_valid + lanes, padded - lanes, 0);
+  std::fill_n(tb.lanes.cam_valid, lanes, -1);
+  std::fill_n(tb.lanes.cam_valid + lanes, padded - lanes, 0);
   if (est.aov_mis_weight) {
-    std::fill_n(tb.wsum, padded, 0.f);
-    std::fill_n(tb.wcnt, padded, 0.f);
+    std::fill_n(tb.lanes.wsum, padded, 0.f);
+    std::fill_n(tb.lanes.wcnt, padded, 0.f);
   }
 }
 

@@ -26,11 +26,11 @@ template <class T, unsigned Kinds = kind_all, bool Pick = true>
 TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimator& est, const LightPass& pass, TileBuffers& tb,
                                 int k) {
   constexpr float inv_pi = 0.318309886f;
-  auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.shade_count));
-  if (est.one_sample()) active = active && (load<T>(tb.choose_light + k) > T(0.5f));
-  const Vec3<T> x = load3<T>(tb.px + k, tb.py + k, tb.pz + k);
-  const Vec3<T> n = load3<T>(tb.nx + k, tb.ny + k, tb.nz + k);
-  const T eps = load<T>(tb.eps + k);
+  auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.points.count));
+  if (est.one_sample()) active = active && (load<T>(tb.points.choose_light + k) > T(0.5f));
+  const Vec3<T> x = load3<T>(tb.points.px + k, tb.points.py + k, tb.points.pz + k);
+  const Vec3<T> n = load3<T>(tb.points.nx + k, tb.points.ny + k, tb.points.nz + k);
+  const T eps = load<T>(tb.points.eps + k);
 
   LightGeom<T> g;
   T pick, Le_r, Le_g, Le_b;
@@ -40,7 +40,7 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
       constexpr int S = decltype(tier)::value;
       i32_t<T> idx;
       if (pass.fixed_light >= 0) idx = i32_t<T>(pass.fixed_light);
-      else idx = pick_light<T, S>(L, load<T>(tb.u0 + k));
+      else idx = pick_light<T, S>(L, load<T>(tb.tech.u0 + k));
       if constexpr ((Kinds & kind_rects) != 0) g = gather_rect_light<S>(L, idx);
       else g = gather_light<S>(L, idx);
       gather_pick_radiance<S>(L, idx, pick, Le_r, Le_g, Le_b);
@@ -54,7 +54,7 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
     Le_b = T(L.Lb[li]);
   }
   const LightPointSample<T> s =
-      sample_light_point<Kinds>(est.point, g, x, load<T>(tb.u2 + k), load<T>(tb.u3 + k));
+      sample_light_point<Kinds>(est.point, g, x, load<T>(tb.tech.u2 + k), load<T>(tb.tech.u3 + k));
 
   constexpr bool rects = (Kinds & kind_rects) != 0;
   const T cos_x = dot(n, s.wi);
@@ -72,18 +72,18 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   const T denom = T(pass.n_light) * sel(s.is_delta, pick, pdf_l);
   const auto ok = active && s.valid && front && cos_x > T(0.f) && denom > T(0.f) && w > T(0.f);
   const T factor = sel(ok, w * cos_x * T(inv_pi) * rcp_nr(sel(ok, denom, T(1.f))) * s.scale, T(0.f));
-  const T c_r = load<T>(tb.ar + k) * Le_r * factor;
-  const T c_g = load<T>(tb.ag + k) * Le_g * factor;
-  const T c_b = load<T>(tb.ab + k) * Le_b * factor;
+  const T c_r = load<T>(tb.points.ar + k) * Le_r * factor;
+  const T c_g = load<T>(tb.points.ag + k) * Le_g * factor;
+  const T c_b = load<T>(tb.points.ab + k) * Le_b * factor;
   // the channels are >= 0 or NaN: their sum is finite iff each one is
   const T c_sum = c_r + c_g + c_b;
   const auto fin = is_finite(c_sum);
   auto live = ok && fin && (c_sum > T(0.f));
-  store(tb.cr + k, sel(live, c_r, T(0.f)));
-  store(tb.cg + k, sel(live, c_g, T(0.f)));
-  store(tb.cb + k, sel(live, c_b, T(0.f)));
+  store(tb.tech.cr + k, sel(live, c_r, T(0.f)));
+  store(tb.tech.cg + k, sel(live, c_g, T(0.f)));
+  store(tb.tech.cb + k, sel(live, c_b, T(0.f)));
   // count contributions dropped as non-finite where the sample itself was fine
-  if (any(ok && !fin)) tb.rejected_light += static_cast<uint64_t>(count(ok && !fin));
+  if (any(ok && !fin)) tb.stats.rejected_light += static_cast<uint64_t>(count(ok && !fin));
 
   // Shadow ray from the offset origin to the light point, itself offset off the source
   // towards x (pbrt's "spawn ray to"): at grazing angles the ray along wi from a lifted
@@ -118,20 +118,20 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   // Embree does not skip non-finite rays: a lane whose ray is not finite is dropped (one
   // test on the sum: a NaN or infinite term makes it non-finite)
   const auto ray_ok = is_finite(((dir.x + dir.y) + (dir.z + tfar)) + ((org.x + org.y) + org.z));
-  if (any(live && !ray_ok)) tb.rejected_light += static_cast<uint64_t>(count(live && !ray_ok));
+  if (any(live && !ray_ok)) tb.stats.rejected_light += static_cast<uint64_t>(count(live && !ray_ok));
   live = live && ray_ok;
   store_rays(tb.shadow, k, org, dir, tfar);
-  store_valid(tb.valid + k, live);
+  store_valid(tb.tech.valid + k, live);
 }
 
 // Draws the pass's random numbers and runs the lanes of every shading point.
 template <unsigned Kinds = kind_all, bool Pick = true>
 inline void sample_lights(const LightView& L, const Estimator& est, const LightPass& pass, uint32_t sample,
                           uint32_t pair, TileBuffers& tb) {
-  const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
+  const int padded = (tb.points.count + packet_width - 1) / packet_width * packet_width;
   if (Pick && pass.fixed_light < 0)  // the pick reads the first dimension only
-    point_pairs(est, tb, sample, pair, padded, tb.u0, nullptr);
-  point_pairs(est, tb, sample, pair + 1, padded, tb.u2, tb.u3);
+    point_pairs(est, tb, sample, pair, padded, tb.tech.u0, nullptr);
+  point_pairs(est, tb, sample, pair + 1, padded, tb.tech.u2, tb.tech.u3);
   // four batches at a time (vfloat4), then two: the solid-angle maps are latency-bound
   // chains, so interleaved batches keep the core busy (two-panels: one batch at a time
   // 6% slower overall, four 1% faster than two)
@@ -145,14 +145,14 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
 // occluded (Embree sets tfar = -inf) add nothing.
 template <class T> inline void accumulate_shadow_lanes(TileBuffers& tb, int k) {
   const T tfar = load<T>(tb.shadow[k / packet_width].tfar + k % packet_width);
-  const auto lit = f_mask_from_i(load_i32<T>(tb.valid + k) != i32_t<T>(0)) && tfar != T(-INFINITY);
-  store(tb.Sr + k, load<T>(tb.Sr + k) + sel(lit, load<T>(tb.cr + k), T(0.f)));
-  store(tb.Sg + k, load<T>(tb.Sg + k) + sel(lit, load<T>(tb.cg + k), T(0.f)));
-  store(tb.Sb + k, load<T>(tb.Sb + k) + sel(lit, load<T>(tb.cb + k), T(0.f)));
+  const auto lit = f_mask_from_i(load_i32<T>(tb.tech.valid + k) != i32_t<T>(0)) && tfar != T(-INFINITY);
+  store(tb.points.Sr + k, load<T>(tb.points.Sr + k) + sel(lit, load<T>(tb.tech.cr + k), T(0.f)));
+  store(tb.points.Sg + k, load<T>(tb.points.Sg + k) + sel(lit, load<T>(tb.tech.cg + k), T(0.f)));
+  store(tb.points.Sb + k, load<T>(tb.points.Sb + k) + sel(lit, load<T>(tb.tech.cb + k), T(0.f)));
 }
 
 template <class T = vfloat> inline void accumulate_shadow(TileBuffers& tb) {
-  const int padded = (tb.shade_count + packet_width - 1) / packet_width * packet_width;
+  const int padded = (tb.points.count + packet_width - 1) / packet_width * packet_width;
   for (int k = 0; k < padded; k += lane_traits<T>::width) accumulate_shadow_lanes<T>(tb, k);
 }
 

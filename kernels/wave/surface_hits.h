@@ -40,22 +40,22 @@ inline const float* hit_texel(const GeomView& G, int32_t t, uint32_t geom, uint3
 // next reads (vertex indices, then uv, then the texel), so that the cache misses of a
 // large scene overlap instead of following one another.
 inline void apply_texels(const GeomView& G, TileBuffers& tb) {
-  const int nt = tb.tex_count;
+  const int nt = tb.textured.count;
   for (int j = 0; j < nt; ++j) {
-    const uint32_t* idx = G.indices[tb.tex_geom[j]] + 3 * tb.tex_prim[j];
-    const float* uv = G.uvs[tb.tex_geom[j]];
+    const uint32_t* idx = G.indices[tb.textured.geom[j]] + 3 * tb.textured.prim[j];
+    const float* uv = G.uvs[tb.textured.geom[j]];
     for (int c = 0; c < 3; ++c) __builtin_prefetch(uv + 2 * idx[c]);
   }
   for (int j = 0; j < nt; ++j) {
-    tb.texel[j] = hit_texel(G, tb.tex_id[j], tb.tex_geom[j], tb.tex_prim[j], tb.tex_u[j], tb.tex_v[j]);
-    __builtin_prefetch(tb.texel[j]);
+    tb.textured.texel[j] = hit_texel(G, tb.textured.texture[j], tb.textured.geom[j], tb.textured.prim[j], tb.textured.u[j], tb.textured.v[j]);
+    __builtin_prefetch(tb.textured.texel[j]);
   }
   for (int j = 0; j < nt; ++j) {
-    const int k = tb.tex_point[j];
-    const float* t = tb.texel[j];
-    tb.ar[k] *= t[0];
-    tb.ag[k] *= t[1];
-    tb.ab[k] *= t[2];
+    const int k = tb.textured.point[j];
+    const float* t = tb.textured.texel[j];
+    tb.points.ar[k] *= t[0];
+    tb.points.ag[k] *= t[1];
+    tb.points.ab[k] *= t[2];
   }
 }
 
@@ -113,9 +113,9 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   Vec3<T> ng = load3<T>(p.Ng_x + l, p.Ng_y + l, p.Ng_z + l);
   const T len2 = dot(ng, ng);
   const auto ok = hit && len2 > T(0.f) && is_finite(len2) && is_finite(t);
-  tb.rejected_camera += static_cast<uint64_t>(std::popcount(lane_bits(hit && !ok)));
+  tb.stats.rejected_camera += static_cast<uint64_t>(std::popcount(lane_bits(hit && !ok)));
   const uint32_t keep = lane_bits(ok);
-  store(tb.shade_of + i, expand_index<T>(n, keep));
+  store(tb.lanes.shade_of + i, expand_index<T>(n, keep));
   if (!keep) return;
   ng = ng * rsqrt_nr(sel(ok, len2, T(1.f)));
   // face the viewer: diffuse reflection on both sides. 0 - n, not -n: xsimd 8 negates
@@ -182,9 +182,9 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
         constexpr int S = decltype(tier)::value;
         T Le_r, Le_g, Le_b;
         lookup_radiance<S>(L, li, Le_r, Le_g, Le_b);
-        store(tb.Lr + i, sel(emit, load<T>(tb.Lr + i) + Le_r, load<T>(tb.Lr + i)));
-        store(tb.Lg + i, sel(emit, load<T>(tb.Lg + i) + Le_g, load<T>(tb.Lg + i)));
-        store(tb.Lb + i, sel(emit, load<T>(tb.Lb + i) + Le_b, load<T>(tb.Lb + i)));
+        store(tb.lanes.Lr + i, sel(emit, load<T>(tb.lanes.Lr + i) + Le_r, load<T>(tb.lanes.Lr + i)));
+        store(tb.lanes.Lg + i, sel(emit, load<T>(tb.lanes.Lg + i) + Le_g, load<T>(tb.lanes.Lg + i)));
+        store(tb.lanes.Lb + i, sel(emit, load<T>(tb.lanes.Lb + i) + Le_b, load<T>(tb.lanes.Lb + i)));
       });
     }
   }
@@ -211,47 +211,47 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
       const int32_t t = hit_texture(G, geom);
       if (t < 0) continue;
       __builtin_prefetch(G.indices[geom] + 3 * prim);
-      const int j = tb.tex_count++;
-      tb.tex_point[j] = m;
-      tb.tex_id[j] = t;
-      tb.tex_geom[j] = geom;
-      tb.tex_prim[j] = prim;
-      tb.tex_u[j] = p.u[l + k];
-      tb.tex_v[j] = p.v[l + k];
+      const int j = tb.textured.count++;
+      tb.textured.point[j] = m;
+      tb.textured.texture[j] = t;
+      tb.textured.geom[j] = geom;
+      tb.textured.prim[j] = prim;
+      tb.textured.u[j] = p.u[l + k];
+      tb.textured.v[j] = p.v[l + k];
     }
   }
 
   // compaction: n <= i, so a whole batch written at n stays inside the arrays
-  compress_store(tb.px + n, x.x, keep);
-  compress_store(tb.py + n, x.y, keep);
-  compress_store(tb.pz + n, x.z, keep);
-  compress_store(tb.nx + n, ng.x, keep);
-  compress_store(tb.ny + n, ng.y, keep);
-  compress_store(tb.nz + n, ng.z, keep);
-  compress_store(tb.eps + n, offset_along_normal(err, ng), keep);
-  compress_store(tb.ar + n, ar, keep);
-  compress_store(tb.ag + n, ag, keep);
-  compress_store(tb.ab + n, ab, keep);
-  compress_store(reinterpret_cast<int32_t*>(tb.spix + n), load_i32<T>(reinterpret_cast<const int32_t*>(tb.pixel + i)),
+  compress_store(tb.points.px + n, x.x, keep);
+  compress_store(tb.points.py + n, x.y, keep);
+  compress_store(tb.points.pz + n, x.z, keep);
+  compress_store(tb.points.nx + n, ng.x, keep);
+  compress_store(tb.points.ny + n, ng.y, keep);
+  compress_store(tb.points.nz + n, ng.z, keep);
+  compress_store(tb.points.eps + n, offset_along_normal(err, ng), keep);
+  compress_store(tb.points.ar + n, ar, keep);
+  compress_store(tb.points.ag + n, ag, keep);
+  compress_store(tb.points.ab + n, ab, keep);
+  compress_store(reinterpret_cast<int32_t*>(tb.points.pixel + n), load_i32<T>(reinterpret_cast<const int32_t*>(tb.lanes.pixel + i)),
                  keep);
-  compress_store(tb.slane + n, lane, keep);
+  compress_store(tb.points.lane + n, lane, keep);
   // The cached stream keys of the shading pairs: while every lane so far is a shading
   // point (point k is lane k) the points read the lanes' keys; from the first lane that is
   // not, they are copied and then compacted.
-  if (tb.keyed & ~1u) {
+  if (tb.keys.keyed & ~1u) {
     constexpr uint32_t all = lane_traits<T>::width == 32 ? ~0u : (1u << lane_traits<T>::width) - 1u;
-    if (tb.points_are_lanes && !(keep == all && n == i)) {
-      for (uint32_t bits = tb.keyed & ~1u; bits; bits &= bits - 1)
+    if (tb.keys.points_are_lanes && !(keep == all && n == i)) {
+      for (uint32_t bits = tb.keys.keyed & ~1u; bits; bits &= bits - 1)
         for (int f = 0; f < 3; ++f)
-          std::copy_n(tb.lane_key[std::countr_zero(bits)][f], n, tb.point_key[std::countr_zero(bits)][f]);
-      tb.points_are_lanes = false;
+          std::copy_n(tb.keys.lane_key[std::countr_zero(bits)][f], n, tb.keys.point_key[std::countr_zero(bits)][f]);
+      tb.keys.points_are_lanes = false;
     }
-    if (!tb.points_are_lanes)
-      for (uint32_t bits = tb.keyed & ~1u; bits; bits &= bits - 1) {
+    if (!tb.keys.points_are_lanes)
+      for (uint32_t bits = tb.keys.keyed & ~1u; bits; bits &= bits - 1) {
         const int p = std::countr_zero(bits);
         for (int f = 0; f < 3; ++f)
-          compress_store(reinterpret_cast<int32_t*>(tb.point_key[p][f] + n),
-                         load_i32<T>(reinterpret_cast<const int32_t*>(tb.lane_key[p][f] + i)), keep);
+          compress_store(reinterpret_cast<int32_t*>(tb.keys.point_key[p][f] + n),
+                         load_i32<T>(reinterpret_cast<const int32_t*>(tb.keys.lane_key[p][f] + i)), keep);
       }
   }
   n += std::popcount(keep);
@@ -264,32 +264,32 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
                         TileBuffers& tb) {
   const int padded_lanes = (lanes + packet_width - 1) / packet_width * packet_width;
   int n = 0;
-  tb.tex_count = 0;
-  tb.points_are_lanes = true;
+  tb.textured.count = 0;
+  tb.keys.points_are_lanes = true;
   for (int i = 0; i < padded_lanes; i += lane_traits<T>::width) camera_hit_lanes<T, Emitters>(G, L, tb, i, lanes, n);
-  tb.shade_count = n;
+  tb.points.count = n;
   if (G.has_textures) apply_texels(G, tb);
   // pad to whole packets with copies of a real point; padding lanes are never active
   const int padded = (n + packet_width - 1) / packet_width * packet_width;
   for (int k = n; k < padded; ++k) {
-    tb.px[k] = tb.py[k] = tb.pz[k] = 0.f;
-    tb.nx[k] = tb.ny[k] = 0.f;
-    tb.nz[k] = 1.f;
-    tb.eps[k] = 1e-6f;
-    tb.ar[k] = tb.ag[k] = tb.ab[k] = 0.f;
-    tb.spix[k] = n > 0 ? tb.spix[0] : 0u;
-    tb.slane[k] = -1;
-    if (!tb.points_are_lanes)  // (padded > n means n > 0; as lanes, the padding pixels are pixel 0 already)
-      for (uint32_t bits = tb.keyed & ~1u; bits; bits &= bits - 1)
-        for (int f = 0; f < 3; ++f) tb.point_key[std::countr_zero(bits)][f][k] = tb.point_key[std::countr_zero(bits)][f][0];
+    tb.points.px[k] = tb.points.py[k] = tb.points.pz[k] = 0.f;
+    tb.points.nx[k] = tb.points.ny[k] = 0.f;
+    tb.points.nz[k] = 1.f;
+    tb.points.eps[k] = 1e-6f;
+    tb.points.ar[k] = tb.points.ag[k] = tb.points.ab[k] = 0.f;
+    tb.points.pixel[k] = n > 0 ? tb.points.pixel[0] : 0u;
+    tb.points.lane[k] = -1;
+    if (!tb.keys.points_are_lanes)  // (padded > n means n > 0; as lanes, the padding pixels are pixel 0 already)
+      for (uint32_t bits = tb.keys.keyed & ~1u; bits; bits &= bits - 1)
+        for (int f = 0; f < 3; ++f) tb.keys.point_key[std::countr_zero(bits)][f][k] = tb.keys.point_key[std::countr_zero(bits)][f][0];
   }
-  std::fill_n(tb.Sr, padded, 0.f);
-  std::fill_n(tb.Sg, padded, 0.f);
-  std::fill_n(tb.Sb, padded, 0.f);
+  std::fill_n(tb.points.Sr, padded, 0.f);
+  std::fill_n(tb.points.Sg, padded, 0.f);
+  std::fill_n(tb.points.Sb, padded, 0.f);
   if (est.one_sample()) {
-    point_pairs(est, tb, sample, 1, padded, tb.u0, nullptr);  // the choice reads one dimension
+    point_pairs(est, tb, sample, 1, padded, tb.tech.u0, nullptr);  // the choice reads one dimension
     const float c = est.one_sample_light_prob();
-    for (int k = 0; k < padded; ++k) tb.choose_light[k] = tb.u0[k] < c ? 1.f : 0.f;
+    for (int k = 0; k < padded; ++k) tb.points.choose_light[k] = tb.tech.u0[k] < c ? 1.f : 0.f;
   }
 }
 

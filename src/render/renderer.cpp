@@ -89,7 +89,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
   const int tiles = c.tiles_x * ((cam.height + ts - 1) / ts);
 
   auto& buffers = pool_->buffers;
-  for (auto& p : buffers) p->reset_statistics();
+  for (auto& p : buffers) p->stats.reset();
   tbb::enumerable_thread_specific<ThreadProfile> profiles;
   const auto t0 = clock_type::now();
   const uint64_t ticks0 = __rdtsc();
@@ -112,13 +112,13 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
   film.samples += end - begin;
   st.samples = static_cast<uint64_t>(end - begin) * static_cast<uint64_t>(cam.width) * cam.height;
   for (auto& p : buffers) {
-    st.rays_camera += p->rays_camera;
-    st.rays_shadow += p->rays_shadow;
-    st.rays_bounce += p->rays_bounce;
-    st.rays_bounce_visibility += p->rays_bounce_visibility;
-    st.rejected_camera += p->rejected_camera;
-    st.rejected_light += p->rejected_light;
-    st.rejected_bsdf += p->rejected_bsdf;
+    st.rays_camera += p->stats.rays_camera;
+    st.rays_shadow += p->stats.rays_shadow;
+    st.rays_bounce += p->stats.rays_bounce;
+    st.rays_bounce_visibility += p->stats.rays_bounce_visibility;
+    st.rejected_camera += p->stats.rejected_camera;
+    st.rejected_light += p->stats.rejected_light;
+    st.rejected_bsdf += p->stats.rejected_bsdf;
   }
   if (profile) {
     profile->threads = threads;

@@ -99,9 +99,9 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   const bool blocks = tw % 4 == 0 && th % 4 == 0 && packet_width == 16;
   int i = 0;
   auto set_lane = [&](int x, int y) {
-    tb.fx[i] = static_cast<float>(x);
-    tb.fy[i] = static_cast<float>(y);
-    tb.pixel[i++] = static_cast<uint32_t>(y) * static_cast<uint32_t>(c.width) + static_cast<uint32_t>(x);
+    tb.lanes.fx[i] = static_cast<float>(x);
+    tb.lanes.fy[i] = static_cast<float>(y);
+    tb.lanes.pixel[i++] = static_cast<uint32_t>(y) * static_cast<uint32_t>(c.width) + static_cast<uint32_t>(x);
   };
   if (blocks) {
     for (int by = y0; by < y0 + th; by += 4)
@@ -117,7 +117,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   timer.lap(Stage::accumulate);
   // The sampler's keys of the pairs this pipeline draws (pair numbers as below), hashed
   // once per pixel for all of the tile's samples.
-  tb.keyed = 0;
+  tb.keys.keyed = 0;
   if (cacheable(est.sampler)) {
     uint32_t want = 1u;  // camera
     if (est.one_sample()) want |= 2u;
@@ -129,14 +129,14 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
         if (F.pick && est.pick != LightPick::all) want |= 1u << std::min(pair, 31);
         want |= 1u << std::min(pair + 1, 31);
       }
-    want &= (1u << TileBuffers::key_pairs) - 1u;
+    want &= (1u << SamplerKeys::pairs) - 1u;
     const int padded = cam_packets * packet_width;
-    for (int i = lanes; i < padded; ++i) tb.pixel[i] = tb.pixel[0];  // as generate pads
+    for (int i = lanes; i < padded; ++i) tb.lanes.pixel[i] = tb.lanes.pixel[0];  // as generate pads
     for (uint32_t bits = want; bits; bits &= bits - 1) {
       const int p = std::countr_zero(bits);
-      make_pair_keys(est.seed, tb.pixel, static_cast<uint32_t>(p), padded, tb.lane_keys(p));
+      make_pair_keys(est.seed, tb.lanes.pixel, static_cast<uint32_t>(p), padded, tb.keys.lane_keys(p));
     }
-    tb.keyed = want;
+    tb.keys.keyed = want;
   }
   timer.lap(Stage::generate);
   for (uint32_t s = begin; s < end; ++s) {
@@ -145,16 +145,16 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     const bool rec = tp && c.profile->record_rays && s == begin;
     clear_high_vector_registers();
     for (int p = 0; p < cam_packets; ++p) {
-      if (rec) timer.untimed([&] { record(tp->rays.camera, tb.cam[p], tb.cam_valid + p * packet_width); });
-      c.accel.intersect16(tb.cam_valid + p * packet_width, tb.cam[p], true);
+      if (rec) timer.untimed([&] { record(tp->rays.camera, tb.cam[p], tb.lanes.cam_valid + p * packet_width); });
+      c.accel.intersect16(tb.lanes.cam_valid + p * packet_width, tb.cam[p], true);
     }
-    tb.rays_camera += static_cast<uint64_t>(lanes);
+    tb.stats.rays_camera += static_cast<uint64_t>(lanes);
     timer.lap(Stage::intersect_camera);
     camera_hits<F.emitter_lookup>(v.geom, v.lights, est, s, lanes, tb);
     timer.lap(Stage::camera_hits);
-    const int packets = (tb.shade_count + packet_width - 1) / packet_width;
+    const int packets = (tb.points.count + packet_width - 1) / packet_width;
     if constexpr (F.light) {
-      if (tb.shade_count > 0) {
+      if (tb.points.count > 0) {
         for (int j = 0; j < c.light_passes; ++j) {
           LightPass pass;
           pass.fixed_light = est.pick == LightPick::all ? j % c.S : (F.pick ? -1 : 0);
@@ -164,12 +164,12 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
           timer.lap(Stage::sample_lights);
           clear_high_vector_registers();
           for (int p = 0; p < packets; ++p) {
-            const int32_t* valid = tb.valid + p * packet_width;
+            const int32_t* valid = tb.tech.valid + p * packet_width;
             const int active = active_lanes(valid);
             if (!active) continue;
             if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], valid); });
             c.accel.occluded16(valid, tb.shadow[p], false);
-            tb.rays_shadow += static_cast<uint64_t>(active);
+            tb.stats.rays_shadow += static_cast<uint64_t>(active);
           }
           timer.lap(Stage::intersect_shadow);
           accumulate_shadow(tb);
@@ -178,31 +178,31 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
       }
     }
     if constexpr (F.bsdf) {
-      if (tb.shade_count > 0) {
+      if (tb.points.count > 0) {
         for (int m = 0; m < c.bsdf_passes; ++m) {
           sample_cosine(est, s, static_cast<uint32_t>(2 + m), tb);
           timer.lap(Stage::sample_cosine);
           clear_high_vector_registers();
           const Target target = c.bounce_emitters ? Target::emitters : Target::scene;
           for (int p = 0; p < packets; ++p) {
-            const int32_t* valid = tb.valid + p * packet_width;
+            const int32_t* valid = tb.tech.valid + p * packet_width;
             const int active = active_lanes(valid);
             if (!active) continue;
             if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
             c.accel.intersect16(valid, tb.bounce[p], false, target);
-            tb.rays_bounce += static_cast<uint64_t>(active);
+            tb.stats.rays_bounce += static_cast<uint64_t>(active);
           }
           timer.lap(Stage::intersect_bounce);
           queue_bounce_hits<vfloat, F.kinds>(v.geom, v.lights, tb, c.bounce_emitters);
-          if (c.bounce_emitters && tb.queue_count > 0) {
+          if (c.bounce_emitters && tb.queue.count > 0) {
             const int qpackets = bounce_visibility_rays(tb);
             timer.lap(Stage::mis_weight);
             clear_high_vector_registers();
             for (int p = 0; p < qpackets; ++p) {
-              if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], tb.qvalid + p * packet_width); });
-              c.accel.occluded16(tb.qvalid + p * packet_width, tb.shadow[p], false);
+              if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], tb.queue.valid + p * packet_width); });
+              c.accel.occluded16(tb.queue.valid + p * packet_width, tb.shadow[p], false);
             }
-            tb.rays_bounce_visibility += static_cast<uint64_t>(tb.queue_count);
+            tb.stats.rays_bounce_visibility += static_cast<uint64_t>(tb.queue.count);
             timer.lap(Stage::intersect_bounce);
             read_bounce_visibility(tb);
           }
