@@ -57,13 +57,12 @@ struct Fixture {
       tb->queue.x[k] = tb->points.px[k];
       tb->queue.y[k] = 0.f;
       tb->queue.z[k] = tb->points.pz[k];
-      tb->queue.nx[k] = tb->queue.nz[k] = 0.f;
-      tb->queue.ny[k] = 1.f;
       tb->queue.dx[k] = 0.f;
       tb->queue.dy[k] = 1.f;
       tb->queue.dz[k] = 0.f;
       tb->queue.dist[k] = 1.f;
-      tb->queue.ar[k] = tb->queue.ag[k] = tb->queue.ab[k] = 0.7f;
+      tb->queue.beta_r[k] = tb->queue.beta_g[k] = tb->queue.beta_b[k] = 0.7f;
+      tb->queue.pdf[k] = 1.f / 3.14159265f;  // straight up from a floor: cos / pi
     }
     tb->queue.count = lanes;
   }

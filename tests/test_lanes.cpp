@@ -326,14 +326,13 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
             a->queue.x[j] = a->points.px[j];
             a->queue.y[j] = 0.f;
             a->queue.z[j] = a->points.pz[j];
-            a->queue.nx[j] = a->queue.nz[j] = 0.f;
-            a->queue.ny[j] = 1.f;
             const vec3f dq = normalize(vec3f{a->tech.u0[j] - 0.5f, 1.f, a->tech.u1[j] - 0.5f});
             a->queue.dx[j] = dq.x;
             a->queue.dy[j] = dq.y;
             a->queue.dz[j] = dq.z;
             a->queue.dist[j] = 0.8f / dq.y;
-            a->queue.ar[j] = a->queue.ag[j] = a->queue.ab[j] = 0.5f;
+            a->queue.beta_r[j] = a->queue.beta_g[j] = a->queue.beta_b[j] = 0.5f;
+            a->queue.pdf[j] = pdf_cosine_hemisphere(dq.y);  // Lambert on a floor (normal +y)
             a->queue.vis[j] = 1.f;
           }
           *b = *a;
@@ -462,17 +461,16 @@ TEST(Lanes, StagesEqualScalar) {
             a->queue.x[k] = b->queue.x[k] = a->points.px[k];
             a->queue.y[k] = b->queue.y[k] = a->points.py[k];
             a->queue.z[k] = b->queue.z[k] = a->points.pz[k];
-            a->queue.nx[k] = b->queue.nx[k] = a->points.nx[k];
-            a->queue.ny[k] = b->queue.ny[k] = a->points.ny[k];
-            a->queue.nz[k] = b->queue.nz[k] = a->points.nz[k];
             const vec3f d = normalize(vec3f{a->tech.u0[k] - 0.5f, 1.f, a->tech.u1[k] - 0.5f});
+            const vec3f nk{a->points.nx[k], a->points.ny[k], a->points.nz[k]};
+            a->queue.pdf[k] = b->queue.pdf[k] = pdf_cosine_hemisphere(dot(nk, d));
             a->queue.dx[k] = b->queue.dx[k] = d.x;
             a->queue.dy[k] = b->queue.dy[k] = d.y;
             a->queue.dz[k] = b->queue.dz[k] = d.z;
             a->queue.dist[k] = b->queue.dist[k] = 0.1f + static_cast<float>(rng() % 1000) * 0.003f;
-            a->queue.ar[k] = b->queue.ar[k] = a->points.ar[k];
-            a->queue.ag[k] = b->queue.ag[k] = a->points.ag[k];
-            a->queue.ab[k] = b->queue.ab[k] = a->points.ab[k];
+            a->queue.beta_r[k] = b->queue.beta_r[k] = a->points.ar[k];
+            a->queue.beta_g[k] = b->queue.beta_g[k] = a->points.ag[k];
+            a->queue.beta_b[k] = b->queue.beta_b[k] = a->points.ab[k];
           }
           auto w2 = std::make_unique<TileBuffers>(*a);
           for (int k = 0; k < n; k += simd_width) weight_lanes<vfloat>(views.lights, est, 1.f, 1.f, *a, k);
@@ -806,9 +804,9 @@ TEST(Lanes, EmitterQueueEqualScalar) {
       ASSERT_EQ(a->queue.count, b->queue.count) << name();
       const int nq = a->queue.count;
       queued += nq;
-      for (auto arr : {&EmitterHitQueue::x, &EmitterHitQueue::y, &EmitterHitQueue::z, &EmitterHitQueue::nx, &EmitterHitQueue::ny,
-                       &EmitterHitQueue::nz, &EmitterHitQueue::dx, &EmitterHitQueue::dy, &EmitterHitQueue::dz, &EmitterHitQueue::dist,
-                       &EmitterHitQueue::ar, &EmitterHitQueue::ag, &EmitterHitQueue::ab})
+      for (auto arr : {&EmitterHitQueue::x, &EmitterHitQueue::y, &EmitterHitQueue::z, &EmitterHitQueue::dx,
+                       &EmitterHitQueue::dy, &EmitterHitQueue::dz, &EmitterHitQueue::dist, &EmitterHitQueue::beta_r,
+                       &EmitterHitQueue::beta_g, &EmitterHitQueue::beta_b, &EmitterHitQueue::pdf})
         expect_same_floats(a->queue.*arr, b->queue.*arr, nq, name);
       for (int j = 0; j < nq; ++j) {
         ASSERT_EQ(a->queue.light[j], b->queue.light[j]) << name() << " entry " << j;

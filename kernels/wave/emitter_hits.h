@@ -1,9 +1,12 @@
-// Stage 5, MIS weight: bounce rays that hit the front of an emitter get the weight of
-// the BSDF technique and add rho L_e w_bsdf / n_bsdf to their shading point (cosine sampling of a
-// Lambertian BSDF makes f cos / p = rho). The light technique's density for the same
-// direction (pick probability times the point density in solid angle, under the same
-// fallback rule as sampling) enters q_light. Also records w_bsdf for the mis_weight AOV.
-// Reads the bounce packets, the shading points, the tables; writes the tile radiance.
+// Stage 5, emitter hits: the BSDF-sampled rays that reached the front of an emitter join
+// a queue (with the sample's throughput beta = f cos / p and pdf p); each entry gets the
+// BSDF technique's MIS weight and adds beta L_e w_bsdf / n_bsdf to its shading point.
+// The light technique's density for the same direction (pick probability times the point
+// density in solid angle, under the same fallback rule as sampling) enters q_light. Also
+// records w_bsdf for the mis_weight AOV. When bounce rays were traced against the emitters
+// alone, the queue's visibility rays decide which entries count.
+// Reads the bounce packets, the shading points, the BSDF samples, the light table; writes
+// the shading points' radiance.
 #pragma once
 #include "wave/surface_hits.h"
 
@@ -14,12 +17,10 @@ namespace tuile {
 template <class T, unsigned Kinds = kind_all>
 TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est, float n_light, float n_bsdf, TileBuffers& tb,
                          int j) {
-  constexpr float inv_pi = 0.318309886f;
   const auto live =
       (T(static_cast<float>(j)) + lane_iota<T>()) < T(static_cast<float>(tb.queue.count)) && load<T>(tb.queue.vis + j) > T(0.f);
   const i32_t<T> idx = load_i32<T>(tb.queue.light + j);
   const Vec3<T> x = load3<T>(tb.queue.x + j, tb.queue.y + j, tb.queue.z + j);
-  const Vec3<T> n = load3<T>(tb.queue.nx + j, tb.queue.ny + j, tb.queue.nz + j);
   const Vec3<T> wi = load3<T>(tb.queue.dx + j, tb.queue.dy + j, tb.queue.dz + j);
   const T dist = load<T>(tb.queue.dist + j);
   // gathers, or permutes of small and medium tables (the same values)
@@ -34,15 +35,15 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
   const T pdf_l = pick * pdf_point;
   T w(1.f);
   if (est.strategy == Strategy::mis) {
-    const T q_b = T(n_bsdf) * dot(n, wi) * T(inv_pi);
+    const T q_b = T(n_bsdf) * load<T>(tb.queue.pdf + j);
     w = mis_weight(est.heuristic, q_b, T(n_light) * pdf_l, est.mis);
   } else if (est.strategy == Strategy::light) {
     w = T(0.f);  // the general pipeline traces BSDF rays even when they must not count
   }
   const T factor = sel(live, w / T(n_bsdf), T(0.f));
-  store(tb.tech.cr + j, load<T>(tb.queue.ar + j) * Le_r * factor);
-  store(tb.tech.cg + j, load<T>(tb.queue.ag + j) * Le_g * factor);
-  store(tb.tech.cb + j, load<T>(tb.queue.ab + j) * Le_b * factor);
+  store(tb.tech.cr + j, load<T>(tb.queue.beta_r + j) * Le_r * factor);
+  store(tb.tech.cg + j, load<T>(tb.queue.beta_g + j) * Le_g * factor);
+  store(tb.tech.cb + j, load<T>(tb.queue.beta_b + j) * Le_b * factor);
   store(tb.tech.wb + j, w);
 }
 
@@ -75,17 +76,15 @@ TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView
   compress_store(tb.queue.x + nq, load<T>(tb.points.px + k), keep);
   compress_store(tb.queue.y + nq, load<T>(tb.points.py + k), keep);
   compress_store(tb.queue.z + nq, load<T>(tb.points.pz + k), keep);
-  compress_store(tb.queue.nx + nq, n.x, keep);
-  compress_store(tb.queue.ny + nq, n.y, keep);
-  compress_store(tb.queue.nz + nq, n.z, keep);
   compress_store(tb.queue.dx + nq, d.x, keep);
   compress_store(tb.queue.dy + nq, d.y, keep);
   compress_store(tb.queue.dz + nq, d.z, keep);
   // distance from x itself (the ray started eps above it along n)
   compress_store(tb.queue.dist + nq, load<T>(r.ray.tfar + l) + load<T>(tb.points.eps + k) * dot(n, d), keep);
-  compress_store(tb.queue.ar + nq, load<T>(tb.points.ar + k), keep);
-  compress_store(tb.queue.ag + nq, load<T>(tb.points.ag + k), keep);
-  compress_store(tb.queue.ab + nq, load<T>(tb.points.ab + k), keep);
+  compress_store(tb.queue.beta_r + nq, load<T>(tb.tech.beta_r + k), keep);
+  compress_store(tb.queue.beta_g + nq, load<T>(tb.tech.beta_g + k), keep);
+  compress_store(tb.queue.beta_b + nq, load<T>(tb.tech.beta_b + k), keep);
+  compress_store(tb.queue.pdf + nq, load<T>(tb.tech.pdf + k), keep);
   compress_store(tb.queue.light + nq, li, keep);
   compress_store(tb.queue.point + nq, i32_t<T>(k) + lane_iota_i32<T>(), keep);
   if (vis) {
@@ -110,12 +109,11 @@ inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers
   const int qpadded = (nq + packet_width - 1) / packet_width * packet_width;
   for (int j = nq; j < qpadded; ++j) {  // padding: a valid light index, no contribution
     tb.queue.x[j] = tb.queue.y[j] = tb.queue.z[j] = 0.f;
-    tb.queue.nx[j] = tb.queue.ny[j] = 0.f;
-    tb.queue.nz[j] = 1.f;
     tb.queue.dx[j] = tb.queue.dy[j] = 0.f;
     tb.queue.dz[j] = 1.f;
     tb.queue.dist[j] = 1.f;
-    tb.queue.ar[j] = tb.queue.ag[j] = tb.queue.ab[j] = 0.f;
+    tb.queue.beta_r[j] = tb.queue.beta_g[j] = tb.queue.beta_b[j] = 0.f;
+    tb.queue.pdf[j] = 1.f;
     tb.queue.light[j] = nq > 0 ? tb.queue.light[0] : 0;
     tb.queue.point[j] = 0;
     tb.queue.ox[j] = tb.queue.oy[j] = tb.queue.oz[j] = 0.f;

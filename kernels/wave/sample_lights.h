@@ -4,12 +4,14 @@
 // the shadow ray turns out unoccluded. Lanes are independent; masks, not branches.
 // Estimator (Veach's thesis eq. 9.13 with MIS; the course's light sampling):
 //   f_r L_e cos(theta_x) w_light / (n_light p_light),  p_light = P(source) p_point(solid angle)
-// with w_light from the heuristic on q = n p of both techniques (multi-sample) or
-// q = c p (one-sample, c = choice probability, then n_light = c). Delta lights: w = 1.
+// with f_r and the BSDF technique's pdf from the shading point's BSDF (bsdf/), w_light from
+// the heuristic on q = n p of both techniques (multi-sample) or q = c p (one-sample, c =
+// choice probability, then n_light = c). Delta lights: w = 1.
 #pragma once
 #include <algorithm>
 #include <type_traits>
 
+#include "bsdf/lambert.h"
 #include "wave/tile.h"
 
 namespace tuile {
@@ -25,7 +27,6 @@ struct LightPass {
 template <class T, unsigned Kinds = kind_all, bool Pick = true>
 TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimator& est, const LightPass& pass, TileBuffers& tb,
                                 int k) {
-  constexpr float inv_pi = 0.318309886f;
   auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.points.count));
   if (est.one_sample()) active = active && (load<T>(tb.points.choose_light + k) > T(0.5f));
   const Vec3<T> x = load3<T>(tb.points.px + k, tb.points.py + k, tb.points.pz + k);
@@ -57,6 +58,9 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
       sample_light_point<Kinds>(est.point, g, x, load<T>(tb.tech.u2 + k), load<T>(tb.tech.u3 + k));
 
   constexpr bool rects = (Kinds & kind_rects) != 0;
+  static_assert(!Lambert<T>::reads_wo, "the shading points keep no direction towards the viewer");
+  const Lambert<T> bsdf{{load<T>(tb.points.ar + k), load<T>(tb.points.ag + k), load<T>(tb.points.ab + k)}};
+  const BsdfEval<T> fe = bsdf.eval(SurfacePoint<T>{n, Vec3<T>(T(0.f), T(0.f), T(0.f))}, s.wi);
   const T cos_x = dot(n, s.wi);
   const auto planar = rects ? mask_t<T>(true) : type_is<T>(g.type, lt_triangle) || type_is<T>(g.type, lt_parallelogram);
   const auto front = !planar || g.two_sided > T(0.f) || dot(x - g.p0, g.n) > T(0.f);
@@ -64,17 +68,17 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   T w(1.f);
   if (est.strategy == Strategy::mis) {
     const T q_l = T(pass.n_light) * pdf_l;
-    const T q_b = T(pass.n_bsdf) * cos_x * T(inv_pi);
+    const T q_b = T(pass.n_bsdf) * fe.pdf;
     w = sel(s.is_delta, T(1.f), mis_weight(est.heuristic, q_l, q_b, est.mis));
   } else if (est.strategy == Strategy::bsdf) {
     w = sel(s.is_delta, T(1.f), T(0.f));  // area lights are left to the BSDF technique
   }
   const T denom = T(pass.n_light) * sel(s.is_delta, pick, pdf_l);
   const auto ok = active && s.valid && front && cos_x > T(0.f) && denom > T(0.f) && w > T(0.f);
-  const T factor = sel(ok, w * cos_x * T(inv_pi) * rcp_nr(sel(ok, denom, T(1.f))) * s.scale, T(0.f));
-  const T c_r = load<T>(tb.points.ar + k) * Le_r * factor;
-  const T c_g = load<T>(tb.points.ag + k) * Le_g * factor;
-  const T c_b = load<T>(tb.points.ab + k) * Le_b * factor;
+  const T factor = sel(ok, w * cos_x * rcp_nr(sel(ok, denom, T(1.f))) * s.scale, T(0.f));
+  const T c_r = fe.f.r * Le_r * factor;
+  const T c_g = fe.f.g * Le_g * factor;
+  const T c_b = fe.f.b * Le_b * factor;
   // the channels are >= 0 or NaN: their sum is finite iff each one is
   const T c_sum = c_r + c_g + c_b;
   const auto fin = is_finite(c_sum);

@@ -54,7 +54,7 @@ struct ShadingPoints {
   alignas(64) float px[lane_array], py[lane_array], pz[lane_array];
   alignas(64) float nx[lane_array], ny[lane_array], nz[lane_array];
   alignas(64) float eps[lane_array];                          // ray offset scaled to the coordinates
-  alignas(64) float ar[lane_array], ag[lane_array], ab[lane_array];  // Lambert's albedo
+  alignas(64) float ar[lane_array], ag[lane_array], ab[lane_array];  // the BSDF's parameters: Lambert's albedo
   alignas(64) uint32_t pixel[lane_array];                     // global pixel id
   alignas(64) int32_t lane[lane_array];                       // tile lane
   alignas(64) float choose_light[lane_array];                 // one-sample MIS: 1 = light technique
@@ -73,12 +73,14 @@ struct TexturedPoints {
 };
 
 // One technique's sample over the shading points: its random numbers, its contribution if
-// the ray it traces says so, and the lanes that trace one.
+// the ray it traces says so, and the lanes that trace one. A BSDF sample also keeps its
+// throughput (f cos / pdf) and pdf, for the emitter-hit queue.
 struct TechniqueSample {
   alignas(64) float u0[lane_array], u1[lane_array], u2[lane_array], u3[lane_array];
   alignas(64) float cr[lane_array], cg[lane_array], cb[lane_array];  // contribution
   alignas(64) int32_t valid[lane_array];                             // the lane traces a ray
-  alignas(64) int32_t hit_light[lane_array];
+  alignas(64) float beta_r[lane_array], beta_g[lane_array], beta_b[lane_array];  // BSDF sample: f cos / pdf
+  alignas(64) float pdf[lane_array];                                             // BSDF sample: its pdf
   alignas(64) float wb[lane_array];  // the BSDF technique's MIS weight (AOV)
 };
 
@@ -87,10 +89,10 @@ struct TechniqueSample {
 struct EmitterHitQueue {
   int count = 0;
   alignas(64) float x[lane_array], y[lane_array], z[lane_array];     // the shading point
-  alignas(64) float nx[lane_array], ny[lane_array], nz[lane_array];  // its normal
   alignas(64) float dx[lane_array], dy[lane_array], dz[lane_array];  // the sampled direction
   alignas(64) float dist[lane_array];                                // to the emitter, from x
-  alignas(64) float ar[lane_array], ag[lane_array], ab[lane_array];  // the point's albedo
+  alignas(64) float beta_r[lane_array], beta_g[lane_array], beta_b[lane_array];  // f cos / pdf of the sample
+  alignas(64) float pdf[lane_array];                                             // the BSDF's pdf of it
   alignas(64) int32_t light[lane_array];
   alignas(64) int32_t point[lane_array];  // the entry's shading point
   // the bounce ray's origin and its distance to the emitter (for the visibility ray when

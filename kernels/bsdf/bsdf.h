@@ -1,0 +1,44 @@
+// The BSDF interface every stage uses for f, its pdf and sampled directions, lane-generic
+// (T = float, the scalar reference, or a SIMD batch):
+//   eval(sp, wi)       -> {f, pdf}            f in 1/sr per channel, pdf in solid angle
+//   sample(sp, u1, u2) -> {wi, weight, pdf, delta, valid}   weight = f cos / pdf
+//   pdf(sp, wi)        -> pdf                 the density sample() draws wi with
+// where sp is the shading point's local geometry (SurfacePoint) and wi points away from
+// the surface, world space. The shape of yocto-gl's eval_bsdfcos / sample_bsdfcos /
+// sample_bsdfcos_pdf and Mitsuba 3's BSDF::eval / sample / pdf.
+//
+// To add a BSDF: a struct with these three members, its parameters loaded per lane from
+// the shading points (ShadingPoints in wave/tile.h), and a chi-square test of sample()
+// against pdf() plus a check that weight = f cos / pdf (tests/test_bsdf.cpp). A BSDF that
+// reads the direction towards the viewer sets reads_wo, so that the stages load it.
+#pragma once
+#include "lanes/simd.h"
+#include "lanes/vec.h"
+
+namespace tuile {
+
+template <class T> struct Rgb3 {
+  T r, g, b;
+};
+
+// The local geometry a BSDF is evaluated at: the shading normal (unit, on the side of
+// the incoming ray) and, for BSDFs with reads_wo, the unit direction towards the viewer.
+template <class T> struct SurfacePoint {
+  Vec3<T> n;
+  Vec3<T> wo;
+};
+
+template <class T> struct BsdfEval {
+  Rgb3<T> f;  // the BSDF's value (1/sr), per channel
+  T pdf;     // the density sample() gives wi, solid-angle measure
+};
+
+template <class T> struct BsdfSample {
+  Vec3<T> wi;       // unit, world space
+  Rgb3<T> weight;    // f cos / pdf, per channel
+  T pdf;            // solid-angle measure (meaningless where delta)
+  mask_t<T> delta;  // a specular lobe: no other technique can hit wi
+  mask_t<T> valid;  // false: no direction (weight 0)
+};
+
+}  // namespace tuile
