@@ -162,10 +162,10 @@ template <class T> void BM_camera_hits(benchmark::State& state) {
     f.tb->lanes.fx[k] = static_cast<float>(f.scene.camera.width / 2 - 8 + k % 16);
     f.tb->lanes.fy[k] = static_cast<float>(f.scene.camera.height / 2 - 8 + k / 16);
   }
-  generate(f.views.camera, f.est, 0, lanes, *f.tb);
+  generate(f.views.camera, f.est, 0, SampleLayout::camera, lanes, *f.tb);
   for (int p = 0; p < lanes / packet_width; ++p) accel.intersect16(f.tb->lanes.cam_valid + p * packet_width, f.tb->cam[p], true);
   for (auto _ : state) {
-    camera_hits<true, T>(f.views.geom, f.views.lights, f.est, 0, lanes, *f.tb);
+    camera_hits<true, T>(f.views.geom, f.views.lights, f.est, 0, SampleLayout{}.technique_choice(), lanes, *f.tb);
     benchmark::DoNotOptimize(f.tb->points.px[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);

@@ -610,7 +610,7 @@ TEST(Lanes, CameraHitsEqualScalar) {
       }
       Estimator est;
       est.mode = mode;
-      generate(views.camera, est, 0, 256, *a);
+      generate(views.camera, est, 0, SampleLayout::camera, 256, *a);
       for (int p = 0; p < 16; ++p) accel.intersect16(a->lanes.cam_valid + p * packet_width, a->cam[p], true);
       // degenerate hits: counted as rejected, no shading point
       for (int i : {3, 40, 41, 130, 200}) {
@@ -622,8 +622,8 @@ TEST(Lanes, CameraHitsEqualScalar) {
       a->keys.keyed = 0b11111u;
       for (int p = 0; p < SamplerKeys::pairs; ++p) make_pair_keys(est.seed, a->lanes.pixel, p, 256, a->keys.lane_keys(p));
       auto b = std::make_unique<TileBuffers>(*a);
-      camera_hits<true, vfloat>(views.geom, views.lights, est, 0, lanes, *a);
-      camera_hits<true, float>(views.geom, views.lights, est, 0, lanes, *b);
+      camera_hits<true, vfloat>(views.geom, views.lights, est, 0, SampleLayout{}.technique_choice(), lanes, *a);
+      camera_hits<true, float>(views.geom, views.lights, est, 0, SampleLayout{}.technique_choice(), lanes, *b);
       auto name = [&] { return std::string(mode == MisMode::one ? "one" : "multi") + " lanes " + std::to_string(lanes); };
       ASSERT_EQ(a->points.count, b->points.count) << name();
       ASSERT_EQ(a->stats.rejected_camera, b->stats.rejected_camera) << name();
@@ -744,9 +744,9 @@ TEST(Lanes, CachedKeysWhereEveryLaneHits) {
   est.seed = 3;
   a->keys.keyed = 0b11111u;
   for (int p = 0; p < SamplerKeys::pairs; ++p) make_pair_keys(est.seed, a->lanes.pixel, p, 256, a->keys.lane_keys(p));
-  generate(views.camera, est, 0, 256, *a);
+  generate(views.camera, est, 0, SampleLayout::camera, 256, *a);
   for (int p = 0; p < 16; ++p) accel.intersect16(a->lanes.cam_valid + p * packet_width, a->cam[p], true);
-  camera_hits<true, vfloat>(views.geom, views.lights, est, 0, 256, *a);
+  camera_hits<true, vfloat>(views.geom, views.lights, est, 0, SampleLayout{}.technique_choice(), 256, *a);
   ASSERT_EQ(a->points.count, 256);
   EXPECT_TRUE(a->keys.points_are_lanes);
   for (int p = 1; p < SamplerKeys::pairs; ++p) {
@@ -790,7 +790,7 @@ TEST(Lanes, EmitterQueueEqualScalar) {
           a->points.ny[k] = -1.f;
         }
       }
-      sample_cosine(est, 0, 2, *a);
+      sample_cosine(est, 0, SampleLayout{}.bsdf(0), *a);
       const int padded = (count + packet_width - 1) / packet_width * packet_width;
       for (int p = 0; p < padded / packet_width; ++p) accel.intersect16(a->tech.valid + p * packet_width, a->bounce[p], false);
       std::fill_n(a->points.Sr, max_tile_lanes, 0.f);

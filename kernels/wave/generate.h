@@ -39,14 +39,16 @@ template <class T> TUILE_FLATTEN inline void generate_lanes(const CameraView& c,
 }
 
 // All lanes of a tile (lanes padded up to a whole packet).
-inline void generate(const CameraView& c, const Estimator& est, uint32_t sample, int lanes, TileBuffers& tb) {
+// pair: the sampler's dimension pair of the position in the pixel (SampleLayout::camera).
+inline void generate(const CameraView& c, const Estimator& est, uint32_t sample, uint32_t pair, int lanes,
+                     TileBuffers& tb) {
   const int padded = (lanes + packet_width - 1) / packet_width * packet_width;
   for (int i = lanes; i < padded; ++i) {  // padding lanes: a harmless pixel, never traced
     tb.lanes.fx[i] = tb.lanes.fx[0];
     tb.lanes.fy[i] = tb.lanes.fy[0];
     tb.lanes.pixel[i] = tb.lanes.pixel[0];
   }
-  lane_pairs(est, tb, sample, 0, padded, tb.tech.u0, tb.tech.u1);
+  lane_pairs(est, tb, sample, pair, padded, tb.tech.u0, tb.tech.u1);
   int i = 0;
   for (; i < padded; i += simd_width) generate_lanes<vfloat>(c, tb, i);  // padded: whole packets
   for (int k = 0; k < padded / packet_width; ++k) reset_hit(tb.cam[k]);

@@ -128,14 +128,15 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   store_valid(tb.tech.valid + k, live);
 }
 
-// Draws the pass's random numbers and runs the lanes of every shading point.
+// Draws the pass's random numbers (pick_pair and point_pair: SampleLayout's light_pick and
+// light_point of this light sample) and runs the lanes of every shading point.
 template <unsigned Kinds = kind_all, bool Pick = true>
 inline void sample_lights(const LightView& L, const Estimator& est, const LightPass& pass, uint32_t sample,
-                          uint32_t pair, TileBuffers& tb) {
+                          uint32_t pick_pair, uint32_t point_pair, TileBuffers& tb) {
   const int padded = (tb.points.count + packet_width - 1) / packet_width * packet_width;
   if (Pick && pass.fixed_light < 0)  // the pick reads the first dimension only
-    point_pairs(est, tb, sample, pair, padded, tb.tech.u0, nullptr);
-  point_pairs(est, tb, sample, pair + 1, padded, tb.tech.u2, tb.tech.u3);
+    point_pairs(est, tb, sample, pick_pair, padded, tb.tech.u0, nullptr);
+  point_pairs(est, tb, sample, point_pair, padded, tb.tech.u2, tb.tech.u3);
   // four batches at a time (vfloat4), then two: the solid-angle maps are latency-bound
   // chains, so interleaved batches keep the core busy (two-panels: one batch at a time
   // 6% slower overall, four 1% faster than two)

@@ -259,9 +259,10 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
 
 // The whole stage for lanes [0, lanes) of the tile. Emitters: false when the scene has
 // no area light (no emitter lookups at all). T = float is the scalar reference.
+// choice_pair: the one-sample technique choice's dimension pair (SampleLayout).
 template <bool Emitters = true, class T = vfloat>
-inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& est, uint32_t sample, int lanes,
-                        TileBuffers& tb) {
+inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& est, uint32_t sample,
+                        uint32_t choice_pair, int lanes, TileBuffers& tb) {
   const int padded_lanes = (lanes + packet_width - 1) / packet_width * packet_width;
   int n = 0;
   tb.textured.count = 0;
@@ -287,7 +288,7 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
   std::fill_n(tb.points.Sg, padded, 0.f);
   std::fill_n(tb.points.Sb, padded, 0.f);
   if (est.one_sample()) {
-    point_pairs(est, tb, sample, 1, padded, tb.tech.u0, nullptr);  // the choice reads one dimension
+    point_pairs(est, tb, sample, choice_pair, padded, tb.tech.u0, nullptr);  // the choice reads one dimension
     const float c = est.one_sample_light_prob();
     for (int k = 0; k < padded; ++k) tb.points.choose_light[k] = tb.tech.u0[k] < c ? 1.f : 0.f;
   }

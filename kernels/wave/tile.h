@@ -9,6 +9,7 @@
 #include "lanes/packet.h"
 #include "wave/estimator.h"
 #include "wave/views.h"
+#include "sample/layout.h"
 #include "sample/rng.h"
 
 namespace tuile {

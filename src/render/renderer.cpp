@@ -78,12 +78,14 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
                 (est.pick == LightPick::all ? v.lights.count : 1) * (one ? 1 : est.light_samples),
                 one ? 1 : est.bsdf_samples,
                 v.lights.count,
+                SampleLayout{},
                 one ? c_l : static_cast<float>(est.light_samples),
                 one ? 1.f - c_l : static_cast<float>(est.bsdf_samples),
                 bounce_emitters_,
                 film.samples == 0,
                 profile,
                 __rdtsc()};
+  c.layout = SampleLayout{static_cast<uint32_t>(est.bsdf_samples), static_cast<uint32_t>(c.light_passes)};
   std::string why;
   const PipelineEntry pipe = pick_pipeline(v, est, opt_.general_pipeline, why);
   const int tiles = c.tiles_x * ((cam.height + ts - 1) / ts);

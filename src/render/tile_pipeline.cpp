@@ -117,19 +117,19 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   timer.lap(Stage::accumulate);
   // The sampler's keys of the pairs this pipeline draws (pair numbers as below), hashed
   // once per pixel for all of the tile's samples.
+  const SampleLayout& layout = c.layout;
   tb.keys.keyed = 0;
   if (cacheable(est.sampler)) {
-    uint32_t want = 1u;  // camera
-    if (est.one_sample()) want |= 2u;
+    auto bit = [](uint32_t pair) { return pair < SamplerKeys::pairs ? 1u << pair : 0u; };
+    uint32_t want = bit(SampleLayout::camera);
+    if (est.one_sample()) want |= bit(layout.technique_choice());
     if constexpr (F.bsdf)
-      for (int m = 0; m < c.bsdf_passes; ++m) want |= 1u << std::min(2 + m, 31);
+      for (int m = 0; m < c.bsdf_passes; ++m) want |= bit(layout.bsdf(static_cast<uint32_t>(m)));
     if constexpr (F.light)
       for (int j = 0; j < c.light_passes; ++j) {
-        const int pair = 2 + est.bsdf_samples + 2 * j;
-        if (F.pick && est.pick != LightPick::all) want |= 1u << std::min(pair, 31);
-        want |= 1u << std::min(pair + 1, 31);
+        if (F.pick && est.pick != LightPick::all) want |= bit(layout.light_pick(static_cast<uint32_t>(j)));
+        want |= bit(layout.light_point(static_cast<uint32_t>(j)));
       }
-    want &= (1u << SamplerKeys::pairs) - 1u;
     const int padded = cam_packets * packet_width;
     for (int i = lanes; i < padded; ++i) tb.lanes.pixel[i] = tb.lanes.pixel[0];  // as generate pads
     for (uint32_t bits = want; bits; bits &= bits - 1) {
@@ -140,7 +140,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   }
   timer.lap(Stage::generate);
   for (uint32_t s = begin; s < end; ++s) {
-    generate(v.camera, est, s, lanes, tb);
+    generate(v.camera, est, s, layout.camera, lanes, tb);
     timer.lap(Stage::generate);
     const bool rec = tp && c.profile->record_rays && s == begin;
     clear_high_vector_registers();
@@ -150,7 +150,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     }
     tb.stats.rays_camera += static_cast<uint64_t>(lanes);
     timer.lap(Stage::intersect_camera);
-    camera_hits<F.emitter_lookup>(v.geom, v.lights, est, s, lanes, tb);
+    camera_hits<F.emitter_lookup>(v.geom, v.lights, est, s, layout.technique_choice(), lanes, tb);
     timer.lap(Stage::camera_hits);
     const int packets = (tb.points.count + packet_width - 1) / packet_width;
     if constexpr (F.light) {
@@ -160,7 +160,8 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
           pass.fixed_light = est.pick == LightPick::all ? j % c.S : (F.pick ? -1 : 0);
           pass.n_light = c.n_light;
           pass.n_bsdf = c.n_bsdf;
-          sample_lights<F.kinds, F.pick>(v.lights, est, pass, s, static_cast<uint32_t>(2 + est.bsdf_samples + 2 * j), tb);
+          sample_lights<F.kinds, F.pick>(v.lights, est, pass, s, layout.light_pick(static_cast<uint32_t>(j)),
+                                         layout.light_point(static_cast<uint32_t>(j)), tb);
           timer.lap(Stage::sample_lights);
           clear_high_vector_registers();
           for (int p = 0; p < packets; ++p) {
@@ -180,7 +181,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     if constexpr (F.bsdf) {
       if (tb.points.count > 0) {
         for (int m = 0; m < c.bsdf_passes; ++m) {
-          sample_cosine(est, s, static_cast<uint32_t>(2 + m), tb);
+          sample_cosine(est, s, layout.bsdf(static_cast<uint32_t>(m)), tb);
           timer.lap(Stage::sample_cosine);
           clear_high_vector_registers();
           const Target target = c.bounce_emitters ? Target::emitters : Target::scene;

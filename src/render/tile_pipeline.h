@@ -10,6 +10,7 @@
 #include "render/film.h"
 #include "render/profile.h"
 #include "render/views.h"
+#include "sample/layout.h"
 #include "wave/features.h"
 #include "wave/tile.h"
 
@@ -23,6 +24,7 @@ struct TileContext {
   Film& film;
   int tile_size, tiles_x, width, height;
   int light_passes, bsdf_passes, S;
+  SampleLayout layout;    // the sampler's dimension pairs by purpose
   float n_light, n_bsdf;
   bool bounce_emitters;   // bounce rays against the emitters, then visibility rays
   bool fresh_film;        // the film held no samples (zeros) when the render began

@@ -1,0 +1,34 @@
+// SampleLayout: which of the sampler's dimension pairs each use of random numbers reads.
+// A sample's numbers are a function of (seed, pixel, sample index, pair) only (sample/
+// rng.h), so with the pairs handed out by purpose here an image does not depend on
+// threads, tile order or pipeline, and a new use of random numbers gets pairs of its own
+// instead of shifting the others. Per depth d (direct lighting is depth 0):
+//   camera                      pair 0 (depth 0 only: the position in the pixel)
+//   technique_choice(d)         one-sample MIS: which technique runs (first dimension)
+//   bsdf(d, m)                  BSDF sample m < M
+//   light_pick(d, j)            light sample j: the source (first dimension)
+//   light_point(d, j)           light sample j: the point on the source
+// with M = bsdf_samples and light samples j < light_passes (every source times N with
+// --light-pick all). Depth 0's pairs are 0, 1, 2 .. M + 1, then two per light sample;
+// each further depth starts after the last pair of the one before.
+#pragma once
+#include <cstdint>
+
+namespace tuile {
+
+struct SampleLayout {
+  uint32_t bsdf_samples = 1;  // M
+  uint32_t light_passes = 1;  // light samples per depth
+
+  static constexpr uint32_t camera = 0;
+  constexpr uint32_t per_depth() const noexcept { return 1 + bsdf_samples + 2 * light_passes; }
+  constexpr uint32_t depth_base(uint32_t depth) const noexcept { return 1 + depth * per_depth(); }
+  constexpr uint32_t technique_choice(uint32_t depth = 0) const noexcept { return depth_base(depth); }
+  constexpr uint32_t bsdf(uint32_t m, uint32_t depth = 0) const noexcept { return depth_base(depth) + 1 + m; }
+  constexpr uint32_t light_pick(uint32_t j, uint32_t depth = 0) const noexcept {
+    return depth_base(depth) + 1 + bsdf_samples + 2 * j;
+  }
+  constexpr uint32_t light_point(uint32_t j, uint32_t depth = 0) const noexcept { return light_pick(j, depth) + 1; }
+};
+
+}  // namespace tuile
