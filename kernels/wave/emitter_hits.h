@@ -30,7 +30,10 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
     if constexpr ((Kinds & kind_rects) != 0)
       pdf_point = pdf_rectangle_point_sa(est.point, gather_rect_light<S>(L, idx), x, wi, dist);
     else pdf_point = pdf_light_point_sa(est.point, gather_light<S>(L, idx), x, wi, dist);
-    gather_pick_radiance<S>(L, idx, pick, Le_r, Le_g, Le_b);
+    // the queue keeps no normal: the alias picker does not read its context
+    static_assert(!AliasPicker::reads_context, "a picker that reads the shading point needs the queue to keep its normal");
+    pick = AliasPicker{L}.template pmf<S>(PickContext<T>{x, Vec3<T>(T(0.f), T(0.f), T(0.f))}, idx);
+    lookup_radiance<S>(L, idx, Le_r, Le_g, Le_b);
   });
   const T pdf_l = pick * pdf_point;
   T w(1.f);

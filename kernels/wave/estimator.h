@@ -4,7 +4,7 @@
 #pragma once
 #include <cstdint>
 
-#include "light/lights.h"
+#include "light/table.h"
 #include "mis.h"
 #include "sample/rng.h"
 

@@ -9,7 +9,7 @@
 #pragma once
 #include <string>
 
-#include "light/lights.h"
+#include "light/table.h"
 
 namespace tuile {
 

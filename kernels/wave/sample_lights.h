@@ -35,21 +35,30 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
 
   LightGeom<T> g;
   T pick, Le_r, Le_g, Le_b;
+  const AliasPicker picker{L};
+  static_assert(!AliasPicker::reads_context, "a picker that reads the shading point needs its context filled here");
+  const PickContext<T> ctx{x, n};
   if constexpr (Pick) {
     // per-lane sources: gathers, or permutes of small and medium tables (the same values)
     with_table_tier(L, [&](auto tier) {
       constexpr int S = decltype(tier)::value;
       i32_t<T> idx;
-      if (pass.fixed_light >= 0) idx = i32_t<T>(pass.fixed_light);
-      else idx = pick_light<T, S>(L, load<T>(tb.tech.u0 + k));
+      if (pass.fixed_light >= 0) {
+        idx = i32_t<T>(pass.fixed_light);
+        pick = picker.template pmf<S>(ctx, idx);
+      } else {
+        const PickedLight<T> picked = picker.template pick<S>(ctx, load<T>(tb.tech.u0 + k));
+        idx = picked.light;
+        pick = picked.pmf;
+      }
       if constexpr ((Kinds & kind_rects) != 0) g = gather_rect_light<S>(L, idx);
       else g = gather_light<S>(L, idx);
-      gather_pick_radiance<S>(L, idx, pick, Le_r, Le_g, Le_b);
+      lookup_radiance<S>(L, idx, Le_r, Le_g, Le_b);
     });
   } else {  // every lane samples the same source: broadcasts, no gathers
     const int32_t li = pass.fixed_light;
     g = broadcast_light<T>(L, li);
-    pick = T(L.pick_pdf[li]);
+    pick = picker.template pmf<tier_gather>(ctx, li);
     Le_r = T(L.Lr[li]);
     Le_g = T(L.Lg[li]);
     Le_b = T(L.Lb[li]);

@@ -4,7 +4,8 @@
 #pragma once
 #include <cstdint>
 
-#include "light/lights.h"
+#include "light/pick.h"
+#include "light/sample.h"
 #include "mis.h"
 #include "lanes/packet.h"
 #include "wave/estimator.h"

@@ -1,4 +1,4 @@
-// The scene as the stages read it besides the light table (light/lights.h): per-geometry
+// The scene as the stages read it besides the light table (light/table.h): per-geometry
 // lookups by Embree's geomID / primID, and the camera. Plain pointers into arrays the
 // renderer owns (src/render/views.h builds them).
 #pragma once
