@@ -628,7 +628,7 @@ TEST(Lanes, CameraHitsEqualScalar) {
       ASSERT_EQ(a->points.count, b->points.count) << name();
       ASSERT_EQ(a->stats.rejected_camera, b->stats.rejected_camera) << name();
       EXPECT_GE(a->stats.rejected_camera, 5u) << name();
-      const int n = a->points.count, padded = (n + packet_width - 1) / packet_width * packet_width;
+      const int n = a->points.count, padded = packet_padded(n);
       const struct {
         const char* what;
         float (ShadingPoints::*arr)[lane_array];
@@ -791,7 +791,7 @@ TEST(Lanes, EmitterQueueEqualScalar) {
         }
       }
       sample_cosine(est, 0, SampleLayout{}.bsdf(0), *a);
-      const int padded = (count + packet_width - 1) / packet_width * packet_width;
+      const int padded = packet_padded(count);
       for (int p = 0; p < padded / packet_width; ++p) accel.intersect16(a->tech.valid + p * packet_width, a->bounce[p], false);
       std::fill_n(a->points.Sr, max_tile_lanes, 0.f);
       std::fill_n(a->points.Sg, max_tile_lanes, 0.f);

@@ -147,8 +147,8 @@ TEST(Pipeline, BounceRaysAgainstEmittersEqualScene) {
         o.bounce = BounceTrace::scene;
         oe.bounce = BounceTrace::emitters;
         Renderer rs(s, accel, o), re(s, accel, oe);
-        ASSERT_FALSE(rs.bounce_emitters());
-        ASSERT_TRUE(re.bounce_emitters());
+        ASSERT_FALSE(rs.bounce_against_emitters());
+        ASSERT_TRUE(re.bounce_against_emitters());
         Film a, b;
         const RenderStats ss = rs.render(a, 0, o.est.spp);
         const RenderStats se = re.render(b, 0, o.est.spp);
@@ -172,7 +172,7 @@ TEST(Pipeline, BounceRaysAutomatic) {
     Accel accel(s);
     RenderOptions o;
     Renderer r(s, accel, o);
-    EXPECT_EQ(r.bounce_emitters(), std::string(name) == "cornell") << name;
+    EXPECT_EQ(r.bounce_against_emitters(), std::string(name) == "cornell") << name;
   }
 }
 

@@ -54,12 +54,12 @@ TEST(Render, ReusedRendererGivesTheSameBits) {
   Scene s = load_scene("built-in:two-panels");
   s.camera.width = 97;
   s.camera.height = 61;
-  for (bool bounce_emitters : {false, true}) {
+  for (bool bounce_against_emitters : {false, true}) {
     RenderOptions o;
     o.est.spp = 4;
     o.threads = 2;
     o.est.aov_mis_weight = true;
-    o.bounce = bounce_emitters ? BounceTrace::emitters : BounceTrace::scene;
+    o.bounce = bounce_against_emitters ? BounceTrace::emitters : BounceTrace::scene;
     Accel accel(s);
     Renderer fresh(s, accel, o), reused(s, accel, o);
     Film a, b, other;
@@ -69,11 +69,11 @@ TEST(Render, ReusedRendererGivesTheSameBits) {
     auto same = [](const auto& x, const auto& y) {
       return x.size() == y.size() && std::memcmp(x.data(), y.data(), x.size() * sizeof(x[0])) == 0;
     };
-    EXPECT_TRUE(same(a.sum, b.sum)) << bounce_emitters;
-    EXPECT_TRUE(same(a.sum_sq, b.sum_sq)) << bounce_emitters;
-    EXPECT_TRUE(same(a.w_sum, b.w_sum)) << bounce_emitters;
-    EXPECT_TRUE(same(a.w_cnt, b.w_cnt)) << bounce_emitters;
-    EXPECT_TRUE(same(a.max_sample, b.max_sample)) << bounce_emitters;
+    EXPECT_TRUE(same(a.sum, b.sum)) << bounce_against_emitters;
+    EXPECT_TRUE(same(a.sum_sq, b.sum_sq)) << bounce_against_emitters;
+    EXPECT_TRUE(same(a.w_sum, b.w_sum)) << bounce_against_emitters;
+    EXPECT_TRUE(same(a.w_cnt, b.w_cnt)) << bounce_against_emitters;
+    EXPECT_TRUE(same(a.max_sample, b.max_sample)) << bounce_against_emitters;
     EXPECT_FALSE(same(a.sum, other.sum));  // the first render did leave other values behind
     // the counters are this render's alone
     EXPECT_EQ(sb.rays_camera, sa.rays_camera);
@@ -83,7 +83,7 @@ TEST(Render, ReusedRendererGivesTheSameBits) {
     EXPECT_EQ(sb.rejected_light + sb.rejected_bsdf + sb.rejected_camera,
               sa.rejected_light + sa.rejected_bsdf + sa.rejected_camera);
     EXPECT_GT(so.rays_shadow, 0u);
-    EXPECT_EQ(bounce_emitters, sa.rays_bounce_visibility > 0);
+    EXPECT_EQ(bounce_against_emitters, sa.rays_bounce_visibility > 0);
   }
 }
 

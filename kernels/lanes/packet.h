@@ -10,6 +10,11 @@
 namespace tuile {
 
 inline constexpr int packet_width = 16;
+// Counts rounded up to whole packets (and SIMD batches): stages run whole packets, the
+// lanes past the count padded with harmless values that are never traced.
+inline constexpr int div_up(int n, int d) { return (n + d - 1) / d; }
+inline constexpr int packets_for(int lanes) { return div_up(lanes, packet_width); }
+inline constexpr int packet_padded(int lanes) { return packets_for(lanes) * packet_width; }
 inline constexpr uint32_t invalid_id = 0xffffffffu;
 
 struct alignas(64) Ray16 {

@@ -175,7 +175,7 @@ inline void stream_tile_to_film(const TileBuffers& tb, int x0, int y0, int th, c
 
 // Zeroes the tile sums of lanes [0, lanes) padded to a whole packet.
 inline void clear_tile_sums(TileBuffers& tb, int lanes) {
-  const int padded = (lanes + packet_width - 1) / packet_width * packet_width;
+  const int padded = packet_padded(lanes);
   for (double* a : {tb.sums.r, tb.sums.g, tb.sums.b, tb.sums.rr, tb.sums.gg, tb.sums.bb, tb.sums.w, tb.sums.wc})
     std::fill_n(a, padded, 0.0);
   std::fill_n(tb.sums.max, padded, 0.f);
@@ -183,7 +183,7 @@ inline void clear_tile_sums(TileBuffers& tb, int lanes) {
 
 // One sample of every pixel of the tile. T = float is the scalar reference.
 template <class T = vfloat> inline void accumulate_samples(TileBuffers& tb, int lanes, bool aov) {
-  const int padded = (lanes + packet_width - 1) / packet_width * packet_width;
+  const int padded = packet_padded(lanes);
   for (int i = 0; i < padded; i += lane_traits<T>::width) accumulate_lanes<T>(tb, i, lanes, aov);
 }
 

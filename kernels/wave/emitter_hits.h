@@ -1,6 +1,6 @@
 // Stage 5, emitter hits: the BSDF-sampled rays that reached the front of an emitter join
 // a queue (with the sample's throughput beta = f cos / p and pdf p); each entry gets the
-// BSDF technique's MIS weight and adds beta L_e w_bsdf / n_bsdf to its shading point.
+// BSDF technique's MIS weight and adds beta L_e w_bsdf / rate_bsdf to its shading point.
 // The light technique's density for the same direction (pick probability times the point
 // density in solid angle, under the same fallback rule as sampling) enters q_light. Also
 // records w_bsdf for the mis_weight AOV. When bounce rays were traced against the emitters
@@ -15,7 +15,7 @@ namespace tuile {
 // Lanes [j, j + width) of the hit queue.
 // Kinds with kind_rects: every source is a rectangle (the same values without dispatch).
 template <class T, unsigned Kinds = kind_all>
-TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est, float n_light, float n_bsdf, TileBuffers& tb,
+TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est, float rate_light, float rate_bsdf, TileBuffers& tb,
                          int j) {
   const auto live =
       (T(static_cast<float>(j)) + lane_iota<T>()) < T(static_cast<float>(tb.queue.count)) && load<T>(tb.queue.vis + j) > T(0.f);
@@ -38,12 +38,12 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
   const T pdf_l = pick * pdf_point;
   T w(1.f);
   if (est.strategy == Strategy::mis) {
-    const T q_b = T(n_bsdf) * load<T>(tb.queue.pdf + j);
-    w = mis_weight(est.heuristic, q_b, T(n_light) * pdf_l, est.mis);
+    const T q_b = T(rate_bsdf) * load<T>(tb.queue.pdf + j);
+    w = mis_weight(est.heuristic, q_b, T(rate_light) * pdf_l, est.mis);
   } else if (est.strategy == Strategy::light) {
     w = T(0.f);  // the general pipeline traces BSDF rays even when they must not count
   }
-  const T factor = sel(live, w / T(n_bsdf), T(0.f));
+  const T factor = sel(live, w / T(rate_bsdf), T(0.f));
   store(tb.tech.cr + j, load<T>(tb.queue.beta_r + j) * Le_r * factor);
   store(tb.tech.cg + j, load<T>(tb.queue.beta_g + j) * Le_g * factor);
   store(tb.tech.cb + j, load<T>(tb.queue.beta_b + j) * Le_b * factor);
@@ -106,10 +106,10 @@ template <class T = vfloat, unsigned Kinds = kind_all>
 inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers& tb, bool vis = true) {
   int nq = 0;
   // padding lanes past points.count are never valid (sample_cosine)
-  const int padded = (tb.points.count + packet_width - 1) / packet_width * packet_width;
+  const int padded = packet_padded(tb.points.count);
   for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T, Kinds>(G, L, tb, k, nq, vis);
   tb.queue.count = nq;
-  const int qpadded = (nq + packet_width - 1) / packet_width * packet_width;
+  const int qpadded = packet_padded(nq);
   for (int j = nq; j < qpadded; ++j) {  // padding: a valid light index, no contribution
     tb.queue.x[j] = tb.queue.y[j] = tb.queue.z[j] = 0.f;
     tb.queue.dx[j] = tb.queue.dy[j] = 0.f;
@@ -131,7 +131,7 @@ inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers
 // stopping 2^-12 of the distance short of the emitter as shadow rays do, so that both
 // techniques test visibility the same way. Returns the number of packets.
 inline int bounce_visibility_rays(TileBuffers& tb) {
-  const int qpadded = (tb.queue.count + packet_width - 1) / packet_width * packet_width;
+  const int qpadded = packet_padded(tb.queue.count);
   for (int j = 0; j < qpadded; j += simd_width) {
     store_field(tb.shadow, &Ray16::org_x, j, load<vfloat>(tb.queue.ox + j));
     store_field(tb.shadow, &Ray16::org_y, j, load<vfloat>(tb.queue.oy + j));
@@ -153,14 +153,14 @@ inline void read_bounce_visibility(TileBuffers& tb) {
 
 // Weights the visible entries of the queue and adds them to their shading points.
 template <unsigned Kinds = kind_all>
-inline void weight_queue(const LightView& L, const Estimator& est, float n_light, float n_bsdf, TileBuffers& tb) {
+inline void weight_queue(const LightView& L, const Estimator& est, float rate_light, float rate_bsdf, TileBuffers& tb) {
   const int nq = tb.queue.count;
   if (nq == 0) return;
-  const int qpadded = (nq + simd_width - 1) / simd_width * simd_width;
+  const int qpadded = div_up(nq, simd_width) * simd_width;
   // two batches at a time (vfloat2) where whole: the solid-angle setup is a latency-bound
   // chain (two-panels: MIS weight 1.27 -> 1.20 ns per sample)
   for_lane_batches<vfloat2>(0, qpadded, [&](auto lane, int j) {
-    weight_lanes<typename decltype(lane)::type, Kinds>(L, est, n_light, n_bsdf, tb, j);
+    weight_lanes<typename decltype(lane)::type, Kinds>(L, est, rate_light, rate_bsdf, tb, j);
   });
   if (est.strategy == Strategy::light) return;
   for (int j = 0; j < nq; ++j) {
@@ -185,10 +185,10 @@ inline void weight_queue(const LightView& L, const Estimator& est, float n_light
 // Queues the bounce rays that hit the front of an emitter, weights them, adds them
 // (bounce rays traced against the whole scene: every queued emitter is visible).
 template <class T = vfloat, unsigned Kinds = kind_all>
-inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator& est, float n_light, float n_bsdf,
+inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator& est, float rate_light, float rate_bsdf,
                           TileBuffers& tb) {
   queue_bounce_hits<T, Kinds>(G, L, tb);
-  weight_queue<Kinds>(L, est, n_light, n_bsdf, tb);
+  weight_queue<Kinds>(L, est, rate_light, rate_bsdf, tb);
 }
 
 }  // namespace tuile

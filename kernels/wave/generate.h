@@ -42,7 +42,7 @@ template <class T> TUILE_FLATTEN inline void generate_lanes(const CameraView& c,
 // pair: the sampler's dimension pair of the position in the pixel (SampleLayout::camera).
 inline void generate(const CameraView& c, const Estimator& est, uint32_t sample, uint32_t pair, int lanes,
                      TileBuffers& tb) {
-  const int padded = (lanes + packet_width - 1) / packet_width * packet_width;
+  const int padded = packet_padded(lanes);
   for (int i = lanes; i < padded; ++i) {  // padding lanes: a harmless pixel, never traced
     tb.lanes.fx[i] = tb.lanes.fx[0];
     tb.lanes.fy[i] = tb.lanes.fy[0];

@@ -30,7 +30,7 @@ template <class T> TUILE_FLATTEN inline void sample_cosine_lanes(const Estimator
 }
 
 inline void sample_cosine(const Estimator& est, uint32_t sample, uint32_t pair, TileBuffers& tb) {
-  const int padded = (tb.points.count + packet_width - 1) / packet_width * packet_width;
+  const int padded = packet_padded(tb.points.count);
   point_pairs(est, tb, sample, pair, padded, tb.tech.u0, tb.tech.u1);
   for_lane_batches<vfloat2>(0, padded, [&](auto lane, int k) { sample_cosine_lanes<typename decltype(lane)::type>(est, tb, k); });
   for (int p = 0; p < padded / packet_width; ++p) reset_hit(tb.bounce[p]);

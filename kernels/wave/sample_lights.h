@@ -3,10 +3,10 @@
 // writes the shadow packets (Embree's RTCRay16 layout) and each lane's contribution if
 // the shadow ray turns out unoccluded. Lanes are independent; masks, not branches.
 // Estimator (Veach's thesis eq. 9.13 with MIS; the course's light sampling):
-//   f_r L_e cos(theta_x) w_light / (n_light p_light),  p_light = P(source) p_point(solid angle)
+//   f_r L_e cos(theta_x) w_light / (rate_light p_light),  p_light = P(source) p_point(solid angle)
 // with f_r and the BSDF technique's pdf from the shading point's BSDF (bsdf/), w_light from
 // the heuristic on q = n p of both techniques (multi-sample) or q = c p (one-sample, c =
-// choice probability, then n_light = c). Delta lights: w = 1.
+// choice probability, then rate_light = c). Delta lights: w = 1.
 #pragma once
 #include <algorithm>
 #include <type_traits>
@@ -18,8 +18,10 @@ namespace tuile {
 
 struct LightPass {
   int32_t fixed_light = -1;  // >= 0 with --light-pick all: every lane samples this source
-  float n_light = 1.f;       // n (multi-sample) or c (one-sample) of the light technique
-  float n_bsdf = 1.f;        // same for the BSDF technique (for q_bsdf)
+  // Each technique's rate: its sample count n_i (multi-sample MIS) or its choice
+  // probability c_i (one-sample), the factor of q_i = rate_i p_i and of 1 / (rate_i p_i).
+  float rate_light = 1.f;
+  float rate_bsdf = 1.f;
 };
 
 // Kinds: which kinds of source can occur (kind_area, kind_delta); Pick: whether lanes pick
@@ -76,13 +78,13 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   const T pdf_l = pick * s.pdf_sa;
   T w(1.f);
   if (est.strategy == Strategy::mis) {
-    const T q_l = T(pass.n_light) * pdf_l;
-    const T q_b = T(pass.n_bsdf) * fe.pdf;
+    const T q_l = T(pass.rate_light) * pdf_l;
+    const T q_b = T(pass.rate_bsdf) * fe.pdf;
     w = sel(s.is_delta, T(1.f), mis_weight(est.heuristic, q_l, q_b, est.mis));
   } else if (est.strategy == Strategy::bsdf) {
     w = sel(s.is_delta, T(1.f), T(0.f));  // area lights are left to the BSDF technique
   }
-  const T denom = T(pass.n_light) * sel(s.is_delta, pick, pdf_l);
+  const T denom = T(pass.rate_light) * sel(s.is_delta, pick, pdf_l);
   const auto ok = active && s.valid && front && cos_x > T(0.f) && denom > T(0.f) && w > T(0.f);
   const T factor = sel(ok, w * cos_x * rcp_nr(sel(ok, denom, T(1.f))) * s.scale, T(0.f));
   const T c_r = fe.f.r * Le_r * factor;
@@ -142,7 +144,7 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
 template <unsigned Kinds = kind_all, bool Pick = true>
 inline void sample_lights(const LightView& L, const Estimator& est, const LightPass& pass, uint32_t sample,
                           uint32_t pick_pair, uint32_t point_pair, TileBuffers& tb) {
-  const int padded = (tb.points.count + packet_width - 1) / packet_width * packet_width;
+  const int padded = packet_padded(tb.points.count);
   if (Pick && pass.fixed_light < 0)  // the pick reads the first dimension only
     point_pairs(est, tb, sample, pick_pair, padded, tb.tech.u0, nullptr);
   point_pairs(est, tb, sample, point_pair, padded, tb.tech.u2, tb.tech.u3);
@@ -166,7 +168,7 @@ template <class T> inline void accumulate_shadow_lanes(TileBuffers& tb, int k) {
 }
 
 template <class T = vfloat> inline void accumulate_shadow(TileBuffers& tb) {
-  const int padded = (tb.points.count + packet_width - 1) / packet_width * packet_width;
+  const int padded = packet_padded(tb.points.count);
   for (int k = 0; k < padded; k += lane_traits<T>::width) accumulate_shadow_lanes<T>(tb, k);
 }
 

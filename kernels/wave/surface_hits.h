@@ -263,7 +263,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
 template <bool Emitters = true, class T = vfloat>
 inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& est, uint32_t sample,
                         uint32_t choice_pair, int lanes, TileBuffers& tb) {
-  const int padded_lanes = (lanes + packet_width - 1) / packet_width * packet_width;
+  const int padded_lanes = packet_padded(lanes);
   int n = 0;
   tb.textured.count = 0;
   tb.keys.points_are_lanes = true;
@@ -271,7 +271,7 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
   tb.points.count = n;
   if (G.has_textures) apply_texels(G, tb);
   // pad to whole packets with copies of a real point; padding lanes are never active
-  const int padded = (n + packet_width - 1) / packet_width * packet_width;
+  const int padded = packet_padded(n);
   for (int k = n; k < padded; ++k) {
     tb.points.px[k] = tb.points.py[k] = tb.points.pz[k] = 0.f;
     tb.points.nx[k] = tb.points.ny[k] = 0.f;

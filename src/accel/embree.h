@@ -11,7 +11,7 @@
 namespace tuile {
 
 struct EmbreeOptions {
-  bool robust = false;        // RTC_SCENE_FLAG_ROBUST: watertight, slower (FIELD-NOTES)
+  bool robust = false;        // RTC_SCENE_FLAG_ROBUST: watertight traversal, at a cost in speed
   std::string device_config;  // e.g. "max_isa=avx2"
 };
 

@@ -159,7 +159,7 @@ int run_info(const RenderFlags& f) {
     std::string why;
     const std::string name = r.pipeline_name(&why);
     std::printf("pipeline: %s (%s)\n", name.c_str(), why.c_str());
-    std::printf("bounce rays: against the %s\n", r.bounce_emitters() ? "emitters, then occlusion rays" : "whole scene");
+    std::printf("bounce rays: against the %s\n", r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
   }
   for (const std::string& w : scene.warnings) std::printf("approximation: %s\n", w.c_str());
   std::printf("load: %.3f s\nbvh build: %.3f s\n", load, bvh);
@@ -220,7 +220,7 @@ int run_bench(const BenchFlags& f) {
   std::printf("scene: %s (%zu triangles, %zu lights)\n", p.scene.source.c_str(), p.scene.triangle_count(),
               p.scene.lights.size());
   std::printf("pipeline: %s, bounce rays against the %s\nestimator: %s\n", last.pipeline.c_str(),
-              last.bounce_emitters ? "emitters" : "scene", describe(p.opt.est).c_str());
+              last.bounce_against_emitters ? "emitters" : "scene", describe(p.opt.est).c_str());
   std::printf("resolution %dx%d, %u spp, %d thread(s), %d runs after %d warm-up\n", p.scene.camera.width,
               p.scene.camera.height, spp, threads, f.repeat, f.warmup);
   std::printf("samples/s: median %.4g  min %.4g  max %.4g\n", med, mn, mx);
@@ -245,7 +245,7 @@ int run_bench(const BenchFlags& f) {
     js << "  \"spp\": " << spp << ", \"threads\": " << threads << ", \"repeat\": " << f.repeat
        << ", \"warmup\": " << f.warmup << ",\n";
     js << "  \"pipeline\": \"" << json_escape(last.pipeline) << "\",\n";
-    js << "  \"bounce_rays\": \"" << (last.bounce_emitters ? "emitters" : "scene") << "\",\n";
+    js << "  \"bounce_rays\": \"" << (last.bounce_against_emitters ? "emitters" : "scene") << "\",\n";
     js << "  \"estimator\": \"" << json_escape(describe(p.opt.est)) << "\",\n";
     js << "  \"runs_samples_per_second\": [";
     for (size_t i = 0; i < sps.size(); ++i) js << (i ? ", " : "") << sps[i];
@@ -292,7 +292,7 @@ int run_profile(const ProfileFlags& f) {
   const double thread_seconds = st.seconds * prof.threads;
   std::printf("scene: %s, %dx%d, %u spp, %d thread(s), pipeline %s, bounce rays against the %s\n",
               p.scene.source.c_str(), p.scene.camera.width, p.scene.camera.height, spp, prof.threads,
-              st.pipeline.c_str(), st.bounce_emitters ? "emitters" : "scene");
+              st.pipeline.c_str(), st.bounce_against_emitters ? "emitters" : "scene");
   std::printf("%-18s %10s %7s %10s %10s\n", "stage", "ms", "%", "ns/sample", "Mrays/s");
   auto row = [&](const char* name, double sec, double rays) {
     std::printf("%-18s %10.2f %6.1f%% %10.2f", name, sec * 1e3, 100.0 * sec / thread_seconds, sec * 1e9 / samples);

@@ -45,8 +45,8 @@ int run_render(const RenderFlags& f);
 int run_info(const RenderFlags& f);
 int run_bench(const BenchFlags& f);
 int run_profile(const ProfileFlags& f);
-int run_converge(const ConvergeFlags& f);  // src/converge.cpp
-int run_figures(const FiguresFlags& f);    // src/figures.cpp
-int run_diff(const DiffFlags& f);          // src/image_diff.cpp
+int run_converge(const ConvergeFlags& f);  // src/measure/converge.cpp
+int run_figures(const FiguresFlags& f);    // src/measure/figures.cpp
+int run_diff(const DiffFlags& f);          // src/measure/image_diff.cpp
 
 }  // namespace tuile

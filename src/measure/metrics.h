@@ -1,4 +1,4 @@
-// Error metrics for the convergence studies (FIELD-NOTES "Error against time"):
+// Error metrics for the convergence studies (`tuile converge`, error against time):
 // MSE, relative MSE (relMSE = mean((x - r)^2 / (r^2 + eps))) and Veach's efficiency
 // 1 / (relMSE * T); plus the log-log helpers the converge report and the plots use.
 #pragma once

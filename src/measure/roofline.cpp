@@ -55,7 +55,7 @@ double replay_rays(const Accel& accel, const RayRecord& rays, int threads) {
         else if (i < nc + ns) timed(ray, rays.shadow[i - nc], [&] { accel.occluded16(valid, ray, false); });
         else
           timed(hit, rays.bounce[i - nc - ns], [&] {
-            accel.intersect16(valid, hit, false, rays.bounce_emitters ? Target::emitters : Target::scene);
+            accel.intersect16(valid, hit, false, rays.bounce_against_emitters ? Target::emitters : Target::scene);
           });
       }
     });
@@ -108,7 +108,7 @@ double replay_rays_stream(const Accel& accel, const RayRecord& rays, int threads
   };
   build(rays.camera, false, true, Target::scene);
   build(rays.shadow, true, false, Target::scene);
-  build(rays.bounce, false, false, rays.bounce_emitters ? Target::emitters : Target::scene);
+  build(rays.bounce, false, false, rays.bounce_against_emitters ? Target::emitters : Target::scene);
   const auto t0 = clock_type::now();
   tbb::task_arena arena(threads > 0 ? threads : tbb::this_task_arena::max_concurrency());
   arena.execute([&] {

@@ -39,7 +39,7 @@ template <class P> struct RecordedPacket {
 struct RayRecord {
   std::vector<RecordedPacket<RayHit16>> camera, bounce;
   std::vector<RecordedPacket<Ray16>> shadow;  // shadow rays and bounce visibility rays
-  bool bounce_emitters = false;               // bounce rays were traced against the emitters
+  bool bounce_against_emitters = false;               // bounce rays were traced against the emitters
 };
 
 // Filled by Renderer::render when given: time per stage summed over threads, and

@@ -22,7 +22,7 @@ struct RenderStats {
   uint64_t rejected_camera = 0, rejected_light = 0, rejected_bsdf = 0;
   double worst_ratio = 0;  // largest single-sample luminance relative to its pixel mean
   std::string pipeline;
-  bool bounce_emitters = false;  // bounce rays were traced against the emitters only
+  bool bounce_against_emitters = false;  // bounce rays were traced against the emitters only
   // Adds the counters of another render (seconds and samples included).
   void add_counts(const RenderStats& o) {
     seconds += o.seconds;
@@ -48,7 +48,7 @@ class Renderer {
   // The pipeline this scene and estimator select, and why.
   std::string pipeline_name(std::string* why = nullptr) const;
   // Whether bounce rays run against the emitters (BounceTrace resolved for this scene).
-  bool bounce_emitters() const { return bounce_emitters_; }
+  bool bounce_against_emitters() const { return bounce_against_emitters_; }
   const RenderOptions& options() const { return opt_; }
 
  private:
@@ -56,7 +56,7 @@ class Renderer {
   const Accel& accel_;
   RenderOptions opt_;
   std::unique_ptr<SceneViews> views_;
-  bool bounce_emitters_ = false;
+  bool bounce_against_emitters_ = false;
   struct BufferPool;  // per-thread TileBuffers, made on a thread's first tile
   std::unique_ptr<BufferPool> pool_;
 };

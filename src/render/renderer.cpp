@@ -43,11 +43,11 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
       if (m.emissive()) emitting += m.triangle_count();
     }
     for (const Sphere& sp : scene.spheres) emitting += sp.emission.r > 0 || sp.emission.g > 0 || sp.emission.b > 0;
-    bounce_emitters_ = 2 * emitting <= all;
+    bounce_against_emitters_ = 2 * emitting <= all;
   } else {
-    bounce_emitters_ = opt_.bounce == BounceTrace::emitters;
+    bounce_against_emitters_ = opt_.bounce == BounceTrace::emitters;
   }
-  if (bounce_emitters_) accel_.prepare_emitters();
+  if (bounce_against_emitters_) accel_.prepare_emitters();
 }
 
 Renderer::~Renderer() = default;
@@ -72,7 +72,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
                 est,
                 film,
                 ts,
-                (cam.width + ts - 1) / ts,
+                div_up(cam.width, ts),
                 cam.width,
                 cam.height,
                 (est.pick == LightPick::all ? v.lights.count : 1) * (one ? 1 : est.light_samples),
@@ -81,14 +81,14 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
                 SampleLayout{},
                 one ? c_l : static_cast<float>(est.light_samples),
                 one ? 1.f - c_l : static_cast<float>(est.bsdf_samples),
-                bounce_emitters_,
+                bounce_against_emitters_,
                 film.samples == 0,
                 profile,
                 __rdtsc()};
   c.layout = SampleLayout{static_cast<uint32_t>(est.bsdf_samples), static_cast<uint32_t>(c.light_passes)};
   std::string why;
   const PipelineEntry pipe = pick_pipeline(v, est, opt_.general_pipeline, why);
-  const int tiles = c.tiles_x * ((cam.height + ts - 1) / ts);
+  const int tiles = c.tiles_x * (div_up(cam.height, ts));
 
   auto& buffers = pool_->buffers;
   for (auto& p : buffers) p->stats.reset();
@@ -110,7 +110,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
   st.seconds = std::chrono::duration<double>(clock_type::now() - t0).count();
   const double sec_per_tick = st.seconds / static_cast<double>(std::max<uint64_t>(1, __rdtsc() - ticks0));
   st.pipeline = pipe.name;
-  st.bounce_emitters = bounce_emitters_;
+  st.bounce_against_emitters = bounce_against_emitters_;
   film.samples += end - begin;
   st.samples = static_cast<uint64_t>(end - begin) * static_cast<uint64_t>(cam.width) * cam.height;
   for (auto& p : buffers) {
@@ -139,7 +139,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
       append(profile->rays.camera, tp.rays.camera);
       append(profile->rays.shadow, tp.rays.shadow);
       append(profile->rays.bounce, tp.rays.bounce);
-      profile->rays.bounce_emitters = bounce_emitters_;
+      profile->rays.bounce_against_emitters = bounce_against_emitters_;
       ++tid;
     }
   }

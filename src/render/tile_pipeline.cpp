@@ -111,7 +111,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     for (int y = y0; y < y0 + th; ++y)
       for (int x = x0; x < x0 + tw; ++x) set_lane(x, y);
   }
-  const int cam_packets = (lanes + packet_width - 1) / packet_width;
+  const int cam_packets = packets_for(lanes);
   timer.lap(Stage::generate);
   clear_tile_sums(tb, lanes);
   timer.lap(Stage::accumulate);
@@ -152,14 +152,14 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     timer.lap(Stage::intersect_camera);
     camera_hits<F.emitter_lookup>(v.geom, v.lights, est, s, layout.technique_choice(), lanes, tb);
     timer.lap(Stage::camera_hits);
-    const int packets = (tb.points.count + packet_width - 1) / packet_width;
+    const int packets = packets_for(tb.points.count);
     if constexpr (F.light) {
       if (tb.points.count > 0) {
         for (int j = 0; j < c.light_passes; ++j) {
           LightPass pass;
-          pass.fixed_light = est.pick == LightPick::all ? j % c.S : (F.pick ? -1 : 0);
-          pass.n_light = c.n_light;
-          pass.n_bsdf = c.n_bsdf;
+          pass.fixed_light = est.pick == LightPick::all ? j % c.light_count : (F.pick ? -1 : 0);
+          pass.rate_light = c.rate_light;
+          pass.rate_bsdf = c.rate_bsdf;
           sample_lights<F.kinds, F.pick>(v.lights, est, pass, s, layout.light_pick(static_cast<uint32_t>(j)),
                                          layout.light_point(static_cast<uint32_t>(j)), tb);
           timer.lap(Stage::sample_lights);
@@ -184,7 +184,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
           sample_cosine(est, s, layout.bsdf(static_cast<uint32_t>(m)), tb);
           timer.lap(Stage::sample_cosine);
           clear_high_vector_registers();
-          const Target target = c.bounce_emitters ? Target::emitters : Target::scene;
+          const Target target = c.bounce_against_emitters ? Target::emitters : Target::scene;
           for (int p = 0; p < packets; ++p) {
             const int32_t* valid = tb.tech.valid + p * packet_width;
             const int active = active_lanes(valid);
@@ -194,8 +194,8 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
             tb.stats.rays_bounce += static_cast<uint64_t>(active);
           }
           timer.lap(Stage::intersect_bounce);
-          queue_bounce_hits<vfloat, F.kinds>(v.geom, v.lights, tb, c.bounce_emitters);
-          if (c.bounce_emitters && tb.queue.count > 0) {
+          queue_bounce_hits<vfloat, F.kinds>(v.geom, v.lights, tb, c.bounce_against_emitters);
+          if (c.bounce_against_emitters && tb.queue.count > 0) {
             const int qpackets = bounce_visibility_rays(tb);
             timer.lap(Stage::mis_weight);
             clear_high_vector_registers();
@@ -207,7 +207,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
             timer.lap(Stage::intersect_bounce);
             read_bounce_visibility(tb);
           }
-          weight_queue<F.kinds>(v.lights, est, c.n_light, c.n_bsdf, tb);
+          weight_queue<F.kinds>(v.lights, est, c.rate_light, c.rate_bsdf, tb);
           timer.lap(Stage::mis_weight);
         }
       }

@@ -23,10 +23,10 @@ struct TileContext {
   const Estimator& est;
   Film& film;
   int tile_size, tiles_x, width, height;
-  int light_passes, bsdf_passes, S;
+  int light_passes, bsdf_passes, light_count;
   SampleLayout layout;    // the sampler's dimension pairs by purpose
-  float n_light, n_bsdf;
-  bool bounce_emitters;   // bounce rays against the emitters, then visibility rays
+  float rate_light, rate_bsdf;  // n_i (multi-sample) or c_i (one-sample) of each technique (LightPass)
+  bool bounce_against_emitters;   // bounce rays against the emitters, then visibility rays
   bool fresh_film;        // the film held no samples (zeros) when the render began
   Profile* profile;       // null when not profiling
   uint64_t origin_ticks;

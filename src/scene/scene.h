@@ -91,7 +91,8 @@ struct Camera {
 // Sets the camera from pbrt's LookAt (camera space: +z forward, +y up, +x = up x dir).
 void camera_look_at(Camera& cam, vec3f eye, vec3f look, vec3f up);
 
-// Scene feature bits, detected once by finalize_scene (DESIGN.md: specialisation).
+// Scene feature bits, detected once by finalize_scene. The renderer runs a tile pipeline
+// specialised to them, which leaves out the stages and lookups the scene never needs.
 enum SceneFeature : uint32_t {
   feat_area_lights = 1u << 0,
   feat_delta_lights = 1u << 1,
@@ -100,8 +101,6 @@ enum SceneFeature : uint32_t {
   feat_spheres = 1u << 4,
   feat_visible_emitters = 1u << 5,
 };
-
-struct RenderSettings;  // options a scene file may set (defined in options.h)
 
 struct Scene {
   std::string source;  // file name or "built-in:NAME"
