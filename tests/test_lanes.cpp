@@ -255,7 +255,7 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
           if (m.emissive()) m.two_sided = two_sided;
         finalize_scene(s);
         SceneViews views = build_views(s, pick);
-        ASSERT_TRUE(views.all_rects);
+        ASSERT_TRUE(views.all_rects());
         ASSERT_EQ(views.lights.any_two_sided, two_sided);
         ASSERT_TRUE(views.lights.one_radiance);  // every source has L = 4
         // the reference reads every field per lane
@@ -769,7 +769,7 @@ TEST(Lanes, EmitterQueueEqualScalar) {
   Scene s = rects ? builtin_scene("two-panels") : all_lights_scene(true);
   if (rects) finalize_scene(s);
   SceneViews views = build_views(s, LightPick::power);
-  ASSERT_EQ(views.all_rects, rects);
+  ASSERT_EQ(views.all_rects(), rects);
   Accel accel(s);
   std::mt19937 rng(5);
   int queued = 0, two_sided_hits = 0;

@@ -186,9 +186,8 @@ TEST(Pipeline, EveryReachableFeatureSetIsRegisteredAndNamed) {
             for (LightPick pk : {LightPick::all, LightPick::uniform, LightPick::power}) {
               if ((count == 0) != (!area && !delta)) continue;  // a scene with sources has a kind
               SceneViews v;
-              v.has_area = area;
-              v.has_delta = delta;
-              v.all_rects = rects;
+              v.features = (area ? feat_area_lights : 0u) | (delta ? feat_delta_lights : 0u) |
+                           (rects ? feat_rect_lights_only : 0u);
               v.lights.count = count;
               Estimator est;
               est.strategy = st;

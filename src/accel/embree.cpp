@@ -63,7 +63,7 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
     ++id;
   }
   for (const Sphere& s : scene.spheres) {
-    const bool emissive = s.emission.r > 0 || s.emission.g > 0 || s.emission.b > 0;
+    const bool emissive = s.emissive();
     for (RTCScene sc : {impl_->scene, impl_->emitters}) {
       if (sc == impl_->emitters && !emissive) continue;
       RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);

@@ -42,10 +42,6 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
   app.add_flag("--stats", f.stats, "print rejected samples, worst accident and mean variance");
 }
 
-static void check_finite(float v, const char* flag) {
-  if (!std::isfinite(v)) throw std::invalid_argument(std::string(flag) + " must be a finite number");
-}
-
 RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   RenderOptions o;
   Estimator& e = o.est;
@@ -55,14 +51,8 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   e.point = parse_light_point(f.light_point);
   e.heuristic = parse_heuristic(f.heuristic);
   e.mode = parse_mis_mode(f.mis_mode);
-  check_finite(f.beta, "--beta");
-  check_finite(f.alpha, "--alpha");
-  if (!(f.beta > 0)) throw std::invalid_argument("--beta must be > 0");
-  if (!(f.alpha >= 0 && f.alpha <= 1)) throw std::invalid_argument("--alpha must be in [0, 1]");
   e.mis.beta = f.beta;
   e.mis.alpha = f.alpha;
-  if (f.light_samples < 1 || f.light_samples > 4096) throw std::invalid_argument("--light-samples must be in 1..4096");
-  if (f.bsdf_samples < 1 || f.bsdf_samples > 4096) throw std::invalid_argument("--bsdf-samples must be in 1..4096");
   e.light_samples = f.light_samples;
   e.bsdf_samples = f.bsdf_samples;
   if (f.spp_given && f.spp < 1) throw std::invalid_argument("--spp must be >= 1");
@@ -71,9 +61,7 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   const std::string sampler = !f.sampler.empty() ? f.sampler : !scene.file_sampler.empty() ? scene.file_sampler : "sobol";
   e.sampler = parse_sampler(sampler);
   e.seed = f.seed;
-  if (f.threads < 0 || f.threads > 1024) throw std::invalid_argument("--threads must be in 0..1024");
   o.threads = f.threads;
-  if (f.tile < 1 || f.tile > max_tile_side) throw std::invalid_argument("--tile must be in 1..32");
   o.tile = f.tile;
   if (!f.res.empty()) {
     int w = 0, h = 0;
@@ -98,6 +86,7 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
     else if (!a.empty()) throw std::invalid_argument("--aov: unknown layer '" + a + "' (expected variance, mis_weight)");
     start = end + 1;
   }
+  validate(o);
   return o;
 }
 

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <iterator>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -150,9 +151,8 @@ int run_info(const RenderFlags& f) {
               scene.spheres.size(), scene.meshes.size(), scene.materials.size(), scene.textures.size());
   std::printf("lights: %zu (area sources %zu, delta %zu)\n", scene.lights.size(), area, delta);
   std::printf("features:");
-  const char* names[] = {"area-lights", "delta-lights", "single-light", "textures", "spheres", "visible-emitters"};
-  for (int i = 0; i < 6; ++i)
-    if (scene.features & (1u << i)) std::printf(" %s", names[i]);
+  for (size_t i = 0; i < std::size(scene_feature_names); ++i)
+    if (scene.features & (1u << i)) std::printf(" %s", scene_feature_names[i]);
   std::printf("\nestimator: %s\n", describe(opt.est).c_str());
   {
     Renderer r(scene, accel, opt);

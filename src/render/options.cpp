@@ -1,9 +1,28 @@
 // The estimator and renderer options by the names the command line and scene files use.
 #include "render/options.h"
 
+#include <cmath>
 #include <stdexcept>
+#include <string>
+
+#include "wave/tile.h"
 
 namespace tuile {
+
+void validate(const RenderOptions& o) {
+  const Estimator& e = o.est;
+  auto finite = [](float v, const char* flag) {
+    if (!std::isfinite(v)) throw std::invalid_argument(std::string(flag) + " must be a finite number");
+  };
+  finite(e.mis.beta, "--beta");
+  finite(e.mis.alpha, "--alpha");
+  if (!(e.mis.beta > 0)) throw std::invalid_argument("--beta must be > 0");
+  if (!(e.mis.alpha >= 0 && e.mis.alpha <= 1)) throw std::invalid_argument("--alpha must be in [0, 1]");
+  if (e.light_samples < 1 || e.light_samples > 4096) throw std::invalid_argument("--light-samples must be in 1..4096");
+  if (e.bsdf_samples < 1 || e.bsdf_samples > 4096) throw std::invalid_argument("--bsdf-samples must be in 1..4096");
+  if (o.threads < 0 || o.threads > 1024) throw std::invalid_argument("--threads must be in 0..1024");
+  if (o.tile < 1 || o.tile > max_tile_side) throw std::invalid_argument("--tile must be in 1..32");
+}
 
 Strategy parse_strategy(const std::string& s) {
   if (s == "light") return Strategy::light;

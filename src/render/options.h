@@ -24,6 +24,10 @@ struct RenderOptions {
   bool general_pipeline = false;  // --pipeline general: the unspecialised reference
 };
 
+// Throws std::invalid_argument, naming the flag, for settings out of range (every caller
+// of the renderer gets the same checks: the command line, converge, figures, tests).
+void validate(const RenderOptions& o);
+
 // Parses the names used on the command line and in scene files; throw std::invalid_argument.
 Strategy parse_strategy(const std::string& s);
 LightPick parse_light_pick(const std::string& s);

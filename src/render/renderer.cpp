@@ -29,11 +29,7 @@ struct Renderer::BufferPool {
 Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options)
     : scene_(scene), accel_(accel), opt_(options), views_(std::make_unique<SceneViews>()),
       pool_(std::make_unique<BufferPool>()) {
-  if (opt_.tile < 1 || opt_.tile > max_tile_side) throw std::invalid_argument("tile size must be in 1..32");
-  if (opt_.est.light_samples < 1 || opt_.est.bsdf_samples < 1)
-    throw std::invalid_argument("--light-samples and --bsdf-samples must be >= 1");
-  if (!(opt_.est.mis.beta > 0) || !std::isfinite(opt_.est.mis.beta)) throw std::invalid_argument("--beta must be > 0");
-  if (!(opt_.est.mis.alpha >= 0 && opt_.est.mis.alpha <= 1)) throw std::invalid_argument("--alpha must be in [0, 1]");
+  validate(opt_);
   opt_.est.aov_mis_weight = opt_.est.aov_mis_weight || opt_.aov_mis_weight;
   *views_ = build_views(scene, opt_.est.pick);
   if (opt_.bounce == BounceTrace::automatic) {
@@ -42,7 +38,7 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
       all += m.triangle_count();
       if (m.emissive()) emitting += m.triangle_count();
     }
-    for (const Sphere& sp : scene.spheres) emitting += sp.emission.r > 0 || sp.emission.g > 0 || sp.emission.b > 0;
+    for (const Sphere& sp : scene.spheres) emitting += sp.emissive();
     bounce_against_emitters_ = 2 * emitting <= all;
   } else {
     bounce_against_emitters_ = opt_.bounce == BounceTrace::emitters;

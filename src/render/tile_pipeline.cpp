@@ -257,13 +257,13 @@ Features pipeline_features(const SceneViews& v, const Estimator& est, bool gener
     why = "forced with --pipeline general";
     return general_features;
   }
-  const bool area = v.has_area, delta = v.has_delta;
+  const bool area = v.has_area(), delta = v.has_delta();
   Features f;
   f.light = v.lights.count > 0 && (est.strategy != Strategy::bsdf || delta);
   f.bsdf = area && est.strategy != Strategy::light;
   f.pick = f.light && v.lights.count > 1 && est.pick != LightPick::all;
   f.emitter_lookup = area;  // only area sources are seen by camera and bounce rays
-  f.kinds = !area && !delta ? kind_all : !area ? kind_delta : delta ? kind_all : v.all_rects ? kind_area | kind_rects : kind_area;
+  f.kinds = !area && !delta ? kind_all : !area ? kind_delta : delta ? kind_all : v.all_rects() ? kind_area | kind_rects : kind_area;
   if (!f.light && !f.bsdf) f = Features{kind_all, false, false, false, false};
   why = std::string(area ? "area lights" : "no area light") + ", " + (delta ? "delta lights" : "no delta light") + ", " +
         std::to_string(v.lights.count) + " light(s), pick " + (f.pick ? "per lane" : "none") + ", strategy " +

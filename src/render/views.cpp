@@ -42,6 +42,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   SceneViews& v = out;
   const auto& lights = scene.lights;
   const size_t n = lights.size();
+  v.features = scene.features;
   v.lights.any_two_sided = false;
   for (const Light& l : lights) {
     v.type.push_back(static_cast<int32_t>(l.type));
@@ -69,8 +70,6 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     if (g.rect > 0.5f) nn = cross(g.ex, g.ey);
     else if (l.type == LightType::triangle || l.type == LightType::parallelogram) nn = normalize(cross(l.e1, l.e2));
     v.nx.push_back(nn.x); v.ny.push_back(nn.y); v.nz.push_back(nn.z);
-    (is_delta(l.type) ? v.has_delta : v.has_area) = true;
-    v.all_rects = v.all_rects && l.type == LightType::parallelogram && g.rect > 0.5f;
   }
   // pick distribution
   v.pick_pdf.assign(n, 0.f);

@@ -35,8 +35,10 @@ struct SceneViews {
   std::vector<float> mat_r, mat_g, mat_b;
   GeomView geom;
   CameraView camera;
-  bool has_area = false, has_delta = false;
-  bool all_rects = true;  // every source is a rectangle (Urena's map, no type dispatch)
+  uint32_t features = 0;  // the scene's (SceneFeature bits, detected by finalize_scene)
+  bool has_area() const { return (features & feat_area_lights) != 0; }
+  bool has_delta() const { return (features & feat_delta_lights) != 0; }
+  bool all_rects() const { return (features & feat_rect_lights_only) != 0; }  // Urena's map, no dispatch
 };
 
 

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "sample/sampling.h"
 #include "scene/pbrt.h"
 
 namespace tuile {
@@ -156,7 +157,7 @@ void finalize_scene(Scene& scene) {
   for (size_t si = 0; si < scene.spheres.size(); ++si) {
     Sphere& s = scene.spheres[si];
     s.light = -1;
-    if (!(s.emission.r > 0 || s.emission.g > 0 || s.emission.b > 0)) continue;
+    if (!s.emissive()) continue;
     if (s.reverse_orientation) {
       scene.warnings.push_back("sphere emitting inwards: not supported as a light, its emission is ignored");
       continue;
@@ -199,6 +200,11 @@ void finalize_scene(Scene& scene) {
   for (const Material& mt : scene.materials)
     if (mt.texture >= 0) f |= feat_textures;
   if (!scene.spheres.empty()) f |= feat_spheres;
+  // the test light_geom_derive applies to a source's edges (a kernel's rule, in one place)
+  bool all_rects = !scene.lights.empty();
+  for (const Light& l : scene.lights)
+    all_rects = all_rects && l.type == LightType::parallelogram && parallelogram_is_rectangle(l.e1, l.e2);
+  if (all_rects) f |= feat_rect_lights_only;
   scene.features = f;
 }
 

@@ -15,6 +15,7 @@ namespace tuile {
 
 struct Rgb {
   float r = 0, g = 0, b = 0;
+  bool any_positive() const { return r > 0 || g > 0 || b > 0; }
 };
 
 // An error that names where it came from (scene file and line, or the option).
@@ -46,7 +47,7 @@ struct Mesh {
   // filled by finalize_scene: light index of each triangle or -1
   std::vector<int32_t> prim_light;
   size_t triangle_count() const { return indices.size() / 3; }
-  bool emissive() const { return emission.r > 0 || emission.g > 0 || emission.b > 0; }
+  bool emissive() const { return emission.any_positive(); }
 };
 
 struct Sphere {
@@ -56,6 +57,7 @@ struct Sphere {
   Rgb emission;
   bool reverse_orientation = false;  // emit inwards
   int light = -1;  // filled by finalize_scene
+  bool emissive() const { return emission.any_positive(); }
 };
 
 enum class LightType : int32_t {
@@ -100,7 +102,11 @@ enum SceneFeature : uint32_t {
   feat_textures = 1u << 3,
   feat_spheres = 1u << 4,
   feat_visible_emitters = 1u << 5,
+  feat_rect_lights_only = 1u << 6,  // every source is a rectangle (Urena's map, no dispatch on kind)
 };
+// Their names (`tuile info`), bit i named by entry i.
+inline constexpr const char* scene_feature_names[] = {"area-lights", "delta-lights",     "single-light",    "textures",
+                                                      "spheres",     "visible-emitters", "rect-lights-only"};
 
 struct Scene {
   std::string source;  // file name or "built-in:NAME"
