@@ -19,8 +19,8 @@
 #include <xsimd/xsimd.hpp>
 #endif
 
-// The per-lane stage kernels are flattened (every call inlined): 29% faster for the
-// solid-angle light stage. Not under AddressSanitizer, where instrumenting the flattened
+// The per-lane stage kernels are flattened (every call inlined), so that the compiler
+// schedules a whole lane's chain of maps at once. Not under AddressSanitizer, where instrumenting the flattened
 // bodies takes GCC tens of minutes.
 #if defined(__SANITIZE_ADDRESS__)
 #define TUILE_FLATTEN
@@ -389,9 +389,9 @@ inline vfloat rsqrt_nr(const vfloat& x) noexcept {
 }
 
 // Zeroes zmm16-zmm31 before foreign code runs. vzeroupper (which GCC emits at function
-// exits) does not clear them, and while they hold data this Intel core runs the code that
-// follows with a penalty: measured, Embree's coherent camera packets took 9.7 instead of
-// 6.4 ns per sample after the Sobol' kernels (which use all 32 registers).
+// exits) does not clear them, and while they hold data some cores run the code that
+// follows with a penalty (Embree's coherent camera packets after the Sobol' kernels, which
+// use all 32 registers; bench/results.md has the figures).
 inline void clear_high_vector_registers() noexcept {
 #if defined(__AVX512F__) && defined(__GNUC__)
   asm volatile(

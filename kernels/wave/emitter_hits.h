@@ -158,7 +158,7 @@ inline void weight_queue(const LightView& L, const Estimator& est, float rate_li
   if (nq == 0) return;
   const int qpadded = div_up(nq, simd_width) * simd_width;
   // two batches at a time (vfloat2) where whole: the solid-angle setup is a latency-bound
-  // chain (two-panels: MIS weight 1.27 -> 1.20 ns per sample)
+  // chain, and two independent ones keep the core busy
   for_lane_batches<vfloat2>(0, qpadded, [&](auto lane, int j) {
     weight_lanes<typename decltype(lane)::type, Kinds>(L, est, rate_light, rate_bsdf, tb, j);
   });

@@ -149,8 +149,7 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
     point_pairs(est, tb, sample, pick_pair, padded, tb.tech.u0, nullptr);
   point_pairs(est, tb, sample, point_pair, padded, tb.tech.u2, tb.tech.u3);
   // four batches at a time (vfloat4), then two: the solid-angle maps are latency-bound
-  // chains, so interleaved batches keep the core busy (two-panels: one batch at a time
-  // 6% slower overall, four 1% faster than two)
+  // chains, so interleaved batches keep the core busy
   for_lane_batches<vfloat4>(0, padded, [&](auto lane, int k) {
     sample_lights_lanes<typename decltype(lane)::type, Kinds, Pick>(L, est, pass, tb, k);
   });

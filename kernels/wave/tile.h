@@ -22,7 +22,7 @@ inline constexpr int max_packets = max_tile_lanes / packet_width;
 // exactly 4 KiB would start at the same offset modulo 4096, so lane k of every array
 // would fall in the same L1 set (12 ways for the ~30 arrays a stage touches) and loads
 // would falsely wait on stores to other arrays (4K aliasing); the extra line staggers
-// them. Measured: two-panels +3.5%, cornell +3% (medians of 5, same run).
+// them.
 inline constexpr int lane_array = max_tile_lanes + 16;
 // Stages run whole packets of lanes as whole SIMD batches: no scalar tails.
 static_assert(packet_width % simd_width == 0, "the SIMD width must divide the packet width");

@@ -22,7 +22,7 @@ struct Accel::Impl {
   RTCScene emitters = nullptr;  // geometry attached at construction, built by prepare_emitters
   std::once_flag emitters_built;
   std::string error;
-  RTCScene of(Target t) const { return t == Target::emitters ? emitters : scene; }
+  RTCScene of(Bvh t) const { return t == Bvh::emitters ? emitters : scene; }
 };
 
 static void error_callback(void* user, RTCError code, const char* str) {
@@ -97,11 +97,11 @@ Accel::~Accel() {
   if (impl_->device) rtcReleaseDevice(impl_->device);
 }
 
-void Accel::intersect16(const int32_t* valid, RayHit16& packet, bool coherent, Target target) const noexcept {
+void Accel::intersect16(const int32_t* valid, RayHit16& packet, bool coherent, Bvh bvh) const noexcept {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-  rtcIntersect16(valid, impl_->of(target), &ctx, reinterpret_cast<RTCRayHit16*>(&packet));
+  rtcIntersect16(valid, impl_->of(bvh), &ctx, reinterpret_cast<RTCRayHit16*>(&packet));
 }
 
 void Accel::occluded16(const int32_t* valid, Ray16& packet, bool coherent) const noexcept {
@@ -125,12 +125,12 @@ static RTCRayHitNp to_np(Accel::StreamRays& r) {
   return np;
 }
 
-void Accel::intersect_stream(StreamRays& r, unsigned n, bool coherent, Target target) const noexcept {
+void Accel::intersect_stream(StreamRays& r, unsigned n, bool coherent, Bvh bvh) const noexcept {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
   RTCRayHitNp np = to_np(r);
-  rtcIntersectNp(impl_->of(target), &ctx, &np, n);
+  rtcIntersectNp(impl_->of(bvh), &ctx, &np, n);
 }
 
 void Accel::occluded_stream(StreamRays& r, unsigned n, bool coherent) const noexcept {

@@ -17,7 +17,7 @@ struct EmbreeOptions {
 
 // Which BVH a query runs against: the whole scene, or only its emissive meshes and
 // spheres (the same geomIDs and primIDs; empty when the scene has no emitter).
-enum class Target { scene, emitters };
+enum class Bvh { scene, emitters };
 
 class Accel {
  public:
@@ -29,12 +29,12 @@ class Accel {
   Accel(const Accel&) = delete;
   Accel& operator=(const Accel&) = delete;
 
-  // Builds the emitters' BVH (once; thread-safe). Queries with Target::emitters need it:
+  // Builds the emitters' BVH (once; thread-safe). Queries with Bvh::emitters need it:
   // a render that traces against the whole scene never pays for it.
   void prepare_emitters() const;
   // valid[i] = -1 for active lanes, 0 for inactive (Embree's convention).
   void intersect16(const int32_t* valid, RayHit16& packet, bool coherent,
-                   Target target = Target::scene) const noexcept;
+                   Bvh bvh = Bvh::scene) const noexcept;
   void occluded16(const int32_t* valid, Ray16& packet, bool coherent) const noexcept;
   void intersect1(RayHit16& packet, int lane) const noexcept;  // reference path for tests
   // The same rays through Embree's stream API (rtcIntersectNp / rtcOccludedNp on
@@ -45,7 +45,7 @@ class Accel {
     float *Ng_x, *Ng_y, *Ng_z, *u, *v;
     uint32_t *primID, *geomID, *instID;
   };
-  void intersect_stream(StreamRays& rays, unsigned n, bool coherent, Target target = Target::scene) const noexcept;
+  void intersect_stream(StreamRays& rays, unsigned n, bool coherent, Bvh bvh = Bvh::scene) const noexcept;
   void occluded_stream(StreamRays& rays, unsigned n, bool coherent) const noexcept;
   double build_seconds() const { return build_seconds_; }
 

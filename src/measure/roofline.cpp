@@ -55,7 +55,7 @@ double replay_rays(const Accel& accel, const RayRecord& rays, int threads) {
         else if (i < nc + ns) timed(ray, rays.shadow[i - nc], [&] { accel.occluded16(valid, ray, false); });
         else
           timed(hit, rays.bounce[i - nc - ns], [&] {
-            accel.intersect16(valid, hit, false, rays.bounce_against_emitters ? Target::emitters : Target::scene);
+            accel.intersect16(valid, hit, false, rays.bounce_against_emitters ? Bvh::emitters : Bvh::scene);
           });
       }
     });
@@ -75,16 +75,16 @@ double replay_rays_stream(const Accel& accel, const RayRecord& rays, int threads
     std::vector<uint32_t> u[6];
     unsigned n = 0;
     bool occluded = false, coherent = false;
-    Target target = Target::scene;
+    Bvh bvh = Bvh::scene;
   };
   std::vector<Stream> streams;
   constexpr size_t per_stream = max_tile_lanes / packet_width;  // packets of one tile
-  auto build = [&](const auto& packets, bool occluded, bool coherent, Target target) {
+  auto build = [&](const auto& packets, bool occluded, bool coherent, Bvh bvh) {
     for (size_t start = 0; start < packets.size(); start += per_stream) {
       Stream st;
       st.occluded = occluded;
       st.coherent = coherent;
-      st.target = target;
+      st.bvh = bvh;
       for (size_t p = start; p < std::min(packets.size(), start + per_stream); ++p) {
         const auto& rec = packets[p];
         const Ray16* r;
@@ -106,9 +106,9 @@ double replay_rays_stream(const Accel& accel, const RayRecord& rays, int threads
       streams.push_back(std::move(st));
     }
   };
-  build(rays.camera, false, true, Target::scene);
-  build(rays.shadow, true, false, Target::scene);
-  build(rays.bounce, false, false, rays.bounce_against_emitters ? Target::emitters : Target::scene);
+  build(rays.camera, false, true, Bvh::scene);
+  build(rays.shadow, true, false, Bvh::scene);
+  build(rays.bounce, false, false, rays.bounce_against_emitters ? Bvh::emitters : Bvh::scene);
   const auto t0 = clock_type::now();
   tbb::task_arena arena(threads > 0 ? threads : tbb::this_task_arena::max_concurrency());
   arena.execute([&] {
@@ -120,7 +120,7 @@ double replay_rays_stream(const Accel& accel, const RayRecord& rays, int threads
                              st.u[1].data(),  st.u[2].data(),  st.f[9].data(),  st.f[10].data(), st.f[11].data(),
                              st.f[12].data(), st.f[13].data(), st.u[3].data(),  st.u[4].data(),  st.u[5].data()};
         if (st.occluded) accel.occluded_stream(sr, st.n, st.coherent);
-        else accel.intersect_stream(sr, st.n, st.coherent, st.target);
+        else accel.intersect_stream(sr, st.n, st.coherent, st.bvh);
       }
     });
   });

@@ -32,8 +32,8 @@ template <class P> inline void record(std::vector<RecordedPacket<P>>& out, const
 }
 
 // Times the stages of a tile when profiling; a single well-predicted branch otherwise. Reads
-// the time-stamp counter once per stage boundary (about 8.5 ns in this VM; clock_gettime
-// costs several times more), converted to seconds with the ratio of counter ticks to wall
+// the time-stamp counter once per stage boundary (clock_gettime costs several times more),
+// converted to seconds with the ratio of counter ticks to wall
 // time over the whole render. What is left for the "scheduling" row is the time between
 // tiles (task scheduling).
 struct StageTimer {
@@ -184,13 +184,13 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
           sample_cosine(est, s, layout.bsdf(static_cast<uint32_t>(m)), tb);
           timer.lap(Stage::sample_cosine);
           clear_high_vector_registers();
-          const Target target = c.bounce_against_emitters ? Target::emitters : Target::scene;
+          const Bvh bvh = c.bounce_against_emitters ? Bvh::emitters : Bvh::scene;
           for (int p = 0; p < packets; ++p) {
             const int32_t* valid = tb.tech.valid + p * packet_width;
             const int active = active_lanes(valid);
             if (!active) continue;
             if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
-            c.accel.intersect16(valid, tb.bounce[p], false, target);
+            c.accel.intersect16(valid, tb.bounce[p], false, bvh);
             tb.stats.rays_bounce += static_cast<uint64_t>(active);
           }
           timer.lap(Stage::intersect_bounce);
