@@ -25,7 +25,8 @@
 #include <vector>
 
 #include "light/polygon_irradiance.h"
-#include "sample/sampling.h"
+#include "lanes/twin.h"
+#include "sample/spherical.h"
 
 using namespace tuile;
 

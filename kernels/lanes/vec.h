@@ -1,6 +1,6 @@
 // Vec3<T> for T = float or vfloat: the geometry of every kernel, written once.
 #pragma once
-#include "lanes/simd.h"
+#include "lanes/twin.h"
 
 namespace tuile {
 

@@ -5,7 +5,7 @@
 #include <type_traits>
 
 #include "lanes/vec.h"
-#include "sample/sampling.h"
+#include "sample/spherical.h"
 
 namespace tuile {
 

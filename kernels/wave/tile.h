@@ -8,6 +8,7 @@
 #include "light/sample.h"
 #include "mis.h"
 #include "lanes/packet.h"
+#include "lanes/twin.h"
 #include "wave/estimator.h"
 #include "wave/views.h"
 #include "sample/layout.h"

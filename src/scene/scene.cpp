@@ -4,7 +4,7 @@
 #include <cmath>
 #include <limits>
 
-#include "sample/sampling.h"
+#include "sample/spherical.h"
 #include "scene/pbrt.h"
 
 namespace tuile {
