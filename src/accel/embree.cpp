@@ -1,3 +1,5 @@
+// The Embree door: device and scene build (the whole scene, and the emitters alone), and
+// the packet and stream queries in Embree's own layouts.
 #include "accel/embree.h"
 
 #include <embree3/rtcore.h>

@@ -1,3 +1,5 @@
+// The render flags every subcommand takes, resolved against the scene file's settings
+// into RenderOptions; scene loading and accelerator set-up with clear errors.
 #include "app/cli.h"
 
 #include <cmath>

@@ -1,3 +1,5 @@
+// The subcommands render, info, bench and profile (converge, figures and diff live in
+// src/measure).
 #include "app/commands.h"
 
 #include <sys/resource.h>

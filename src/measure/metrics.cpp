@@ -1,3 +1,4 @@
+// Error metrics of a render against a reference (MSE, relMSE, efficiency).
 #include "measure/metrics.h"
 
 #include <algorithm>

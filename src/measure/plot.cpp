@@ -1,3 +1,5 @@
+// The plots of `tuile converge` (SVG, or PNG through the raster canvas) and the canvas,
+// lines and bitmap font the figures label their sheets with.
 #include "measure/plot.h"
 
 #include <algorithm>

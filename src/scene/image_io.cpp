@@ -1,3 +1,4 @@
+// OpenEXR output and input (Imf), PNG previews (libpng).
 #include "scene/image_io.h"
 
 #include <ImfChannelList.h>

@@ -1,3 +1,6 @@
+// finalize_scene: the light table (one source per emissive triangle or parallelogram,
+// spheres, delta lights), their powers, validation of the geometry, and the scene's
+// features; load_scene.
 #include "scene/scene.h"
 
 #include <algorithm>

@@ -1,3 +1,5 @@
+// Image textures for the pbrt-v4 reader: stb_image for 8- and 16-bit formats and HDR,
+// OpenEXR for EXR, converted to linear RGB.
 #define STB_IMAGE_IMPLEMENTATION
 #include "image.h"
 

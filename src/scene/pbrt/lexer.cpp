@@ -1,3 +1,4 @@
+// The pbrt-v4 tokenizer: tokens with their file and line for error messages.
 #include "lexer.h"
 
 #include "util.h"

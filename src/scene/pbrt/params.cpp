@@ -1,3 +1,4 @@
+// Parameter lists of pbrt-v4 directives: parsing, type and count checks, lookups.
 #include "params.h"
 
 #include <cfloat>

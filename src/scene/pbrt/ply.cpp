@@ -1,3 +1,4 @@
+// The PLY reader (ASCII, binary little and big endian).
 // The whole file is already in memory; binary data is decoded straight from the buffer
 // with bounds checks on every read, so a truncated or lying header throws instead of
 // reading past the end. Nothing is allocated per vertex or face.

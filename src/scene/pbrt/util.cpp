@@ -1,3 +1,4 @@
+// The pbrt-v4 reader's helpers: transforms, file reading (gzip too), error messages.
 #include "util.h"
 
 #include <zlib.h>
