@@ -44,6 +44,16 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
   app.add_flag("--stats", f.stats, "print rejected samples, worst accident and mean variance");
 }
 
+void add_render_run_flags(CLI::App& app, RenderFlags& f) {
+  app.add_option("--checkpoint", f.checkpoint_seconds,
+                 "save the film to OUT.checkpoint every SECONDS (at the end of a pass; atomically)");
+  app.add_flag("--resume", f.resume, "continue the render whose checkpoint is OUT.checkpoint, up to --spp");
+  app.add_option("--time-budget", f.time_budget,
+                 "render whole passes until the next one would end after SECONDS (--spp, if given, still caps)");
+  app.add_option("--target-error", f.target_error,
+                 "stop when the image's estimated relMSE falls below X (samples double per pass; --spp caps)");
+}
+
 RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   RenderOptions o;
   Estimator& e = o.est;

@@ -18,9 +18,16 @@ struct RenderFlags {
   int light_samples = 1, bsdf_samples = 1, spp = 0, threads = 0, tile = 16;
   uint32_t seed = 0;
   bool quiet = false, stats = false, spp_given = false;
+  // tuile render only (add_render_run_flags)
+  double checkpoint_seconds = 0;  // > 0: save a checkpoint that often
+  bool resume = false;
+  double time_budget = 0, target_error = 0;
+  std::string command_line;  // recorded in the EXR header
 };
 
 void add_render_flags(CLI::App& app, RenderFlags& f);
+// The flags of `tuile render` alone: --checkpoint, --resume, --time-budget, --target-error.
+void add_render_run_flags(CLI::App& app, RenderFlags& f);
 // Applies the flags (command line over scene file over defaults) to the scene and options.
 // Throws std::invalid_argument with a message naming the flag.
 RenderOptions resolve_options(const RenderFlags& f, Scene& scene);

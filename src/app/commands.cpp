@@ -16,6 +16,7 @@
 #include <iostream>
 
 #include "accel/embree.h"
+#include "app/prepare.h"
 #include "scene/image_io.h"
 #include "render/render.h"
 #include "measure/roofline.h"
@@ -31,22 +32,13 @@ void add_profile_flags(CLI::App& app, ProfileFlags& f) {
   app.add_option("--trace", f.trace, "Chrome trace-event JSON");
   app.add_flag("--roofline", f.roofline, "compare with Embree alone on the same rays");
 }
-static double seconds_since(std::chrono::steady_clock::time_point t0) {
+double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-static std::string with_extension(const std::string& path, const char* ext) {
+std::string with_extension(const std::string& path, const char* ext) {
   return std::filesystem::path(path).replace_extension(ext).string();
 }
-
-namespace {
-// Scene + resolved options + BVH, with load and build times.
-struct Prepared {
-  Scene scene;
-  RenderOptions opt;
-  std::unique_ptr<Accel> accel;
-  double load_seconds = 0, bvh_seconds = 0;
-};
 
 Prepared prepare(const RenderFlags& f) {
   Prepared p;
@@ -58,85 +50,6 @@ Prepared prepare(const RenderFlags& f) {
   p.accel = std::make_unique<Accel>(p.scene);
   p.bvh_seconds = seconds_since(t1);
   return p;
-}
-
-}  // namespace
-
-// Renders all samples; on a terminal, renders longer than a second report progress
-// (percent, samples/s, ETA) on stderr. Samples are added in chunks of whole passes, which
-// gives the same image as one call: each pixel's samples still arrive in order.
-static RenderStats render_with_progress(Renderer& renderer, Film& film, uint32_t spp, bool progress) {
-  if (!progress || spp < 2) return renderer.render(film, 0, spp);
-  RenderStats total;
-  const uint64_t pixels = static_cast<uint64_t>(film.width) * film.height;
-  uint32_t chunk = 1, done = 0;
-  bool shown = false;
-  while (done < spp) {
-    const uint32_t end = std::min(spp, done + chunk);
-    const uint32_t passes = end - done;
-    const RenderStats st = renderer.render(film, done, end);
-    total.add_counts(st);
-    total.worst_ratio = st.worst_ratio;
-    total.pipeline = st.pipeline;
-    done = end;
-    // aim at about four updates a second
-    const double per_pass = st.seconds / passes;
-    chunk = std::max<uint32_t>(1, static_cast<uint32_t>(0.25 / std::max(per_pass, 1e-9)));
-    if (total.seconds > 1.0 || shown) {
-      const double rate = static_cast<double>(total.samples) / total.seconds;
-      const double eta = static_cast<double>((spp - done) * pixels) / rate;
-      std::fprintf(stderr, "\rtuile: %5.1f%%  %.2f M samples/s  ETA %.1f s   ", 100.0 * done / spp, rate * 1e-6, eta);
-      shown = true;
-    }
-  }
-  if (shown) std::fprintf(stderr, "\n");
-  return total;
-}
-
-int run_render(const RenderFlags& f) {
-  const auto t0 = std::chrono::steady_clock::now();
-  Prepared p = prepare(f);
-  const Scene& scene = p.scene;
-  const RenderOptions& opt = p.opt;
-  for (const std::string& w : scene.warnings)
-    if (!f.quiet) std::cerr << "tuile: warning: " << w << "\n";
-  if (scene.lights.empty() && !f.quiet) std::cerr << "tuile: warning: the scene has no light; the image is black\n";
-  // -o, else the scene's Film "filename" (as an .exr), else tuile.exr
-  std::string out = "tuile.exr";
-  if (!f.output.empty()) {
-    out = f.output;
-  } else if (!scene.file_output.empty()) {
-    out = with_extension(scene.file_output, ".exr");
-  }
-  Renderer renderer(scene, *p.accel, opt);
-  Film film;
-  film.reset(scene.camera.width, scene.camera.height);
-  const double setup = seconds_since(t0);
-  const RenderStats st = render_with_progress(renderer, film, opt.est.spp, !f.quiet && isatty(2));
-  std::vector<ImageLayer> layers;
-  if (opt.aov_variance) layers.push_back({"variance", 3, film.variance_of_mean()});
-  if (opt.aov_mis_weight) layers.push_back({"mis_weight", 1, film.mis_weight()});
-  const std::vector<float> img = film.mean();
-  write_exr(out, film.width, film.height, img, layers);
-  write_png(with_extension(out, ".png"), film.width, film.height, img);
-  if (!f.quiet) {
-    std::fprintf(stderr, "tuile: %s %dx%d, %u spp, %s\n", scene.source.c_str(), film.width, film.height, opt.est.spp,
-                 describe(opt.est).c_str());
-    std::fprintf(stderr, "tuile: setup %.3f s, render %.3f s, %.2f M samples/s -> %s\n", setup, st.seconds,
-                 st.seconds > 0 ? static_cast<double>(st.samples) / st.seconds * 1e-6 : 0.0, out.c_str());
-  }
-  if (f.stats) {
-    const std::vector<float> var = film.variance_of_mean();
-    double mv = 0;
-    for (float v : var) mv += v;
-    mv /= var.empty() ? 1.0 : static_cast<double>(var.size());
-    std::printf("rejected_nonfinite camera=%llu light=%llu bsdf=%llu\n",
-                static_cast<unsigned long long>(st.rejected_camera), static_cast<unsigned long long>(st.rejected_light),
-                static_cast<unsigned long long>(st.rejected_bsdf));
-    std::printf("worst_accident %.6g (largest single-sample luminance / its pixel's mean)\n", st.worst_ratio);
-    std::printf("mean_variance_of_mean %.6g\n", mv);
-  }
-  return 0;
 }
 
 int run_info(const RenderFlags& f) {

@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   RenderFlags rf;
   CLI::App* render = app.add_subcommand("render", "render a scene to OpenEXR (+ PNG preview)");
   add_render_flags(*render, rf);
+  add_render_run_flags(*render, rf);
   render->add_option("-o,--output", rf.output,
                      "output .exr (a .png preview is written beside it); default: the scene's Film filename, else tuile.exr");
 
@@ -55,6 +56,16 @@ int main(int argc, char** argv) {
   CLI::App* diff = app.add_subcommand("diff", "compare two EXR images: identical bits, or by how much they differ");
   add_diff_flags(*diff, df);
 
+  for (int i = 0; i < argc; ++i) {  // the command line, shell-quoted, for the EXR header
+    std::string a = argv[i];
+    const bool plain = !a.empty() && a.find_first_of(" \t\n'\"\\$`*?[]{}()<>|&;#~") == std::string::npos;
+    if (!plain) {
+      std::string q = "'";
+      for (char ch : a) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+      a = q + "'";
+    }
+    rf.command_line += (i ? " " : "") + a;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

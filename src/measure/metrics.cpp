@@ -1,6 +1,8 @@
 // Error metrics of a render against a reference (MSE, relMSE, efficiency).
 #include "measure/metrics.h"
 
+#include "render/film.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -69,6 +71,14 @@ double loglog_interpolate(const std::vector<double>& x, const std::vector<double
     return std::exp(std::log(y[i]) + t * (std::log(y[i + 1]) - std::log(y[i])));
   }
   return at == x[n - 1] ? y[n - 1] : nan;
+}
+
+double estimated_relmse(const Film& film, double eps) {
+  if (film.samples < min_samples_for_error_estimate) return INFINITY;
+  const std::vector<float> mean = film.mean(), var = film.variance_of_mean();
+  double s = 0;
+  for (size_t i = 0; i < mean.size(); ++i) s += double(var[i]) / (double(mean[i]) * double(mean[i]) + eps);
+  return mean.empty() ? 0.0 : s / static_cast<double>(mean.size());
 }
 
 }  // namespace tuile

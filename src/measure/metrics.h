@@ -2,9 +2,12 @@
 // MSE, relative MSE (relMSE = mean((x - r)^2 / (r^2 + eps))) and Veach's efficiency
 // 1 / (relMSE * T); plus the log-log helpers the converge report and the plots use.
 #pragma once
+#include <cstdint>
 #include <vector>
 
 namespace tuile {
+
+struct Film;
 
 inline constexpr double relmse_epsilon = 0.01;
 
@@ -12,6 +15,13 @@ inline constexpr double relmse_epsilon = 0.01;
 double mse(const std::vector<float>& x, const std::vector<float>& ref);
 // Mean over pixels and channels of (x - ref)^2 / (ref^2 + eps).
 double relmse(const std::vector<float>& x, const std::vector<float>& ref, double eps = relmse_epsilon);
+// relMSE as the film itself estimates it: the mean over pixels and channels of the
+// variance of the pixel mean over (mean^2 + eps). With an unbiased estimator this is the
+// expected relMSE against the exact image (what `tuile render --target-error` stops on).
+// Infinite below min_samples_for_error_estimate samples per pixel, where the per-pixel
+// variances are too few to trust.
+inline constexpr uint64_t min_samples_for_error_estimate = 8;
+double estimated_relmse(const Film& film, double eps = relmse_epsilon);
 // 1 / (relmse * seconds); +inf when the product is 0, NaN when either is negative or NaN.
 double efficiency(double relmse, double seconds);
 

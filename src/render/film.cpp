@@ -1,6 +1,7 @@
 // Film: the per-pixel double sums a render adds to, and the images made from them.
 #include "render/film.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace tuile {
@@ -15,6 +16,15 @@ void Film::reset(int w, int h) {
   w_sum.assign(n, 0.0);
   w_cnt.assign(n, 0.0);
   max_sample.assign(n, 0.f);
+}
+
+void Film::add(const Film& more) {
+  for (size_t i = 0; i < sum.size(); ++i) sum[i] += more.sum[i];
+  for (size_t i = 0; i < sum_sq.size(); ++i) sum_sq[i] += more.sum_sq[i];
+  for (size_t i = 0; i < w_sum.size(); ++i) w_sum[i] += more.w_sum[i];
+  for (size_t i = 0; i < w_cnt.size(); ++i) w_cnt[i] += more.w_cnt[i];
+  for (size_t i = 0; i < max_sample.size(); ++i) max_sample[i] = std::max(max_sample[i], more.max_sample[i]);
+  samples += more.samples;
 }
 
 std::vector<float> Film::mean() const {

@@ -29,6 +29,10 @@ struct Film {
   FilmArray<double> w_cnt;
   FilmArray<float> max_sample;  // largest single-sample luminance
   void reset(int w, int h);
+  // Adds another film's samples (the same size): sums added, largest samples kept. A film
+  // made by rendering [a, b) into a fresh film and then added gives the bits of rendering
+  // [a, b) into this one directly (each tile adds its sums once either way).
+  void add(const Film& more);
   // mean radiance, variance of the mean (per channel), mean BSDF MIS weight
   float mean_of(size_t k) const { return static_cast<float>(sum[k] / static_cast<double>(samples)); }  // samples > 0
   std::vector<float> mean() const;

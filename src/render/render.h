@@ -1,6 +1,7 @@
 // The tile renderer: owns the views the kernels read and the oneTBB scheduling of
 // tiles. One render adds [sample_begin, sample_end) samples per pixel to a film.
 #pragma once
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -23,6 +24,7 @@ struct RenderStats {
   double worst_ratio = 0;  // largest single-sample luminance relative to its pixel mean
   std::string pipeline;
   bool bounce_against_emitters = false;  // bounce rays were traced against the emitters only
+  bool cancelled = false;  // the cancel flag stopped the render: some tiles did not run, the film is partial
   // Adds the counters of another render (seconds and samples included).
   void add_counts(const RenderStats& o) {
     seconds += o.seconds;
@@ -50,6 +52,9 @@ class Renderer {
   // Whether bounce rays run against the emitters (BounceTrace resolved for this scene).
   bool bounce_against_emitters() const { return bounce_against_emitters_; }
   const RenderOptions& options() const { return opt_; }
+  // A flag (set from anywhere, e.g. a signal handler) that stops a render at the next tile
+  // boundary: the tiles not yet started are skipped and RenderStats::cancelled is set.
+  void set_cancel_flag(const std::atomic<bool>* flag) { cancel_ = flag; }
 
  private:
   const Scene& scene_;
@@ -59,6 +64,7 @@ class Renderer {
   bool bounce_against_emitters_ = false;
   struct BufferPool;  // per-thread TileBuffers, made on a thread's first tile
   std::unique_ptr<BufferPool> pool_;
+  const std::atomic<bool>* cancel_ = nullptr;
 };
 
 }  // namespace tuile

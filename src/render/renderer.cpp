@@ -93,12 +93,19 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
   const uint64_t ticks0 = __rdtsc();
   const int threads = opt_.threads > 0 ? opt_.threads : tbb::this_task_arena::max_concurrency();
   tbb::task_arena arena(threads);
+  std::atomic<bool> skipped{false};
   arena.execute([&] {
     tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
                       [&](const tbb::blocked_range<int>& r) {
                         TileBuffers& tb = *buffers.local();
                         ThreadProfile* tp = profile ? &profiles.local() : nullptr;
-                        for (int t = r.begin(); t < r.end(); ++t) pipe.fn(c, tb, tp, t, begin, end);
+                        for (int t = r.begin(); t < r.end(); ++t) {
+                          if (cancel_ && cancel_->load(std::memory_order_relaxed)) {
+                            skipped.store(true, std::memory_order_relaxed);
+                            return;
+                          }
+                          pipe.fn(c, tb, tp, t, begin, end);
+                        }
                       },
                       tbb::simple_partitioner());
   });
@@ -106,6 +113,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
   st.seconds = std::chrono::duration<double>(clock_type::now() - t0).count();
   const double sec_per_tick = st.seconds / static_cast<double>(std::max<uint64_t>(1, __rdtsc() - ticks0));
   st.pipeline = pipe.name;
+  st.cancelled = skipped.load();
   st.bounce_against_emitters = bounce_against_emitters_;
   film.samples += end - begin;
   st.samples = static_cast<uint64_t>(end - begin) * static_cast<uint64_t>(cam.width) * cam.height;
