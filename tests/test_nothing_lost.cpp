@@ -265,6 +265,26 @@ TEST(NothingLost, TargetErrorStopsWithinAFactorOfTwo) {
   }
 }
 
+// A time budget stops at a pass boundary: whole passes, the bits of an uninterrupted
+// render of that many samples (when it stops does not matter to what it holds).
+TEST(NothingLost, TimeBudgetStopsAtAPassBoundary) {
+  TempDir dir;
+  const std::string out = dir / "b.exr";
+  ASSERT_EQ(run_tuile(with(kScene, {"--time-budget", "0.3", "-o", out}), dir / "log"), 0) << read_file(dir / "log");
+  const ExrMetadata m = read_exr_metadata(out);
+  ASSERT_NE(m.find_text("stoppedBy"), nullptr);
+  EXPECT_EQ(*m.find_text("stoppedBy"), "time-budget");
+  const int spp = header_spp(out);
+  const uint32_t pass = fixed_passes(96 * 64).pass_spp;
+  ASSERT_GT(spp, 0);
+  EXPECT_EQ(spp % static_cast<int>(pass), 0) << spp << " spp in passes of " << pass;
+  EXPECT_NE(read_file(dir / "log").find("stopped after " + std::to_string(spp) + " spp"), std::string::npos)
+      << read_file(dir / "log");
+  const std::string ref = dir / "ref.exr";
+  ASSERT_EQ(run_tuile(with(kScene, {"--spp", std::to_string(spp), "-o", ref, "--quiet"}), dir / "log2"), 0);
+  EXPECT_TRUE(same_pixels(out, ref));
+}
+
 TEST(NothingLost, EveryRenderCarriesItsMetadata) {
   TempDir dir;
   const std::string out = dir / "m.exr";
