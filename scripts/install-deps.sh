@@ -2,7 +2,7 @@
 # Installs the Debian packages tuile needs, only those missing (apt-get update first when needed).
 set -e
 PKGS="cmake make g++ pkg-config libembree-dev libtbb-dev libxsimd-dev libopenexr-dev libcli11-dev \
-libgtest-dev libbenchmark-dev zlib1g-dev libpng-dev libstb-dev"
+libgtest-dev libbenchmark-dev zlib1g-dev libpng-dev libstb-dev libopenmpi-dev openmpi-bin"
 missing=""
 for p in $PKGS; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then

@@ -54,6 +54,13 @@ void add_render_run_flags(CLI::App& app, RenderFlags& f) {
                  "stop when the image's estimated relMSE falls below X (samples double per pass; --spp caps)");
 }
 
+void add_mpi_flags(CLI::App& app, RenderFlags& f) {
+  app.add_option("--mpi-timeout", f.mpi_timeout,
+                 "under mpirun: end the job when a rank sends nothing for SECONDS while it has work")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 1e6));
+}
+
 RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   RenderOptions o;
   Estimator& e = o.est;

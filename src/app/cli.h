@@ -23,11 +23,14 @@ struct RenderFlags {
   bool resume = false;
   double time_budget = 0, target_error = 0;
   std::string command_line;  // recorded in the EXR header
+  double mpi_timeout = 300;  // under mpirun: seconds rank 0 waits for a rank's result before ending the job
 };
 
 void add_render_flags(CLI::App& app, RenderFlags& f);
 // The flags of `tuile render` alone: --checkpoint, --resume, --time-budget, --target-error.
 void add_render_run_flags(CLI::App& app, RenderFlags& f);
+// --mpi-timeout (render and bench under mpirun).
+void add_mpi_flags(CLI::App& app, RenderFlags& f);
 // Applies the flags (command line over scene file over defaults) to the scene and options.
 // Throws std::invalid_argument with a message naming the flag.
 RenderOptions resolve_options(const RenderFlags& f, Scene& scene);

@@ -10,6 +10,7 @@
 
 #include "app/cli.h"
 #include "app/commands.h"
+#include "dist/dist.h"
 #include "accel/embree.h"
 #include "scene/image_io.h"
 #include "render/render.h"
@@ -26,6 +27,7 @@ int main(int argc, char** argv) {
   CLI::App* render = app.add_subcommand("render", "render a scene to OpenEXR (+ PNG preview)");
   add_render_flags(*render, rf);
   add_render_run_flags(*render, rf);
+  add_mpi_flags(*render, rf);
   render->add_option("-o,--output", rf.output,
                      "output .exr (a .png preview is written beside it); default: the scene's Film filename, else tuile.exr");
 
@@ -37,6 +39,7 @@ int main(int argc, char** argv) {
   CLI::App* bench = app.add_subcommand("bench", "samples per second over repeated renders");
   add_render_flags(*bench, bf.render);
   add_bench_flags(*bench, bf);
+  add_mpi_flags(*bench, bf.render);
 
   ProfileFlags pf;
   CLI::App* profile = app.add_subcommand("profile", "time per kernel stage");
@@ -70,25 +73,27 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
-    std::cerr << "tuile: error: " << e.what() << "\nRun with --help for more information.\n";
+    if (launcher_rank() == 0)  // under mpirun every rank parses the same line: one message
+      std::cerr << "tuile: error: " << e.what() << "\nRun with --help for more information.\n";
     return 1;
   }
   try {
-    if (*render) return run_render(rf);
+    const bool ranks = launcher_size() > 1;  // started by mpirun with several ranks
+    if (*render) return ranks ? run_render_distributed(rf) : run_render(rf);
     if (*info) return run_info(inf);
-    if (*bench) return run_bench(bf);
+    if (*bench) return ranks ? run_bench_distributed(bf) : run_bench(bf);
     if (*profile) return run_profile(pf);
     if (*converge) return run_converge(cf);
     if (*figures) return run_figures(ff);
     if (*diff) return run_diff(df);
   } catch (const SceneError& e) {
-    std::cerr << "tuile: " << e.what() << "\n";
+    if (launcher_rank() == 0) std::cerr << "tuile: " << e.what() << "\n";
     return 1;
   } catch (const std::invalid_argument& e) {
-    std::cerr << "tuile: error: " << e.what() << "\n";
+    if (launcher_rank() == 0) std::cerr << "tuile: error: " << e.what() << "\n";
     return 1;
   } catch (const std::exception& e) {
-    std::cerr << "tuile: error: " << e.what() << "\n";
+    if (launcher_rank() == 0) std::cerr << "tuile: error: " << e.what() << "\n";
     return 1;
   }
   return 0;

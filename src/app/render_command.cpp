@@ -14,6 +14,7 @@
 #include <stdexcept>
 
 #include "app/commands.h"
+#include "app/render_job.h"
 #include "app/prepare.h"
 #include "app/signals.h"
 #include "measure/metrics.h"
@@ -36,6 +37,7 @@ const char* reason_name(StopReason r) {
     case StopReason::cancelled: return "interrupted";
     case StopReason::time_budget: return "time-budget";
     case StopReason::target_met: return "target-error";
+    case StopReason::failed: return "failed";
   }
   return "complete";
 }
@@ -46,50 +48,128 @@ void check_nonnegative(double v, const char* flag) {
 
 }  // namespace
 
-int run_render(const RenderFlags& f) {
+RenderJob start_render_job(const RenderFlags& f) {
   const auto t0 = std::chrono::steady_clock::now();
   check_nonnegative(f.checkpoint_seconds, "--checkpoint");
   check_nonnegative(f.time_budget, "--time-budget");
   check_nonnegative(f.target_error, "--target-error");
   // the output first, before any work (with -o; a scene's own Film name is checked after load)
   if (!f.output.empty()) check_output_path(f.output, {".exr"});
-  Prepared p = prepare(f);
-  Scene& scene = p.scene;
-  RenderOptions& opt = p.opt;
+  RenderJob job;
+  job.p = prepare(f);
+  Scene& scene = job.p.scene;
+  RenderOptions& opt = job.p.opt;
   const bool budgeted = f.time_budget > 0 || f.target_error > 0;
   if (budgeted && !f.spp_given && scene.file_spp <= 0) opt.est.spp = budget_spp_cap;
-  for (const std::string& w : scene.warnings)
-    if (!f.quiet) std::cerr << "tuile: warning: " << w << "\n";
-  if (scene.lights.empty() && !f.quiet) std::cerr << "tuile: warning: the scene has no light; the image is black\n";
   // -o, else the scene's Film "filename" (as an .exr), else tuile.exr
-  std::string out = "tuile.exr";
-  if (!f.output.empty()) out = f.output;
-  else if (!scene.file_output.empty()) out = with_extension(scene.file_output, ".exr");
-  if (f.output.empty()) check_output_path(out, {".exr"});
-
-  Renderer renderer(scene, *p.accel, opt);
-  const uint32_t spp = opt.est.spp;
-  const uint64_t pixels = static_cast<uint64_t>(scene.camera.width) * static_cast<uint64_t>(scene.camera.height);
-  const PassPlan plan = f.target_error > 0 ? doubling_passes() : fixed_passes(pixels);
-  const std::string fingerprint = render_fingerprint(scene, opt, plan);
-  const std::string ckpt = checkpoint_path(out);
-  Film film;
+  job.out = "tuile.exr";
+  if (!f.output.empty()) job.out = f.output;
+  else if (!scene.file_output.empty()) job.out = with_extension(scene.file_output, ".exr");
+  if (f.output.empty()) check_output_path(job.out, {".exr"});
+  job.spp = opt.est.spp;
+  job.pixels = static_cast<uint64_t>(scene.camera.width) * static_cast<uint64_t>(scene.camera.height);
+  job.plan = f.target_error > 0 ? doubling_passes() : fixed_passes(job.pixels);
+  job.fingerprint = render_fingerprint(scene, opt, job.plan);
+  job.ckpt = checkpoint_path(job.out);
   if (f.resume) {
-    Checkpoint c = load_checkpoint(ckpt);
-    if (c.fingerprint != fingerprint)
-      throw std::invalid_argument(ckpt + ": this checkpoint belongs to another render; it was made by\n" + c.fingerprint +
-                                  "and this render is\n" + fingerprint +
+    Checkpoint c = load_checkpoint(job.ckpt);
+    if (c.fingerprint != job.fingerprint)
+      throw std::invalid_argument(job.ckpt + ": this checkpoint belongs to another render; it was made by\n" +
+                                  c.fingerprint + "and this render is\n" + job.fingerprint +
                                   "(resume with the same scene, resolution, estimator, sampler and seed)");
-    if (c.film.samples > spp)
-      throw std::invalid_argument(ckpt + ": the checkpoint holds " + std::to_string(c.film.samples) +
-                                  " spp, more than the " + std::to_string(spp) + " asked for");
-    film = std::move(c.film);
-    if (!f.quiet) std::cerr << "tuile: resuming " << ckpt << " at " << film.samples << " of " << spp << " spp\n";
+    if (c.film.samples > job.spp)
+      throw std::invalid_argument(job.ckpt + ": the checkpoint holds " + std::to_string(c.film.samples) +
+                                  " spp, more than the " + std::to_string(job.spp) + " asked for");
+    job.film = std::move(c.film);
   } else {
-    film.reset(scene.camera.width, scene.camera.height);
+    job.film.reset(scene.camera.width, scene.camera.height);
   }
-  const double setup = seconds_since(t0);
+  job.setup_seconds = seconds_since(t0);
+  return job;
+}
 
+void print_scene_warnings(const RenderFlags& f, const RenderJob& job) {
+  if (f.quiet) return;
+  for (const std::string& w : job.p.scene.warnings) std::cerr << "tuile: warning: " << w << "\n";
+  if (job.p.scene.lights.empty()) std::cerr << "tuile: warning: the scene has no light; the image is black\n";
+  if (f.resume)
+    std::cerr << "tuile: resuming " << job.ckpt << " at " << job.film.samples << " of " << job.spp << " spp\n";
+}
+
+int finish_render_job(const RenderFlags& f, RenderJob& job, StopReason reason, const RenderStats& st,
+                      double render_seconds, double estimated_error) {
+  const RenderOptions& opt = job.p.opt;
+  const Film& film = job.film;
+  const bool interrupted = reason == StopReason::cancelled || reason == StopReason::failed;
+  // what the render has, before anything else can go wrong
+  bool checkpoint_saved = false;
+  if (interrupted || f.checkpoint_seconds > 0) {
+    try {
+      save_checkpoint(job.ckpt, job.fingerprint, job.plan, film);
+      checkpoint_saved = true;
+    } catch (const std::exception& e) {
+      std::cerr << "tuile: warning: " << e.what() << "\n";
+    }
+  }
+  std::vector<ImageLayer> layers;
+  if (opt.aov_variance) layers.push_back({"variance", 3, film.variance_of_mean()});
+  if (opt.aov_mis_weight) layers.push_back({"mis_weight", 1, film.mis_weight()});
+  const std::vector<float> img = film.mean();
+  ExrMetadata meta;
+  meta.integers = {{"spp", static_cast<int>(film.samples)}, {"seed", static_cast<int>(opt.est.seed)}};
+  static const char* samplers[] = {"independent", "stratified", "sobol"};
+  meta.text = {{"estimator", describe(opt.est)},
+               {"sampler", samplers[static_cast<int>(opt.est.sampler)]},
+               {"tuileVersion", TUILE_VERSION},
+               {"commandLine", f.command_line},
+               {"stoppedBy", reason_name(reason)}};
+  meta.reals = {{"renderSeconds", render_seconds}};
+  if (f.target_error > 0) meta.reals.emplace_back("estimatedRelMSE", estimated_error);
+  write_exr(job.out, film.width, film.height, img, layers, meta);
+  write_png(with_extension(job.out, ".png"), film.width, film.height, img);
+
+  if (!f.quiet) {
+    std::fprintf(stderr, "tuile: %s %dx%d, %llu spp, %s\n", job.p.scene.source.c_str(), film.width, film.height,
+                 static_cast<unsigned long long>(film.samples), describe(opt.est).c_str());
+    std::fprintf(stderr, "tuile: setup %.3f s, render %.3f s, %.2f M samples/s -> %s\n", job.setup_seconds,
+                 render_seconds, st.seconds > 0 ? static_cast<double>(st.samples) / st.seconds * 1e-6 : 0.0,
+                 job.out.c_str());
+    if (reason == StopReason::time_budget)
+      std::fprintf(stderr, "tuile: time budget of %.3g s: stopped after %llu spp\n", f.time_budget,
+                   static_cast<unsigned long long>(film.samples));
+    if (f.target_error > 0)
+      std::fprintf(stderr, "tuile: estimated relMSE %.3g %s target %.3g after %llu spp (%.4g M samples)\n",
+                   estimated_error, estimated_error < f.target_error ? "below the" : "still above the", f.target_error,
+                   static_cast<unsigned long long>(film.samples), static_cast<double>(film.samples * job.pixels) * 1e-6);
+  }
+  if (interrupted) {
+    std::fprintf(stderr, "tuile: %s: %s holds the %llu complete spp%s\n",
+                 reason == StopReason::failed ? "the job failed" : "interrupted", job.out.c_str(),
+                 static_cast<unsigned long long>(film.samples),
+                 checkpoint_saved ? ("; continue with --resume (checkpoint " + job.ckpt + ")").c_str() : "");
+    return reason == StopReason::failed ? 1 : exit_code_for_signal(stop_signal());
+  }
+  if (f.stats) {
+    const std::vector<float> var = film.variance_of_mean();
+    double mv = 0;
+    for (float v : var) mv += v;
+    mv /= var.empty() ? 1.0 : static_cast<double>(var.size());
+    std::printf("rejected_nonfinite camera=%llu light=%llu bsdf=%llu\n",
+                static_cast<unsigned long long>(st.rejected_camera), static_cast<unsigned long long>(st.rejected_light),
+                static_cast<unsigned long long>(st.rejected_bsdf));
+    std::printf("worst_accident %.6g (largest single-sample luminance / its pixel's mean)\n", st.worst_ratio);
+    std::printf("mean_variance_of_mean %.6g\n", mv);
+  }
+  return 0;
+}
+
+int run_render(const RenderFlags& f) {
+  RenderJob job = start_render_job(f);
+  print_scene_warnings(f, job);
+  Film& film = job.film;
+  const uint32_t spp = job.spp;
+  const uint64_t pixels = job.pixels;
+  Renderer renderer(job.p.scene, *job.p.accel, job.p.opt);
   const std::atomic<bool>& stop = install_stop_signals();
   PassControl ctl;
   ctl.cancel = &stop;
@@ -107,7 +187,7 @@ int run_render(const RenderFlags& f) {
   ctl.after_pass = [&](const Film& fl, const RenderStats& st) {
     if (f.checkpoint_seconds > 0 && seconds_since(last_checkpoint) >= f.checkpoint_seconds) {
       try {
-        save_checkpoint(ckpt, fingerprint, plan, fl);
+        save_checkpoint(job.ckpt, job.fingerprint, job.plan, fl);
       } catch (const std::exception& e) {  // the render goes on; its image is still written at the end
         std::cerr << "\ntuile: warning: " << e.what() << "\n";
       }
@@ -117,75 +197,14 @@ int run_render(const RenderFlags& f) {
     if (progress && (elapsed > 1.0 || shown) && st.seconds > 0) {
       const double rate = static_cast<double>(st.samples) / st.seconds;
       const double eta = static_cast<double>((spp - fl.samples) * pixels) / rate;
-      std::fprintf(stderr, "\rtuile: %5.1f%%  %.2f M samples/s  ETA %.1f s   ", 100.0 * static_cast<double>(fl.samples) / spp,
-                   rate * 1e-6, eta);
+      std::fprintf(stderr, "\rtuile: %5.1f%%  %.2f M samples/s  ETA %.1f s   ",
+                   100.0 * static_cast<double>(fl.samples) / spp, rate * 1e-6, eta);
       shown = true;
     }
   };
-  const PassesResult res = render_passes(renderer, film, spp, plan, ctl);
+  const PassesResult res = render_passes(renderer, film, spp, job.plan, ctl);
   if (shown) std::fprintf(stderr, "\n");
-  const bool interrupted = res.reason == StopReason::cancelled;
-  const double render_seconds = seconds_since(render_start);
-
-  // what the render has, before anything else can go wrong
-  bool checkpoint_saved = false;
-  if (interrupted || f.checkpoint_seconds > 0) {
-    try {
-      save_checkpoint(ckpt, fingerprint, plan, film);
-      checkpoint_saved = true;
-    } catch (const std::exception& e) {
-      std::cerr << "tuile: warning: " << e.what() << "\n";
-    }
-  }
-  std::vector<ImageLayer> layers;
-  if (opt.aov_variance) layers.push_back({"variance", 3, film.variance_of_mean()});
-  if (opt.aov_mis_weight) layers.push_back({"mis_weight", 1, film.mis_weight()});
-  const std::vector<float> img = film.mean();
-  ExrMetadata meta;
-  meta.integers = {{"spp", static_cast<int>(film.samples)}, {"seed", static_cast<int>(opt.est.seed)}};
-  static const char* samplers[] = {"independent", "stratified", "sobol"};
-  meta.text = {{"estimator", describe(opt.est)},
-               {"sampler", samplers[static_cast<int>(opt.est.sampler)]},
-               {"tuileVersion", TUILE_VERSION},
-               {"commandLine", f.command_line},
-               {"stoppedBy", reason_name(res.reason)}};
-  meta.reals = {{"renderSeconds", render_seconds}};
-  if (f.target_error > 0) meta.reals.emplace_back("estimatedRelMSE", estimated_error);
-  write_exr(out, film.width, film.height, img, layers, meta);
-  write_png(with_extension(out, ".png"), film.width, film.height, img);
-
-  const RenderStats& st = res.stats;
-  if (!f.quiet) {
-    std::fprintf(stderr, "tuile: %s %dx%d, %llu spp, %s\n", scene.source.c_str(), film.width, film.height,
-                 static_cast<unsigned long long>(film.samples), describe(opt.est).c_str());
-    std::fprintf(stderr, "tuile: setup %.3f s, render %.3f s, %.2f M samples/s -> %s\n", setup, render_seconds,
-                 st.seconds > 0 ? static_cast<double>(st.samples) / st.seconds * 1e-6 : 0.0, out.c_str());
-    if (res.reason == StopReason::time_budget)
-      std::fprintf(stderr, "tuile: time budget of %.3g s: stopped after %llu spp\n", f.time_budget,
-                   static_cast<unsigned long long>(film.samples));
-    if (f.target_error > 0)
-      std::fprintf(stderr, "tuile: estimated relMSE %.3g %s target %.3g after %llu spp (%.4g M samples)\n",
-                   estimated_error, estimated_error < f.target_error ? "below the" : "still above the", f.target_error,
-                   static_cast<unsigned long long>(film.samples), static_cast<double>(film.samples * pixels) * 1e-6);
-  }
-  if (interrupted) {
-    std::fprintf(stderr, "tuile: interrupted: %s holds the %llu complete spp%s\n", out.c_str(),
-                 static_cast<unsigned long long>(film.samples),
-                 checkpoint_saved ? ("; continue with --resume (checkpoint " + ckpt + ")").c_str() : "");
-    return exit_code_for_signal(stop_signal());
-  }
-  if (f.stats) {
-    const std::vector<float> var = film.variance_of_mean();
-    double mv = 0;
-    for (float v : var) mv += v;
-    mv /= var.empty() ? 1.0 : static_cast<double>(var.size());
-    std::printf("rejected_nonfinite camera=%llu light=%llu bsdf=%llu\n",
-                static_cast<unsigned long long>(st.rejected_camera), static_cast<unsigned long long>(st.rejected_light),
-                static_cast<unsigned long long>(st.rejected_bsdf));
-    std::printf("worst_accident %.6g (largest single-sample luminance / its pixel's mean)\n", st.worst_ratio);
-    std::printf("mean_variance_of_mean %.6g\n", mv);
-  }
-  return 0;
+  return finish_render_job(f, job, res.reason, res.stats, seconds_since(render_start), estimated_error);
 }
 
 }  // namespace tuile

@@ -33,7 +33,7 @@ struct PassPlan {
 PassPlan fixed_passes(uint64_t pixels) noexcept;
 inline PassPlan doubling_passes() noexcept { return {PassSchedule::doubling, 1}; }
 
-enum class StopReason { complete, cancelled, time_budget, target_met };
+enum class StopReason { complete, cancelled, time_budget, target_met, failed };
 
 struct PassControl {
   const std::atomic<bool>* cancel = nullptr;  // set: stop at the next tile boundary, drop that pass

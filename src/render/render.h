@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "accel/embree.h"
 #include "render/film.h"
@@ -39,6 +40,11 @@ struct RenderStats {
   }
 };
 
+// A tile's pixels: [x0, x0 + w) x [y0, y0 + h).
+struct TileRect {
+  int x0 = 0, y0 = 0, w = 0, h = 0;
+};
+
 class Renderer {
  public:
   Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options);
@@ -46,7 +52,12 @@ class Renderer {
   // Adds samples [begin, end) of every pixel to the film. Not reentrant: the per-thread
   // tile buffers are kept from one call to the next (progressive renders and converge
   // do not pay for them again).
-  RenderStats render(Film& film, uint32_t begin, uint32_t end, Profile* profile = nullptr);
+  // With `only`, just those tiles run (their pixels get the bits a whole render gives them;
+  // the others are left alone): the unit of work of a distributed render.
+  RenderStats render(Film& film, uint32_t begin, uint32_t end, Profile* profile = nullptr,
+                     const std::vector<int>* only = nullptr);
+  int tile_count() const;
+  TileRect tile_rect(int tile) const;
   // The pipeline this scene and estimator select, and why.
   std::string pipeline_name(std::string* why = nullptr) const;
   // Whether bounce rays run against the emitters (BounceTrace resolved for this scene).

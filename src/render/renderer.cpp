@@ -48,6 +48,21 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
 
 Renderer::~Renderer() = default;
 
+int Renderer::tile_count() const {
+  const int ts = opt_.tile;
+  return div_up(scene_.camera.width, ts) * div_up(scene_.camera.height, ts);
+}
+
+TileRect Renderer::tile_rect(int tile) const {
+  const int ts = opt_.tile, tiles_x = div_up(scene_.camera.width, ts);
+  TileRect r;
+  r.x0 = (tile % tiles_x) * ts;
+  r.y0 = (tile / tiles_x) * ts;
+  r.w = std::min(ts, scene_.camera.width - r.x0);
+  r.h = std::min(ts, scene_.camera.height - r.y0);
+  return r;
+}
+
 std::string Renderer::pipeline_name(std::string* why) const {
   std::string w;
   const PipelineEntry e = pick_pipeline(*views_, opt_.est, opt_.general_pipeline, w);
@@ -55,7 +70,7 @@ std::string Renderer::pipeline_name(std::string* why) const {
   return e.name;
 }
 
-RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* profile) {
+RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* profile, const std::vector<int>* only) {
   const Camera& cam = scene_.camera;
   if (film.width != cam.width || film.height != cam.height) film.reset(cam.width, cam.height);
   const SceneViews& v = *views_;
@@ -84,7 +99,8 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
   c.layout = SampleLayout{static_cast<uint32_t>(est.bsdf_samples), static_cast<uint32_t>(c.light_passes)};
   std::string why;
   const PipelineEntry pipe = pick_pipeline(v, est, opt_.general_pipeline, why);
-  const int tiles = c.tiles_x * (div_up(cam.height, ts));
+  const int all_tiles = c.tiles_x * (div_up(cam.height, ts));
+  const int tiles = only ? static_cast<int>(only->size()) : all_tiles;
 
   auto& buffers = pool_->buffers;
   for (auto& p : buffers) p->stats.reset();
@@ -104,7 +120,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
                             skipped.store(true, std::memory_order_relaxed);
                             return;
                           }
-                          pipe.fn(c, tb, tp, t, begin, end);
+                          pipe.fn(c, tb, tp, only ? (*only)[static_cast<size_t>(t)] : t, begin, end);
                         }
                       },
                       tbb::simple_partitioner());
@@ -116,7 +132,15 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
   st.cancelled = skipped.load();
   st.bounce_against_emitters = bounce_against_emitters_;
   film.samples += end - begin;
-  st.samples = static_cast<uint64_t>(end - begin) * static_cast<uint64_t>(cam.width) * cam.height;
+  uint64_t pixels = static_cast<uint64_t>(cam.width) * static_cast<uint64_t>(cam.height);
+  if (only) {
+    pixels = 0;
+    for (int t : *only) {
+      const TileRect r = tile_rect(t);
+      pixels += static_cast<uint64_t>(r.w) * static_cast<uint64_t>(r.h);
+    }
+  }
+  st.samples = static_cast<uint64_t>(end - begin) * pixels;
   for (auto& p : buffers) {
     st.rays_camera += p->stats.rays_camera;
     st.rays_shadow += p->stats.rays_shadow;
@@ -147,8 +171,8 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
       ++tid;
     }
   }
-  // the worst accident, from the pixel means (no mean image allocated)
-  for (size_t i = 0; i < film.max_sample.size() && film.samples > 0; ++i) {
+  // the worst accident, from the pixel means (no mean image allocated; not for a part of the tiles)
+  for (size_t i = 0; i < film.max_sample.size() && film.samples > 0 && !only; ++i) {
     const float y = luminance(film.mean_of(3 * i), film.mean_of(3 * i + 1), film.mean_of(3 * i + 2));
     if (y > 0) st.worst_ratio = std::max(st.worst_ratio, static_cast<double>(film.max_sample[i] / y));
   }

@@ -1,0 +1,168 @@
+// Rendering over MPI ranks, run for real with mpirun (--oversubscribe, and
+// --allow-run-as-root where the tests run as root): K = 1 to 4 ranks give the bytes of the
+// single-process render; a scene that fails to load is reported once; a rank that exits,
+// or stops answering, ends the job with a message naming it, within the timeout, and rank
+// 0 writes the complete passes it has. Skipped with a message where tuile was built
+// without MPI or mpirun is missing.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "render/passes.h"
+#include "scene/image_io.h"
+
+using namespace tuile;
+namespace fs = std::filesystem;
+
+namespace {
+
+#ifdef TUILE_MPIEXEC
+const char* kMpiexec = TUILE_MPIEXEC;
+#else
+const char* kMpiexec = nullptr;
+#endif
+
+bool mpi_ready(std::string& why) {
+  if (!kMpiexec) {
+    why = "tuile was built without MPI (install libopenmpi-dev and reconfigure)";
+    return false;
+  }
+  if (!fs::exists(kMpiexec)) {
+    why = std::string("no ") + kMpiexec;
+    return false;
+  }
+  return true;
+}
+
+// Runs a shell command, returns its exit status and its output (stdout and stderr).
+int run(const std::string& cmd, std::string& out) {
+  FILE* f = popen((cmd + " 2>&1").c_str(), "r");
+  if (!f) return -1;
+  char buf[4096];
+  out.clear();
+  size_t n;
+  while ((n = fread(buf, 1, sizeof(buf), f)) > 0) out.append(buf, n);
+  const int status = pclose(f);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::string mpirun(int ranks, const std::string& env = "") {
+  std::string cmd = env + " " + kMpiexec + " --oversubscribe";
+  if (geteuid() == 0) cmd += " --allow-run-as-root";
+  for (const char* var : {"TUILE_TEST_FAIL_RANK", "TUILE_TEST_FAIL_MODE"})
+    if (env.find(var) != std::string::npos) cmd += std::string(" -x ") + var;
+  return cmd + " -n " + std::to_string(ranks) + " " + TUILE_BINARY;
+}
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    char tmpl[] = "/tmp/tuile-mpi-XXXXXX";
+    path = mkdtemp(tmpl);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+  std::string operator/(const std::string& name) const { return (path / name).string(); }
+};
+
+bool same_pixels(const std::string& a, const std::string& b) {
+  int wa = 0, ha = 0, wb = 0, hb = 0;
+  const std::vector<float> x = read_exr(a, wa, ha), y = read_exr(b, wb, hb);
+  return wa == wb && ha == hb && std::memcmp(x.data(), y.data(), x.size() * sizeof(float)) == 0;
+}
+
+size_t count(const std::string& text, const std::string& what) {
+  size_t n = 0;
+  for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+}  // namespace
+
+TEST(Mpi, AnyNumberOfRanksGivesTheSingleProcessBytes) {
+  std::string why;
+  if (!mpi_ready(why)) GTEST_SKIP() << why;
+  TempDir dir;
+  // 96x64: passes of 1365 spp, so 3000 spp is three passes of unequal size
+  const std::string course = std::string(TUILE_SOURCE_DIR) + "/scenes/course/noise-room.pbrt";
+  for (const std::string& scene : {std::string("built-in:cornell"), std::string("built-in:two-panels"), course}) {
+    const std::string args = " render " + scene + " --res 96x64 --spp 3000 --quiet -o ";
+    std::string out;
+    ASSERT_EQ(run(std::string(TUILE_BINARY) + args + (dir / "one.exr"), out), 0) << out;
+    for (int k = 1; k <= 4; ++k) {
+      const std::string exr = dir / ("k" + std::to_string(k) + ".exr");
+      ASSERT_EQ(run(mpirun(k) + args + exr, out), 0) << scene << " with " << k << " ranks: " << out;
+      EXPECT_TRUE(same_pixels(dir / "one.exr", exr)) << scene << " with " << k << " ranks";
+      const int* spp = read_exr_metadata(exr).find_integer("spp");
+      ASSERT_NE(spp, nullptr);
+      EXPECT_EQ(*spp, 3000);
+    }
+  }
+}
+
+TEST(Mpi, AMissingSceneIsReportedOnce) {
+  std::string why;
+  if (!mpi_ready(why)) GTEST_SKIP() << why;
+  TempDir dir;
+  std::string out;
+  EXPECT_NE(run(mpirun(3) + " render " + (dir / "missing.pbrt") + " -o " + (dir / "x.exr"), out), 0);
+  EXPECT_EQ(count(out, "missing.pbrt"), 1u) << out;
+  EXPECT_NE(out.find("3 of 3 ranks failed"), std::string::npos) << out;
+}
+
+TEST(Mpi, ARankThatExitsEndsTheJobAndRankZeroKeepsWhatItHas) {
+  std::string why;
+  if (!mpi_ready(why)) GTEST_SKIP() << why;
+  TempDir dir;
+  std::string out;
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string exr = dir / "f.exr";
+  EXPECT_NE(run(mpirun(3, "TUILE_TEST_FAIL_RANK=2") + " render built-in:cornell --res 96x64 --spp 20000 -o " + exr, out), 0);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 60.0);
+  // mpirun names the process that failed (job id, rank 2) and its exit code
+  EXPECT_NE(out.find(",2]"), std::string::npos) << out;
+  ASSERT_TRUE(fs::exists(exr)) << out;
+  const ExrMetadata m = read_exr_metadata(exr);
+  ASSERT_NE(m.find_integer("spp"), nullptr);
+  EXPECT_EQ(*m.find_integer("spp") % static_cast<int>(fixed_passes(96 * 64).pass_spp), 0) << "complete passes only";
+}
+
+TEST(Mpi, ARankThatStopsAnsweringEndsTheJobWithinTheTimeout) {
+  std::string why;
+  if (!mpi_ready(why)) GTEST_SKIP() << why;
+  TempDir dir;
+  std::string out;
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string exr = dir / "h.exr";
+  EXPECT_NE(run(mpirun(3, "TUILE_TEST_FAIL_RANK=2 TUILE_TEST_FAIL_MODE=hang") +
+                    " render built-in:cornell --res 96x64 --spp 20000 --mpi-timeout 2 -o " + exr,
+                out),
+            0);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 60.0);
+  EXPECT_NE(out.find("rank 2 has not answered for 2 s"), std::string::npos) << out;
+  ASSERT_TRUE(fs::exists(exr)) << out;
+  const std::string* by = read_exr_metadata(exr).find_text("stoppedBy");
+  ASSERT_NE(by, nullptr);
+  EXPECT_EQ(*by, "failed");
+}
+
+TEST(Mpi, BenchReportsEveryRankAndTheCommunication) {
+  std::string why;
+  if (!mpi_ready(why)) GTEST_SKIP() << why;
+  std::string out;
+  ASSERT_EQ(run(mpirun(3) + " bench built-in:cornell --res 96x64 --spp 64 --repeat 2 --warmup 0", out), 0) << out;
+  EXPECT_NE(out.find("total:"), std::string::npos) << out;
+  EXPECT_NE(out.find("communication s"), std::string::npos) << out;
+  for (const char* rank : {"\n1 ", "\n2 "}) EXPECT_NE(out.find(rank), std::string::npos) << out;
+}
