@@ -18,9 +18,12 @@
 #include <vector>
 
 #include "render/passes.h"
+#include "output_files.h"
 #include "scene/image_io.h"
 
 using namespace tuile;
+using tuile::testing::same_pixels;
+using tuile::testing::TempDir;
 namespace fs = std::filesystem;
 
 namespace {
@@ -61,25 +64,6 @@ std::string mpirun(int ranks, const std::string& env = "") {
   for (const char* var : {"TUILE_TEST_FAIL_RANK", "TUILE_TEST_FAIL_MODE"})
     if (env.find(var) != std::string::npos) cmd += std::string(" -x ") + var;
   return cmd + " -n " + std::to_string(ranks) + " " + TUILE_BINARY;
-}
-
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    char tmpl[] = "/tmp/tuile-mpi-XXXXXX";
-    path = mkdtemp(tmpl);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  std::string operator/(const std::string& name) const { return (path / name).string(); }
-};
-
-bool same_pixels(const std::string& a, const std::string& b) {
-  int wa = 0, ha = 0, wb = 0, hb = 0;
-  const std::vector<float> x = read_exr(a, wa, ha), y = read_exr(b, wb, hb);
-  return wa == wb && ha == hb && std::memcmp(x.data(), y.data(), x.size() * sizeof(float)) == 0;
 }
 
 size_t count(const std::string& text, const std::string& what) {

@@ -31,11 +31,14 @@
 #include "measure/metrics.h"
 #include "render/checkpoint.h"
 #include "scene/atomic_file.h"
+#include "output_files.h"
 #include "scene/image_io.h"
 
 extern char** environ;
 
 using namespace tuile;
+using tuile::testing::same_pixels;
+using tuile::testing::TempDir;
 namespace fs = std::filesystem;
 
 namespace {
@@ -94,25 +97,6 @@ bool wait_for_file(const Child& c, const std::string& path) {
     std::this_thread::yield();
   }
   return false;
-}
-
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    char tmpl[] = "/tmp/tuile-nothing-lost-XXXXXX";
-    path = mkdtemp(tmpl);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  std::string operator/(const std::string& name) const { return (path / name).string(); }
-};
-
-bool same_pixels(const std::string& a, const std::string& b) {
-  int wa = 0, ha = 0, wb = 0, hb = 0;
-  const std::vector<float> x = read_exr(a, wa, ha), y = read_exr(b, wb, hb);
-  return wa == wb && ha == hb && x.size() == y.size() && std::memcmp(x.data(), y.data(), x.size() * sizeof(float)) == 0;
 }
 
 int header_spp(const std::string& exr) {
