@@ -11,7 +11,7 @@
 #include "wave/surface_hits.h"
 #include "mis.h"
 #include "sample/rng.h"
-#include "wave/sample_cosine.h"
+#include "wave/sample_bsdf.h"
 #include "wave/sample_lights.h"
 #include "wave/emitter_hits.h"
 #include "accel/embree.h"
@@ -74,7 +74,7 @@ template <class T> void BM_sample_lights(benchmark::State& state) {
   pass.fixed_light = 0;
   constexpr int w = lane_traits<T>::width;
   for (auto _ : state) {
-    for (int k = 0; k < lanes; k += w) sample_lights_lanes<T, kind_area, false>(f.views.lights, f.est, pass, *f.tb, k);
+    for (int k = 0; k < lanes; k += w) sample_lights_lanes<T, kind_area, false>(f.views.geom, f.views.lights, f.est, pass, *f.tb, k);
     benchmark::DoNotOptimize(f.tb->tech.cr[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
@@ -87,7 +87,7 @@ template <class T, bool Pick> void BM_sample_lights_rect(benchmark::State& state
   pass.fixed_light = Pick ? -1 : 0;
   for (auto _ : state) {
     for (int k = 0; k < lanes; k += lane_traits<T>::width)
-      sample_lights_lanes<T, kind_area | kind_rects, Pick>(f.views.lights, f.est, pass, *f.tb, k);
+      sample_lights_lanes<T, kind_area | kind_rects, Pick>(f.views.geom, f.views.lights, f.est, pass, *f.tb, k);
     benchmark::DoNotOptimize(f.tb->tech.cr[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
@@ -127,11 +127,11 @@ template <class T> void BM_light_point(benchmark::State& state) {
   }
   state.SetItemsProcessed(state.iterations() * lanes);
 }
-template <class T> void BM_sample_cosine(benchmark::State& state) {
+template <class T> void BM_sample_bsdf(benchmark::State& state) {
   Fixture f;
   constexpr int w = lane_traits<T>::width;
   for (auto _ : state) {
-    for (int k = 0; k < lanes; k += w) sample_cosine_lanes<T>(f.est, *f.tb, k);
+    for (int k = 0; k < lanes; k += w) sample_bsdf_lanes<T>(f.views.geom, f.est, *f.tb, k);
     benchmark::DoNotOptimize(f.tb->bounce[0].ray.dir_x[0]);
   }
   state.SetItemsProcessed(state.iterations() * lanes);
@@ -227,8 +227,8 @@ BENCHMARK_TEMPLATE(BM_light_point, vfloat);
 BENCHMARK_TEMPLATE(BM_light_point, vfloat2);
 BENCHMARK_TEMPLATE(BM_mis_weight, vfloat)->Arg(0)->Arg(1);
 BENCHMARK_TEMPLATE(BM_mis_weight, float)->Arg(0)->Arg(1);
-BENCHMARK_TEMPLATE(BM_sample_cosine, vfloat);
-BENCHMARK_TEMPLATE(BM_sample_cosine, float);
+BENCHMARK_TEMPLATE(BM_sample_bsdf, vfloat);
+BENCHMARK_TEMPLATE(BM_sample_bsdf, float);
 BENCHMARK_TEMPLATE(BM_generate, vfloat);
 BENCHMARK_TEMPLATE(BM_generate, float);
 BENCHMARK_TEMPLATE(BM_camera_hits, vfloat);

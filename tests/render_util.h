@@ -40,7 +40,7 @@ inline PlaneScene plane_scene(vec3f eye, float fov, int res, float rho = 0.5f) {
   p.rho = rho;
   Scene& s = p.scene;
   s.source = "test:plane";
-  s.materials.push_back({Rgb{rho, rho, rho}, -1, ""});
+  s.materials.push_back(diffuse_material(Rgb{rho, rho, rho}, -1));
   Mesh floor;
   floor.name = "floor";
   floor.material = 0;

@@ -132,7 +132,7 @@ TEST(Cli, ProfileTraceIsChromeTraceJson) {
   const std::string tr = tmp("cli_trace.json");
   const CmdResult r = run("profile built-in:cornell --res 32x32 --spp 2 --threads 2 --roofline --trace " + tr);
   ASSERT_EQ(r.code, 0) << r.out;
-  for (const char* stage : {"generate", "intersect camera", "sample lights", "sample cosine", "intersect shadow",
+  for (const char* stage : {"generate", "intersect camera", "sample lights", "sample BSDF", "intersect shadow",
                             "intersect bounce", "MIS weight", "accumulate", "scheduling", "roofline"})
     EXPECT_NE(r.out.find(stage), std::string::npos) << stage;
   std::ifstream f(tr);

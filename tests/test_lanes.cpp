@@ -17,7 +17,7 @@
 #include "wave/generate.h"
 #include "wave/surface_hits.h"
 #include "accel/embree.h"
-#include "wave/sample_cosine.h"
+#include "wave/sample_bsdf.h"
 #include "wave/sample_lights.h"
 #include "wave/emitter_hits.h"
 #include "render/render.h"
@@ -33,7 +33,7 @@ namespace {
 Scene all_lights_scene(bool extras = false) {
   Scene s;
   s.source = "test:all-lights";
-  s.materials.push_back({Rgb{0.7f, 0.5f, 0.3f}, -1, ""});
+  s.materials.push_back(diffuse_material(Rgb{0.7f, 0.5f, 0.3f}, -1));
   Mesh floor;
   floor.name = "floor";
   floor.material = 0;
@@ -76,7 +76,7 @@ Scene all_lights_scene(bool extras = false) {
     tex.width = tex.height = 4;
     for (int k = 0; k < 16; ++k) tex.rgb.insert(tex.rgb.end(), {0.2f + 0.05f * k, (k % 3) * 0.4f, ((k / 4 + k) % 2) * 0.9f});
     s.textures.push_back(tex);
-    s.materials.push_back({Rgb{0.9f, 0.8f, 0.7f}, 0, ""});
+    s.materials.push_back(diffuse_material(Rgb{0.9f, 0.8f, 0.7f}, 0));
     Mesh wall;
     wall.name = "wall";
     wall.material = 1;
@@ -283,22 +283,22 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
         LightPass pass;
         pass.fixed_light = pick == LightPick::all ? 37 : -1;
         const bool fixed = pass.fixed_light >= 0;
-        for (int k = 0; k < n; k += simd_width) sample_lights_lanes<vfloat>(ref, est, pass, *a, k);
+        for (int k = 0; k < n; k += simd_width) sample_lights_lanes<vfloat>(views.geom, ref, est, pass, *a, k);
         for (int k = 0; k < n; ++k) {
-          if (fixed) sample_lights_lanes<float, R, false>(views.lights, est, pass, *b, k);
-          else sample_lights_lanes<float, R, true>(views.lights, est, pass, *b, k);
+          if (fixed) sample_lights_lanes<float, R, false>(views.geom, views.lights, est, pass, *b, k);
+          else sample_lights_lanes<float, R, true>(views.geom, views.lights, est, pass, *b, k);
         }
         for (int k = 0; k < n; k += simd_width) {
-          if (fixed) sample_lights_lanes<vfloat, R, false>(views.lights, est, pass, *c, k);
-          else sample_lights_lanes<vfloat, R, true>(views.lights, est, pass, *c, k);
+          if (fixed) sample_lights_lanes<vfloat, R, false>(views.geom, views.lights, est, pass, *c, k);
+          else sample_lights_lanes<vfloat, R, true>(views.geom, views.lights, est, pass, *c, k);
         }
         for (int k = 0; k < n; k += 2 * simd_width) {
-          if (fixed) sample_lights_lanes<vfloat2, R, false>(views.lights, est, pass, *d, k);
-          else sample_lights_lanes<vfloat2, R, true>(views.lights, est, pass, *d, k);
+          if (fixed) sample_lights_lanes<vfloat2, R, false>(views.geom, views.lights, est, pass, *d, k);
+          else sample_lights_lanes<vfloat2, R, true>(views.geom, views.lights, est, pass, *d, k);
         }
         for (int k = 0; k < n; k += 4 * simd_width) {
-          if (fixed) sample_lights_lanes<vfloat4, R, false>(views.lights, est, pass, *e, k);
-          else sample_lights_lanes<vfloat4, R, true>(views.lights, est, pass, *e, k);
+          if (fixed) sample_lights_lanes<vfloat4, R, false>(views.geom, views.lights, est, pass, *e, k);
+          else sample_lights_lanes<vfloat4, R, true>(views.geom, views.lights, est, pass, *e, k);
         }
         int lit = 0;
         for (const TileBuffers* t : {b.get(), c.get(), d.get(), e.get()}) {
@@ -378,22 +378,22 @@ TEST(Lanes, StagesEqualScalar) {
           // light sampling stage
           LightPass pass;
           pass.fixed_light = pick == LightPick::all ? 2 : -1;
-          for (int k = 0; k < n; k += simd_width) sample_lights_lanes<vfloat>(views.lights, est, pass, *a, k);
-          for (int k = 0; k < n; ++k) sample_lights_lanes<float>(views.lights, est, pass, *b, k);
+          for (int k = 0; k < n; k += simd_width) sample_lights_lanes<vfloat>(views.geom, views.lights, est, pass, *a, k);
+          for (int k = 0; k < n; ++k) sample_lights_lanes<float>(views.geom, views.lights, est, pass, *b, k);
           if (pass.fixed_light >= 0) {  // the specialised broadcast path gives the same bits
             auto c = std::make_unique<TileBuffers>(*b);
             for (int k = 0; k < n; k += simd_width)
-              sample_lights_lanes<vfloat, kind_all, false>(views.lights, est, pass, *c, k);
+              sample_lights_lanes<vfloat, kind_all, false>(views.geom, views.lights, est, pass, *c, k);
             expect_same_floats(a->tech.cr, c->tech.cr, n, name);
           }
           // four batches at a time (vfloat4), then two (vfloat2), then one, as the stage runs them
           {
             int k = 0;
             for (; k + 4 * simd_width <= n; k += 4 * simd_width)
-              sample_lights_lanes<vfloat4>(views.lights, est, pass, *d, k);
+              sample_lights_lanes<vfloat4>(views.geom, views.lights, est, pass, *d, k);
             for (; k + 2 * simd_width <= n; k += 2 * simd_width)
-              sample_lights_lanes<vfloat2>(views.lights, est, pass, *d, k);
-            for (; k < n; k += simd_width) sample_lights_lanes<vfloat>(views.lights, est, pass, *d, k);
+              sample_lights_lanes<vfloat2>(views.geom, views.lights, est, pass, *d, k);
+            for (; k < n; k += simd_width) sample_lights_lanes<vfloat>(views.geom, views.lights, est, pass, *d, k);
           }
           for (const TileBuffers* t : {a.get(), d.get()}) {
             expect_same_floats(t->tech.cr, b->tech.cr, n, name);
@@ -436,12 +436,12 @@ TEST(Lanes, StagesEqualScalar) {
           // cosine stage: one batch at a time, two at a time (vfloat2, as the stage runs
           // them), and the scalar reference
           auto d2 = std::make_unique<TileBuffers>(*a);
-          for (int k = 0; k < n; k += simd_width) sample_cosine_lanes<vfloat>(est, *a, k);
-          for (int k = 0; k < n; ++k) sample_cosine_lanes<float>(est, *b, k);
+          for (int k = 0; k < n; k += simd_width) sample_bsdf_lanes<vfloat>(views.geom, est, *a, k);
+          for (int k = 0; k < n; ++k) sample_bsdf_lanes<float>(views.geom, est, *b, k);
           {
             int k = 0;
-            for (; k + 2 * simd_width <= n; k += 2 * simd_width) sample_cosine_lanes<vfloat2>(est, *d2, k);
-            for (; k < n; k += simd_width) sample_cosine_lanes<vfloat>(est, *d2, k);
+            for (; k + 2 * simd_width <= n; k += 2 * simd_width) sample_bsdf_lanes<vfloat2>(views.geom, est, *d2, k);
+            for (; k < n; k += simd_width) sample_bsdf_lanes<vfloat>(views.geom, est, *d2, k);
           }
           for (const TileBuffers* t : {a.get(), d2.get()})
             for (int p = 0; p < n / packet_width; ++p)
@@ -619,7 +619,7 @@ TEST(Lanes, CameraHitsEqualScalar) {
       }
       a->cam[7].ray.tfar[9] = std::numeric_limits<float>::infinity();
       // cached sampler keys of pairs 1..4, compacted with the shading points
-      a->keys.keyed = 0b11111u;
+      a->keys.keyed = (1u << SamplerKeys::pairs) - 1u;
       for (int p = 0; p < SamplerKeys::pairs; ++p) make_pair_keys(est.seed, a->lanes.pixel, p, 256, a->keys.lane_keys(p));
       auto b = std::make_unique<TileBuffers>(*a);
       camera_hits<true, vfloat>(views.geom, views.lights, est, 0, SampleLayout{}.technique_choice(), lanes, *a);
@@ -742,7 +742,7 @@ TEST(Lanes, CachedKeysWhereEveryLaneHits) {
   }
   Estimator est;
   est.seed = 3;
-  a->keys.keyed = 0b11111u;
+  a->keys.keyed = (1u << SamplerKeys::pairs) - 1u;
   for (int p = 0; p < SamplerKeys::pairs; ++p) make_pair_keys(est.seed, a->lanes.pixel, p, 256, a->keys.lane_keys(p));
   generate(views.camera, est, 0, SampleLayout::camera, 256, *a);
   for (int p = 0; p < 16; ++p) accel.intersect16(a->lanes.cam_valid + p * packet_width, a->cam[p], true);
@@ -790,7 +790,7 @@ TEST(Lanes, EmitterQueueEqualScalar) {
           a->points.ny[k] = -1.f;
         }
       }
-      sample_cosine(est, 0, SampleLayout{}.bsdf(0), *a);
+      sample_bsdf(views.geom, est, 0, SampleLayout{}.bsdf(0), SampleLayout{}.bsdf_lobe(0), *a);
       const int padded = packet_padded(count);
       for (int p = 0; p < padded / packet_width; ++p) accel.intersect16(a->tech.valid + p * packet_width, a->bounce[p], false);
       std::fill_n(a->points.Sr, max_tile_lanes, 0.f);

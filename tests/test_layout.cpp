@@ -23,7 +23,10 @@ TEST(SampleLayout, PairsAreDistinctAcrossPurposesAndDepths) {
       for (uint32_t d = 0; d < 4; ++d) {
         const std::string at = " depth " + std::to_string(d);
         claim(L.technique_choice(d), "choice" + at);
-        for (uint32_t m = 0; m < M; ++m) claim(L.bsdf(m, d), "bsdf " + std::to_string(m) + at);
+        for (uint32_t m = 0; m < M; ++m) {
+          claim(L.bsdf(m, d), "bsdf " + std::to_string(m) + at);
+          claim(L.bsdf_lobe(m, d), "lobe " + std::to_string(m) + at);
+        }
         for (uint32_t j = 0; j < N; ++j) {
           claim(L.light_pick(j, d), "pick " + std::to_string(j) + at);
           claim(L.light_point(j, d), "point " + std::to_string(j) + at);
@@ -37,5 +40,6 @@ TEST(SampleLayout, PairsAreDistinctAcrossPurposesAndDepths) {
       EXPECT_EQ(L.bsdf(M - 1), 1 + M);
       EXPECT_EQ(L.light_pick(0), 2 + M);
       EXPECT_EQ(L.light_point(N - 1), 2 + M + 2 * (N - 1) + 1);
+      EXPECT_EQ(L.bsdf_lobe(0), 2 + M + 2 * N);  // the lobe choices after the pairs above
     }
 }

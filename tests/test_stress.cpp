@@ -494,8 +494,8 @@ Scene room(vec3f t, float s, int res) {
   auto E = [&](vec3f e) { return e * s; };
   Scene sc;
   sc.source = "test:room";
-  sc.materials.push_back({Rgb{0.73f, 0.73f, 0.73f}, -1, ""});
-  sc.materials.push_back({Rgb{0.65f, 0.05f, 0.05f}, -1, ""});
+  sc.materials.push_back(diffuse_material(Rgb{0.73f, 0.73f, 0.73f}, -1));
+  sc.materials.push_back(diffuse_material(Rgb{0.65f, 0.05f, 0.05f}, -1));
   Mesh white;
   white.name = "white";
   white.material = 0;
@@ -884,7 +884,7 @@ namespace {
 Scene furnace(float L, float rho) {
   Scene s;
   s.source = "test:furnace";
-  s.materials.push_back({Rgb{rho, rho, rho}, -1, ""});
+  s.materials.push_back(diffuse_material(Rgb{rho, rho, rho}, -1));
   Mesh m;
   m.name = "furnace";
   m.material = 0;
@@ -925,7 +925,7 @@ TEST(StressCamera, InsideAFurnaceOfLights) {
 TEST(StressCamera, InsideASphereLightStrategiesAgree) {
   Scene s;
   s.source = "test:inside-sphere";
-  s.materials.push_back({Rgb{0.5f, 0.5f, 0.5f}, -1, ""});
+  s.materials.push_back(diffuse_material(Rgb{0.5f, 0.5f, 0.5f}, -1));
   Sphere sp;
   sp.center = {0, 0, 0};
   sp.radius = 1;

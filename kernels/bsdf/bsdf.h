@@ -17,6 +17,38 @@
 
 namespace tuile {
 
+// The surface kinds of pbrt-v4's materials tuile renders (kernels/bsdf), in the order of
+// their bit in Features::bsdfs.
+enum class MaterialKind : int32_t {
+  diffuse = 0,               // Lambert: reflectance
+  conductor = 1,             // Trowbridge-Reitz microfacets, complex Fresnel (eta, k); smooth: a mirror
+  dielectric = 2,            // eta, smooth (delta) or Trowbridge-Reitz reflection + transmission
+  thin_dielectric = 3,       // eta, a thin slab: delta reflection and straight transmission
+  diffuse_transmission = 4,  // Lambert reflection (reflectance) and transmission (transmittance)
+  coated_diffuse = 5,        // a dielectric coat (eta, alphas) over a diffuse base (reflectance)
+  coated_conductor = 6,      // a dielectric coat over a conductor base (eta_rgb, k_rgb, base alphas)
+};
+inline constexpr int material_kind_count = 7;
+inline constexpr const char* material_kind_names[material_kind_count] = {
+    "diffuse", "conductor", "dielectric", "thindielectric", "diffusetransmission", "coateddiffuse", "coatedconductor"};
+
+// One bit per MaterialKind, in its order.
+enum BsdfBits : unsigned {
+  bsdf_diffuse = 1u << 0,
+  bsdf_conductor = 1u << 1,
+  bsdf_dielectric = 1u << 2,
+  bsdf_thin_dielectric = 1u << 3,
+  bsdf_diffuse_transmission = 1u << 4,
+  bsdf_coated_diffuse = 1u << 5,
+  bsdf_coated_conductor = 1u << 6,
+  bsdf_all = (1u << 7) - 1,
+};
+// Kinds that can send light through the surface, and kinds with a specular (delta) lobe.
+inline constexpr unsigned bsdf_transmits = bsdf_dielectric | bsdf_thin_dielectric | bsdf_diffuse_transmission;
+inline constexpr unsigned bsdf_delta_capable =
+    bsdf_conductor | bsdf_dielectric | bsdf_thin_dielectric | bsdf_coated_diffuse | bsdf_coated_conductor;
+
+
 template <class T> struct Rgb3 {
   T r, g, b;
 };

@@ -2,8 +2,12 @@
 // (camera-visible emission plus the shading point's sum, its square, the BSDF MIS weight AOV, largest sample luminance). A sample
 // with a non-finite channel counts as rejected and adds 0. run_tile zeroes the sums at
 // tile start and adds them into the Film once, after the tile's last sample.
-// Reads the tile radiance (and wsum/wcnt with the AOV); writes the tile sums,
-// rejected_camera.
+// Reads the tile radiance (and wsum/wcnt with the AOV; the pixel filter's weights fw where
+// lanes.weighted); writes the tile sums, rejected_camera.
+// A weighted filter (mitchell, sinc) makes some samples negative: the sums and squares take
+// them as they are, the largest sample luminance stays the largest (>= 0), and a tile's
+// double sums are never -0 (they start at +0, and x + -x = +0), which stream_tile_to_film
+// relies on.
 #pragma once
 #include <bit>
 
@@ -51,7 +55,9 @@ inline void add_sq_f64(double* dst, double* sq, const vfloat& v) noexcept {
 }
 
 // Lanes [i, i + width) of the tile; lanes from `lanes` on are padding (never counted).
-template <class T> TUILE_FLATTEN inline void accumulate_lanes(TileBuffers& tb, int i, int lanes, bool aov) {
+// Weighted: multiply the sample by the pixel filter's weight (lanes.fw).
+template <class T, bool Weighted = false>
+TUILE_FLATTEN inline void accumulate_lanes(TileBuffers& tb, int i, int lanes, bool aov) {
   T r = load<T>(tb.lanes.Lr + i), g = load<T>(tb.lanes.Lg + i), b = load<T>(tb.lanes.Lb + i);
   // plus what the techniques added to the lanes' shading points: camera_hits compacted
   // them in lane order, so an expand reads them back
@@ -67,6 +73,12 @@ template <class T> TUILE_FLATTEN inline void accumulate_lanes(TileBuffers& tb, i
     r = r + expand_load<T>(tb.points.Sr + first, shaded);
     g = g + expand_load<T>(tb.points.Sg + first, shaded);
     b = b + expand_load<T>(tb.points.Sb + first, shaded);
+  }
+  if constexpr (Weighted) {
+    const T w = load<T>(tb.lanes.fw + i);
+    r = r * w;
+    g = g * w;
+    b = b * w;
   }
   const auto finite = is_finite(r) && is_finite(g) && is_finite(b);
   const auto live = f_mask_from_i(i32_t<T>(i) + lane_iota_i32<T>() < i32_t<T>(lanes));
@@ -129,8 +141,8 @@ inline bool can_stream_tile(int x0, int tw, int th, const FilmSums& f) noexcept 
 }
 
 // The tile's sums written into a film that holds zeros (no samples yet): what adding them
-// gives (0 + s = s, as every sum is >= +0; the largest sample likewise), row by row with
-// streaming stores of whole cache lines, so the film's lines are neither read nor kept in
+// gives (0 + s = s, as no sum is -0, negative sums of a filter's negative lobes included;
+// the largest sample likewise), row by row with streaming stores of whole cache lines, so the film's lines are neither read nor kept in
 // the caches. The RGB sums are interleaved by two permutes per output vector.
 inline void stream_tile_to_film(const TileBuffers& tb, int x0, int y0, int th, const FilmSums& f, bool aov) noexcept {
 #if defined(__AVX512F__)
@@ -184,7 +196,10 @@ inline void clear_tile_sums(TileBuffers& tb, int lanes) {
 // One sample of every pixel of the tile. T = float is the scalar reference.
 template <class T = vfloat> inline void accumulate_samples(TileBuffers& tb, int lanes, bool aov) {
   const int padded = packet_padded(lanes);
-  for (int i = 0; i < padded; i += lane_traits<T>::width) accumulate_lanes<T>(tb, i, lanes, aov);
+  if (tb.lanes.weighted)
+    for (int i = 0; i < padded; i += lane_traits<T>::width) accumulate_lanes<T, true>(tb, i, lanes, aov);
+  else
+    for (int i = 0; i < padded; i += lane_traits<T>::width) accumulate_lanes<T>(tb, i, lanes, aov);
 }
 
 }  // namespace tuile

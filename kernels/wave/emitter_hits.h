@@ -14,7 +14,9 @@ namespace tuile {
 
 // Lanes [j, j + width) of the hit queue.
 // Kinds with kind_rects: every source is a rectangle (the same values without dispatch).
-template <class T, unsigned Kinds = kind_all>
+// Delta: entries may come from a specular lobe, which no light sample can produce: their
+// weight is 1 whatever the strategy.
+template <class T, unsigned Kinds = kind_all, bool Delta = false>
 TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est, float rate_light, float rate_bsdf, TileBuffers& tb,
                          int j) {
   const auto live =
@@ -43,6 +45,7 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
   } else if (est.strategy == Strategy::light) {
     w = T(0.f);  // the general pipeline traces BSDF rays even when they must not count
   }
+  if constexpr (Delta) w = sel(f_mask_from_i(load_i32<T>(tb.queue.delta + j) != i32_t<T>(0)), T(1.f), w);
   const T factor = sel(live, w / T(rate_bsdf), T(0.f));
   store(tb.tech.cr + j, load<T>(tb.queue.beta_r + j) * Le_r * factor);
   store(tb.tech.cg + j, load<T>(tb.queue.beta_g + j) * Le_g * factor);
@@ -53,8 +56,8 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
 // Lanes [k, k + width) of the bounce packets: the rays that hit the front of an emitter
 // join the hit queue at nq, in lane order (compress stores; nq is advanced). vis: whether
 // the queue keeps what the visibility rays need (bounce rays traced against the emitters).
-// Kinds with kind_rects: no source is a sphere.
-template <class T, unsigned Kinds = kind_all>
+// Kinds with kind_rects: no source is a sphere. Delta: keep the samples' delta flags.
+template <class T, unsigned Kinds = kind_all, bool Delta = false>
 TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int k, int& nq, bool vis) {
   const RayHit16& r = tb.bounce[k / packet_width];
   const int l = k % packet_width;
@@ -82,8 +85,9 @@ TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView
   compress_store(tb.queue.dx + nq, d.x, keep);
   compress_store(tb.queue.dy + nq, d.y, keep);
   compress_store(tb.queue.dz + nq, d.z, keep);
-  // distance from x itself (the ray started eps above it along n)
-  compress_store(tb.queue.dist + nq, load<T>(r.ray.tfar + l) + load<T>(tb.points.eps + k) * dot(n, d), keep);
+  // distance from x itself (the ray started eps off it along n, on the side it leaves by)
+  compress_store(tb.queue.dist + nq, load<T>(r.ray.tfar + l) + load<T>(tb.points.eps + k) * abs(dot(n, d)), keep);
+  if constexpr (Delta) compress_store(tb.queue.delta + nq, load_i32<T>(tb.tech.delta + k), keep);
   compress_store(tb.queue.beta_r + nq, load<T>(tb.tech.beta_r + k), keep);
   compress_store(tb.queue.beta_g + nq, load<T>(tb.tech.beta_g + k), keep);
   compress_store(tb.queue.beta_b + nq, load<T>(tb.tech.beta_b + k), keep);
@@ -102,12 +106,12 @@ TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView
 // Queues the bounce rays that hit the front of an emitter (tb.queue.count entries, all
 // visible until bounce_visibility says otherwise). T = float: the scalar reference. vis as
 // for queue_emitter_lanes.
-template <class T = vfloat, unsigned Kinds = kind_all>
+template <class T = vfloat, unsigned Kinds = kind_all, bool Delta = false>
 inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers& tb, bool vis = true) {
   int nq = 0;
   // padding lanes past points.count are never valid (sample_cosine)
   const int padded = packet_padded(tb.points.count);
-  for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T, Kinds>(G, L, tb, k, nq, vis);
+  for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T, Kinds, Delta>(G, L, tb, k, nq, vis);
   tb.queue.count = nq;
   const int qpadded = packet_padded(nq);
   for (int j = nq; j < qpadded; ++j) {  // padding: a valid light index, no contribution
@@ -117,6 +121,7 @@ inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers
     tb.queue.dist[j] = 1.f;
     tb.queue.beta_r[j] = tb.queue.beta_g[j] = tb.queue.beta_b[j] = 0.f;
     tb.queue.pdf[j] = 1.f;
+    tb.queue.delta[j] = 0;
     tb.queue.light[j] = nq > 0 ? tb.queue.light[0] : 0;
     tb.queue.point[j] = 0;
     tb.queue.ox[j] = tb.queue.oy[j] = tb.queue.oz[j] = 0.f;
@@ -152,7 +157,7 @@ inline void read_bounce_visibility(TileBuffers& tb) {
 }
 
 // Weights the visible entries of the queue and adds them to their shading points.
-template <unsigned Kinds = kind_all>
+template <unsigned Kinds = kind_all, bool Delta = false>
 inline void weight_queue(const LightView& L, const Estimator& est, float rate_light, float rate_bsdf, TileBuffers& tb) {
   const int nq = tb.queue.count;
   if (nq == 0) return;
@@ -160,9 +165,9 @@ inline void weight_queue(const LightView& L, const Estimator& est, float rate_li
   // two batches at a time (vfloat2) where whole: the solid-angle setup is a latency-bound
   // chain, and two independent ones keep the core busy
   for_lane_batches<vfloat2>(0, qpadded, [&](auto lane, int j) {
-    weight_lanes<typename decltype(lane)::type, Kinds>(L, est, rate_light, rate_bsdf, tb, j);
+    weight_lanes<typename decltype(lane)::type, Kinds, Delta>(L, est, rate_light, rate_bsdf, tb, j);
   });
-  if (est.strategy == Strategy::light) return;
+  if (!Delta && est.strategy == Strategy::light) return;
   for (int j = 0; j < nq; ++j) {
     if (!(tb.queue.vis[j] > 0.f)) continue;
     const float r = tb.tech.cr[j], g = tb.tech.cg[j], b = tb.tech.cb[j];
@@ -184,11 +189,11 @@ inline void weight_queue(const LightView& L, const Estimator& est, float rate_li
 
 // Queues the bounce rays that hit the front of an emitter, weights them, adds them
 // (bounce rays traced against the whole scene: every queued emitter is visible).
-template <class T = vfloat, unsigned Kinds = kind_all>
+template <class T = vfloat, unsigned Kinds = kind_all, bool Delta = false>
 inline void weight_bounce(const GeomView& G, const LightView& L, const Estimator& est, float rate_light, float rate_bsdf,
                           TileBuffers& tb) {
-  queue_bounce_hits<T, Kinds>(G, L, tb);
-  weight_queue<Kinds>(L, est, rate_light, rate_bsdf, tb);
+  queue_bounce_hits<T, Kinds, Delta>(G, L, tb);
+  weight_queue<Kinds, Delta>(L, est, rate_light, rate_bsdf, tb);
 }
 
 }  // namespace tuile

@@ -9,6 +9,7 @@
 #pragma once
 #include <string>
 
+#include "bsdf/bsdf.h"
 #include "light/table.h"
 
 namespace tuile {
@@ -19,6 +20,7 @@ struct Features {
   bool bsdf = true;            // the BSDF-sampling technique's stages run
   bool pick = true;            // each lane picks a source (else every lane samples one given source)
   bool emitter_lookup = true;  // camera and bounce hits look up the emitter they reached
+  unsigned bsdfs = bsdf_all;   // kinds of surface (BsdfBits): bsdf_diffuse, or every kind
 
   constexpr bool operator==(const Features&) const = default;
 };
@@ -37,6 +39,7 @@ inline std::string features_name(const Features& f) {
   const char* technique = f.light && f.bsdf ? "mis" : f.light ? "light" : "bsdf";
   std::string name = std::string(kinds) + "/" + technique;
   if (f.light) name += f.pick ? "/pick" : "/single";
+  if (f.bsdfs != bsdf_diffuse) name += "/materials";
   return name;
 }
 

@@ -1,12 +1,17 @@
 // Stage 1, generate: camera rays for one sample of every pixel of a tile.
 // Reads the tile's pixel corners and the sampler; writes the camera packets (RayHit16,
 // Embree's layout) and clears the per-pixel radiance. pbrt-v4 perspective camera: fov
-// over the shorter axis, raster y down, box filter (one uniform point per pixel).
+// over the shorter axis, raster y down. The position in the pixel follows the pixel filter
+// (sample/filter.h, filter importance sampling as pbrt-v4): the default box of radius 1/2
+// is the pixel corner plus the uniform pair, bit for bit; filters whose samples carry a
+// weight other than 1 (gaussian, mitchell, sinc) also write it to lanes.fw and set
+// lanes.weighted, which accumulate multiplies the sample's radiance by.
 #pragma once
 #include <algorithm>
 
 #include "wave/tile.h"
 #include "lanes/vec.h"
+#include "sample/filter.h"
 
 namespace tuile {
 
@@ -22,10 +27,23 @@ inline void camera_ray(const CameraView& c, T rx, T ry, Vec3<T>& org, Vec3<T>& d
   org = {T(c.m[0][3]), T(c.m[1][3]), T(c.m[2][3])};
 }
 
-// Writes lanes [i, i + width(T)) of the camera packets.
-template <class T> TUILE_FLATTEN inline void generate_lanes(const CameraView& c, TileBuffers& tb, int i) {
-  const T rx = load<T>(tb.lanes.fx + i) + load<T>(tb.tech.u0 + i);
-  const T ry = load<T>(tb.lanes.fy + i) + load<T>(tb.tech.u1 + i);
+// Writes lanes [i, i + width(T)) of the camera packets (and the filter weights of a
+// weighted filter). Kind: the filter's kind (c.filter.kind), a template so that the box
+// and the triangle compute nothing more than their offsets.
+template <class T, FilterKind Kind = FilterKind::box>
+TUILE_FLATTEN inline void generate_lanes(const CameraView& c, TileBuffers& tb, int i) {
+  const T u0 = load<T>(tb.tech.u0 + i), u1 = load<T>(tb.tech.u1 + i);
+  T ox, oy;
+  if constexpr (Kind == FilterKind::box) {
+    ox = T(c.filter.box_a[0]) + T(c.filter.box_b[0]) * u0;  // radius 1/2: 0 + 1 u = u, the corner plus u exactly
+    oy = T(c.filter.box_a[1]) + T(c.filter.box_b[1]) * u1;
+  } else {
+    T w;
+    sample_filter(c.filter, u0, u1, ox, oy, w);
+    if constexpr (Kind != FilterKind::triangle) store(tb.lanes.fw + i, w);
+  }
+  const T rx = load<T>(tb.lanes.fx + i) + ox;
+  const T ry = load<T>(tb.lanes.fy + i) + oy;
   Vec3<T> o, d;
   camera_ray(c, rx, ry, o, d);
   RayHit16& p = tb.cam[i / packet_width];
@@ -49,8 +67,16 @@ inline void generate(const CameraView& c, const Estimator& est, uint32_t sample,
     tb.lanes.pixel[i] = tb.lanes.pixel[0];
   }
   lane_pairs(est, tb, sample, pair, padded, tb.tech.u0, tb.tech.u1);
-  int i = 0;
-  for (; i < padded; i += simd_width) generate_lanes<vfloat>(c, tb, i);  // padded: whole packets
+  const FilterKind kind = c.filter.kind;
+  tb.lanes.weighted = c.filter.weighted();
+  auto all_lanes = [&]<FilterKind K>() {
+    for (int i = 0; i < padded; i += simd_width) generate_lanes<vfloat, K>(c, tb, i);  // padded: whole packets
+  };
+  switch (kind) {
+    case FilterKind::box: all_lanes.template operator()<FilterKind::box>(); break;
+    case FilterKind::triangle: all_lanes.template operator()<FilterKind::triangle>(); break;
+    default: all_lanes.template operator()<FilterKind::gaussian>(); break;  // the tabulated filters (kind read at run time)
+  }
   for (int k = 0; k < padded / packet_width; ++k) reset_hit(tb.cam[k]);
   std::fill_n(tb.lanes.cam_valid, lanes, -1);
   std::fill_n(tb.lanes.cam_valid + lanes, padded - lanes, 0);

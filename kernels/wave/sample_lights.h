@@ -11,8 +11,7 @@
 #include <algorithm>
 #include <type_traits>
 
-#include "bsdf/lambert.h"
-#include "wave/tile.h"
+#include "wave/surface_bsdf.h"
 
 namespace tuile {
 
@@ -25,10 +24,12 @@ struct LightPass {
 };
 
 // Kinds: which kinds of source can occur (kind_area, kind_delta); Pick: whether lanes pick
-// a source (false: every lane samples pass.fixed_light, as with one light or "all").
-template <class T, unsigned Kinds = kind_all, bool Pick = true>
-TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimator& est, const LightPass& pass, TileBuffers& tb,
-                                int k) {
+// a source (false: every lane samples pass.fixed_light, as with one light or "all");
+// Bsdfs: the kinds of surface (bsdf/material.h). Surfaces that transmit take light from
+// below too (|cos|, and the shadow ray leaves from that side); a delta lobe has f = 0 here.
+template <class T, unsigned Kinds = kind_all, bool Pick = true, unsigned Bsdfs = bsdf_diffuse>
+TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView& L, const Estimator& est, const LightPass& pass,
+                                              TileBuffers& tb, int k) {
   auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.points.count));
   if (est.one_sample()) active = active && (load<T>(tb.points.choose_light + k) > T(0.5f));
   const Vec3<T> x = load3<T>(tb.points.px + k, tb.points.py + k, tb.points.pz + k);
@@ -69,10 +70,10 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
       sample_light_point<Kinds>(est.point, g, x, load<T>(tb.tech.u2 + k), load<T>(tb.tech.u3 + k));
 
   constexpr bool rects = (Kinds & kind_rects) != 0;
-  static_assert(!Lambert<T>::reads_wo, "the shading points keep no direction towards the viewer");
-  const Lambert<T> bsdf{{load<T>(tb.points.ar + k), load<T>(tb.points.ag + k), load<T>(tb.points.ab + k)}};
-  const BsdfEval<T> fe = bsdf.eval(SurfacePoint<T>{n, Vec3<T>(T(0.f), T(0.f), T(0.f))}, s.wi);
-  const T cos_x = dot(n, s.wi);
+  const BsdfEval<T> fe = load_surface_bsdf<T, Bsdfs>(G, tb.points, k, n).eval(s.wi);
+  constexpr bool transmits = (Bsdfs & bsdf_transmits) != 0;
+  const T cos_n = dot(n, s.wi);
+  const T cos_x = transmits ? abs(cos_n) : cos_n;
   const auto planar = rects ? mask_t<T>(true) : type_is<T>(g.type, lt_triangle) || type_is<T>(g.type, lt_parallelogram);
   const auto front = !planar || g.two_sided > T(0.f) || dot(x - g.p0, g.n) > T(0.f);
   const T pdf_l = pick * s.pdf_sa;
@@ -104,7 +105,7 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
   // towards x (pbrt's "spawn ray to"): at grazing angles the ray along wi from a lifted
   // origin would meet the source's plane early. Embree's packet t is good to ~1e-5
   // relative (measured), so the ray stops 2^-12 of its length short.
-  const Vec3<T> org = x + n * eps;
+  const Vec3<T> org = transmits ? x + sel(cos_n < T(0.f), Vec3<T>(T(0.f), T(0.f), T(0.f)) - n, n) * eps : x + n * eps;
   const auto is_dist = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_distant);
   const auto is_sph = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_sphere);
   const Vec3<T> y = x + s.wi * sel(is_dist, T(0.f), s.dist);
@@ -141,8 +142,8 @@ TUILE_FLATTEN inline void sample_lights_lanes(const LightView& L, const Estimato
 
 // Draws the pass's random numbers (pick_pair and point_pair: SampleLayout's light_pick and
 // light_point of this light sample) and runs the lanes of every shading point.
-template <unsigned Kinds = kind_all, bool Pick = true>
-inline void sample_lights(const LightView& L, const Estimator& est, const LightPass& pass, uint32_t sample,
+template <unsigned Kinds = kind_all, bool Pick = true, unsigned Bsdfs = bsdf_diffuse>
+inline void sample_lights(const GeomView& G, const LightView& L, const Estimator& est, const LightPass& pass, uint32_t sample,
                           uint32_t pick_pair, uint32_t point_pair, TileBuffers& tb) {
   const int padded = packet_padded(tb.points.count);
   if (Pick && pass.fixed_light < 0)  // the pick reads the first dimension only
@@ -151,7 +152,7 @@ inline void sample_lights(const LightView& L, const Estimator& est, const LightP
   // four batches at a time (vfloat4), then two: the solid-angle maps are latency-bound
   // chains, so interleaved batches keep the core busy
   for_lane_batches<vfloat4>(0, padded, [&](auto lane, int k) {
-    sample_lights_lanes<typename decltype(lane)::type, Kinds, Pick>(L, est, pass, tb, k);
+    sample_lights_lanes<typename decltype(lane)::type, Kinds, Pick, Bsdfs>(G, L, est, pass, tb, k);
   });
 }
 

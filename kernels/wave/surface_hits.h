@@ -59,6 +59,29 @@ inline void apply_texels(const GeomView& G, TileBuffers& tb) {
   }
 }
 
+// pbrt's mix materials: each shading point whose material is a mix takes one of its two,
+// the second with probability amount, from a hash of the point's position and direction
+// (deterministic, as pbrt-v4's MixMaterial::ChooseMaterial), with that material's
+// reflectance (its texture is not looked up: the texels follow the hit geometry's material).
+inline void resolve_mixes(const GeomView& G, ShadingPoints& P) {
+  for (int k = 0; k < P.count; ++k) {
+    const int32_t m = P.mat[k];
+    if (G.mat_mix0[m] < 0) continue;
+    uint32_t h = 0x9e3779b9u;
+    for (const float f : {P.px[k], P.py[k], P.pz[k], P.wox[k], P.woy[k], P.woz[k]}) {
+      h ^= std::bit_cast<uint32_t>(f) + 0x7f4a7c15u + (h << 6) + (h >> 2);
+      h *= 0x85ebca6bu;
+      h ^= h >> 13;
+    }
+    const float u = static_cast<float>(h >> 8) * 0x1p-24f;
+    const int32_t chosen = u < G.mat_mix_amount[m] ? G.mat_mix1[m] : G.mat_mix0[m];
+    P.mat[k] = chosen;
+    P.ar[k] = G.mat_r[chosen];
+    P.ag[k] = G.mat_g[chosen];
+    P.ab[k] = G.mat_b[chosen];
+  }
+}
+
 // The light a ray hit, or -1.
 inline int32_t light_of_hit(const GeomView& G, uint32_t geom, uint32_t prim) {
   if (geom == invalid_id) return -1;
@@ -98,7 +121,7 @@ template <class T> inline T offset_along_normal(const Vec3<T>& err, const Vec3<T
 // Lanes [i, i + width) of the camera packets: the hits among the first `lanes` become
 // shading points n, n + 1, ... in lane order (n is advanced). A hit with a degenerate
 // normal or distance is rejected (counted, no shading point).
-template <class T, bool Emitters>
+template <class T, bool Emitters, bool Materials = false>
 TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int i, int lanes,
                                            int& n) {
   const RayHit16& p = tb.cam[i / packet_width];
@@ -120,7 +143,8 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   ng = ng * rsqrt_nr(sel(ok, len2, T(1.f)));
   // face the viewer: diffuse reflection on both sides. 0 - n, not -n: xsimd 8 negates
   // AVX-512 lanes as 0 - x, so this keeps +0 components in every build and the reference.
-  ng = sel(dot(ng, d) > T(0.f), Vec3<T>(T(0.f), T(0.f), T(0.f)) - ng, ng);
+  const auto back = dot(ng, d) > T(0.f);
+  ng = sel(back, Vec3<T>(T(0.f), T(0.f), T(0.f)) - ng, ng);
 
   // The hit point and its error bound (pbrt-v4): for triangles from the barycentrics,
   // err_i = gamma(7) sum_k |b_k v_k,i|, so an axis-aligned plane at any distance keeps
@@ -189,6 +213,17 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     }
   }
 
+  if constexpr (Materials) {
+    const i32_t<T> mat = one_geom ? i32_t<T>(G.geom_material[g0]) : gather(G.geom_material, gi);
+    // Embree's Ng is pbrt's outward normal of a triangle (cross(v1 - v0, v2 - v0)) and of
+    // a sphere; reverse orientation turns the outside around
+    const T gs = one_geom ? T(G.geom_side[g0]) : gather(G.geom_side, gi);
+    compress_store(tb.points.mat + n, mat, keep);
+    compress_store(tb.points.side + n, sel(back, T(0.f) - gs, gs), keep);
+    compress_store(tb.points.wox + n, T(0.f) - d.x, keep);
+    compress_store(tb.points.woy + n, T(0.f) - d.y, keep);
+    compress_store(tb.points.woz + n, T(0.f) - d.z, keep);
+  }
   T ar, ag, ab;
   if (one_geom) {
     const int32_t m = G.geom_material[g0];
@@ -260,15 +295,17 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
 // The whole stage for lanes [0, lanes) of the tile. Emitters: false when the scene has
 // no area light (no emitter lookups at all). T = float is the scalar reference.
 // choice_pair: the one-sample technique choice's dimension pair (SampleLayout).
-template <bool Emitters = true, class T = vfloat>
+template <bool Emitters = true, class T = vfloat, bool Materials = false>
 inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& est, uint32_t sample,
                         uint32_t choice_pair, int lanes, TileBuffers& tb) {
   const int padded_lanes = packet_padded(lanes);
   int n = 0;
   tb.textured.count = 0;
   tb.keys.points_are_lanes = true;
-  for (int i = 0; i < padded_lanes; i += lane_traits<T>::width) camera_hit_lanes<T, Emitters>(G, L, tb, i, lanes, n);
+  for (int i = 0; i < padded_lanes; i += lane_traits<T>::width) camera_hit_lanes<T, Emitters, Materials>(G, L, tb, i, lanes, n);
   tb.points.count = n;
+  if constexpr (Materials)
+    if (G.has_mix) resolve_mixes(G, tb.points);
   if (G.has_textures) apply_texels(G, tb);
   // pad to whole packets with copies of a real point; padding lanes are never active
   const int padded = packet_padded(n);
@@ -278,6 +315,12 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
     tb.points.nz[k] = 1.f;
     tb.points.eps[k] = 1e-6f;
     tb.points.ar[k] = tb.points.ag[k] = tb.points.ab[k] = 0.f;
+    if constexpr (Materials) {
+      tb.points.mat[k] = n > 0 ? tb.points.mat[0] : G.geom_material[0];
+      tb.points.wox[k] = tb.points.woy[k] = 0.f;
+      tb.points.woz[k] = 1.f;
+      tb.points.side[k] = 1.f;
+    }
     tb.points.pixel[k] = n > 0 ? tb.points.pixel[0] : 0u;
     tb.points.lane[k] = -1;
     if (!tb.keys.points_are_lanes)  // (padded > n means n > 0; as lanes, the padding pixels are pixel 0 already)

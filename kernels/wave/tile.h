@@ -41,6 +41,8 @@ struct PixelLanes {
   alignas(64) int32_t shade_of[lane_array];          // the lane's shading point, -1 without one
   alignas(64) float Lr[lane_array], Lg[lane_array], Lb[lane_array];  // emission the camera sees, this sample
   alignas(64) float wsum[lane_array], wcnt[lane_array];  // BSDF technique's MIS weights (AOV), this sample
+  alignas(64) float fw[lane_array];  // the pixel filter's weight of this sample (where `weighted`)
+  bool weighted = false;             // this sample's filter weights are not all 1 (generate sets it)
 };
 
 // Per tile lane, summed over the tile's samples in double, added to the film at the end.
@@ -57,7 +59,12 @@ struct ShadingPoints {
   alignas(64) float px[lane_array], py[lane_array], pz[lane_array];
   alignas(64) float nx[lane_array], ny[lane_array], nz[lane_array];
   alignas(64) float eps[lane_array];                          // ray offset scaled to the coordinates
-  alignas(64) float ar[lane_array], ag[lane_array], ab[lane_array];  // the BSDF's parameters: Lambert's albedo
+  alignas(64) float ar[lane_array], ag[lane_array], ab[lane_array];  // the material's reflectance (textured)
+  // pipelines with non-diffuse materials only (Features::bsdfs): the material, the unit
+  // direction towards the viewer, and +1 / -1 where the viewer is outside / inside
+  alignas(64) int32_t mat[lane_array];
+  alignas(64) float wox[lane_array], woy[lane_array], woz[lane_array];
+  alignas(64) float side[lane_array];
   alignas(64) uint32_t pixel[lane_array];                     // global pixel id
   alignas(64) int32_t lane[lane_array];                       // tile lane
   alignas(64) float choose_light[lane_array];                 // one-sample MIS: 1 = light technique
@@ -84,6 +91,7 @@ struct TechniqueSample {
   alignas(64) int32_t valid[lane_array];                             // the lane traces a ray
   alignas(64) float beta_r[lane_array], beta_g[lane_array], beta_b[lane_array];  // BSDF sample: f cos / pdf
   alignas(64) float pdf[lane_array];                                             // BSDF sample: its pdf
+  alignas(64) int32_t delta[lane_array];                                         // BSDF sample: a specular lobe
   alignas(64) float wb[lane_array];  // the BSDF technique's MIS weight (AOV)
 };
 
@@ -96,6 +104,7 @@ struct EmitterHitQueue {
   alignas(64) float dist[lane_array];                                // to the emitter, from x
   alignas(64) float beta_r[lane_array], beta_g[lane_array], beta_b[lane_array];  // f cos / pdf of the sample
   alignas(64) float pdf[lane_array];                                             // the BSDF's pdf of it
+  alignas(64) int32_t delta[lane_array];  // drawn from a specular lobe: MIS weight 1
   alignas(64) int32_t light[lane_array];
   alignas(64) int32_t point[lane_array];  // the entry's shading point
   // the bounce ray's origin and its distance to the emitter (for the visibility ray when
@@ -109,7 +118,7 @@ struct EmitterHitQueue {
 // (made once per tile by run_tile) and per shading point (compacted by camera_hits).
 // Bit p of keyed: pair p is cached; without it the stages hash the pixel every sample.
 struct SamplerKeys {
-  static constexpr int pairs = 5;
+  static constexpr int pairs = 6;
   uint32_t keyed = 0;
   bool points_are_lanes = false;  // shading point k is tile lane k: points read lane_key
   alignas(64) uint32_t lane_key[pairs][3][lane_array];

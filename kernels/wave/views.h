@@ -4,7 +4,23 @@
 #pragma once
 #include <cstdint>
 
+#include "sample/filter.h"
+
 namespace tuile {
+
+// The float parameters of the materials' BSDFs (kernels/bsdf/material.h), one array each in
+// GeomView::mat_param, indexed by material. Kinds read the ones they need.
+enum MatParam : int {
+  mp_tr, mp_tg, mp_tb,           // diffuse transmission's transmittance
+  mp_eta_r, mp_eta_g, mp_eta_b,  // conductor's eta (or coated conductor's base)
+  mp_k_r, mp_k_g, mp_k_b,        // conductor's k
+  mp_eta,                        // dielectric / thin dielectric / coat index
+  mp_ax, mp_ay,                  // Trowbridge-Reitz alphas (conductor, dielectric, coat)
+  mp_bax, mp_bay,                // coated conductor's base alphas
+  mp_thickness,                  // coated: layer thickness
+  mp_alb_r, mp_alb_g, mp_alb_b,  // coated: layer albedo
+  mp_count
+};
 
 // Per-geometry data the hit stages look up by Embree's geomID / primID.
 struct GeomView {
@@ -19,6 +35,16 @@ struct GeomView {
   const int32_t* sphere_light = nullptr;       // per sphere: light or -1
   const float *mat_r = nullptr, *mat_g = nullptr, *mat_b = nullptr;
   const int32_t* mat_texture = nullptr;
+  const int32_t* mat_kind = nullptr;           // per material: MaterialKind
+  const float* mat_param[mp_count] = {};       // per material: the BSDF parameters (MatParam)
+  // pbrt's mix: per material, the two it chooses between (-1: not a mix) and the
+  // probability of the second; resolved per shading point (surface_hits.h resolve_mixes)
+  bool has_mix = false;
+  const int32_t *mat_mix0 = nullptr, *mat_mix1 = nullptr;
+  const float* mat_mix_amount = nullptr;
+  // per geomID: +1, or -1 where the surface's outside (pbrt's normal, which decides which
+  // side of a dielectric is inside) is opposite Embree's Ng
+  const float* geom_side = nullptr;
   const uint32_t* const* indices = nullptr;    // per mesh
   const float* const* positions = nullptr;     // per mesh, xyz per vertex
   const float* const* uvs = nullptr;           // per mesh, nullptr without uv
@@ -31,6 +57,7 @@ struct CameraView {
   float sx0, sx1, sy0, sy1;  // screen window
   float tan_half;         // tan(fov / 2)
   float inv_w, inv_h;
+  FilterView filter;      // the pixel filter (sample/filter.h); default: the unit box
 };
 
 }  // namespace tuile

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "render/filter_table.h"
+
 namespace tuile {
 
 void add_render_flags(CLI::App& app, RenderFlags& f) {
@@ -29,6 +31,9 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
       ->each([&f](const std::string&) { f.spp_given = true; });
   app.add_option("--seed", f.seed, "random seed")->capture_default_str();
   app.add_option("--sampler", f.sampler, "independent | stratified | sobol (default sobol)");
+  app.add_option("--filter", f.filter,
+                 "pixel filter: box | triangle | gaussian | mitchell | sinc (default: the scene file's PixelFilter, "
+                 "with its parameters, else box; another filter than the file's takes pbrt-v4's defaults)");
   app.add_option("--threads", f.threads, "worker threads (0 = all cores)")->capture_default_str();
   app.add_option("--tile", f.tile, "tile side in pixels (16 or 32; 1..32)")->capture_default_str();
   app.add_option("--res", f.res, "resolution WxH, overrides the scene's film");
@@ -80,6 +85,11 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   const std::string sampler = !f.sampler.empty() ? f.sampler : !scene.file_sampler.empty() ? scene.file_sampler : "sobol";
   e.sampler = parse_sampler(sampler);
   e.seed = f.seed;
+  if (f.filter.empty()) o.filter = scene.file_filter;
+  else {
+    const FilterKind k = parse_filter_kind(f.filter);
+    o.filter = k == scene.file_filter.kind ? scene.file_filter : default_filter(k);
+  }
   o.threads = f.threads;
   o.tile = f.tile;
   if (!f.res.empty()) {

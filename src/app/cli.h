@@ -14,6 +14,7 @@ struct RenderFlags {
   std::string scene = "built-in:two-panels";
   std::string strategy = "mis", light_pick, light_point = "solid-angle", heuristic = "power", mis_mode = "multi";
   std::string sampler, res, output, aov, pipeline = "auto", bounce_rays = "auto";
+  std::string filter;  // pixel filter; "": the scene file's PixelFilter, else box
   float beta = 2.f, alpha = 0.1f;
   int light_samples = 1, bsdf_samples = 1, spp = 0, threads = 0, tile = 16;
   uint32_t seed = 0;

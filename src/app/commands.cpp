@@ -18,6 +18,7 @@
 #include "accel/embree.h"
 #include "app/prepare.h"
 #include "scene/image_io.h"
+#include "render/filter_table.h"
 #include "render/render.h"
 #include "measure/roofline.h"
 
@@ -69,6 +70,7 @@ int run_info(const RenderFlags& f) {
   for (size_t i = 0; i < std::size(scene_feature_names); ++i)
     if (scene.features & (1u << i)) std::printf(" %s", scene_feature_names[i]);
   std::printf("\nestimator: %s\n", describe(opt.est).c_str());
+  std::printf("pixel filter: %s\n", describe(opt.filter).c_str());
   {
     Renderer r(scene, accel, opt);
     std::string why;

@@ -19,6 +19,7 @@
 #include "app/signals.h"
 #include "measure/metrics.h"
 #include "render/checkpoint.h"
+#include "render/filter_table.h"
 #include "render/passes.h"
 #include "render/render.h"
 #include "scene/atomic_file.h"
@@ -122,7 +123,8 @@ int finish_render_job(const RenderFlags& f, RenderJob& job, StopReason reason, c
                {"sampler", samplers[static_cast<int>(opt.est.sampler)]},
                {"tuileVersion", TUILE_VERSION},
                {"commandLine", f.command_line},
-               {"stoppedBy", reason_name(reason)}};
+               {"stoppedBy", reason_name(reason)},
+               {"pixelFilter", describe(opt.filter)}};
   meta.reals = {{"renderSeconds", render_seconds}};
   if (f.target_error > 0) meta.reals.emplace_back("estimatedRelMSE", estimated_error);
   write_exr(job.out, film.width, film.height, img, layers, meta);

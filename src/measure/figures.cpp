@@ -4,6 +4,7 @@
 //   c-light-pdfs.png         p = 1/S 1/A, p = 1/sum A, solid angle (two-panels)
 //   d-mis.png                light alone, BSDF alone, MIS balance and power, BSDF weight (near-far)
 //   e-warmup.png/.svg        RMS error of the mean of N random values against N
+//   f-veach-plates.png       the same five panels on Veach's glossy plates (veach-plates)
 // Scenes come from scenes/course/ of the source tree (TUILE_SOURCE_DIR); when a file is
 // missing the built-in two-panels scene stands in and the sheet says so.
 #include <algorithm>
@@ -122,6 +123,36 @@ struct SceneSetup {
   }
 };
 
+// The MIS panels of sheets (d) and (f) on one course scene, at `spp` samples per pixel:
+// light sampling alone, BSDF sampling alone (one sample each), MIS with one light and one
+// BSDF sample under the balance and power heuristics, and the balance heuristic's weight of
+// the BSDF technique per pixel as grey.
+void mis_sheet(const std::string& png, const std::string& title, const std::string& scene_file, int w, int h,
+               uint32_t spp, int threads, int scale) {
+  std::string note;
+  const std::string path = course_scene(scene_file, note);
+  SceneSetup st(path, w, h, threads);
+  std::vector<Panel> panels;
+  RenderFlags rf = st.flags();
+  rf.strategy = "light";
+  Film film = st.render(rf, spp);
+  panels.push_back(srgb_panel("1: light alone", film.width, film.height, film.mean()));
+  rf.strategy = "bsdf";
+  film = st.render(rf, spp);
+  panels.push_back(srgb_panel("2: BSDF alone", film.width, film.height, film.mean()));
+  rf.strategy = "mis";
+  rf.mis_mode = "multi";
+  rf.heuristic = "balance";
+  film = st.render(rf, spp, true);
+  panels.push_back(srgb_panel("MIS balance", film.width, film.height, film.mean()));
+  const Panel weight = grey_panel("weight of 2 (balance)", film.width, film.height, film.mis_weight());
+  rf.heuristic = "power";
+  film = st.render(rf, spp);
+  panels.push_back(srgb_panel("MIS power", film.width, film.height, film.mean()));
+  panels.push_back(weight);
+  write_sheet(png, title + ", " + std::to_string(spp) + " spp" + note, panels, scale, 3);
+}
+
 // (e) the error of the mean of N values against N, over many trials
 struct SplitMix {
   uint64_t s;
@@ -180,7 +211,8 @@ void add_figures_flags(CLI::App& app, FiguresFlags& f) {
   app.footer(
       "Writes a-noise.png (1..1024 spp), b-points-per-source.png (1/16/64 points per source, 1 spp),\n"
       "c-light-pdfs.png (p = 1/S 1/A, p = 1/sum A, solid angle), d-mis.png (light, BSDF, MIS balance/power,\n"
-      "BSDF weight as grey) and e-warmup.png/.svg (error of the mean of N values against N).");
+      "BSDF weight as grey), e-warmup.png/.svg (error of the mean of N values against N) and\n"
+      "f-veach-plates.png (d's panels on Veach's plates: four lights of equal power on four plates).");
 }
 
 int run_figures(const FiguresFlags& f) {
@@ -257,35 +289,15 @@ int run_figures(const FiguresFlags& f) {
   }
 
   // (d) MIS on near-far
-  {
-    std::string note;
-    const std::string path = course_scene("near-far.pbrt", note);
-    SceneSetup st(path, q ? 40 : 320, q ? 30 : 240, f.threads);
-    const uint32_t spp = q ? 4 : 16;
-    std::vector<Panel> panels;
-    RenderFlags rf = st.flags();
-    rf.strategy = "light";
-    Film film = st.render(rf, spp);
-    panels.push_back(srgb_panel("1: light alone", film.width, film.height, film.mean()));
-    rf.strategy = "bsdf";
-    film = st.render(rf, spp);
-    panels.push_back(srgb_panel("2: BSDF alone", film.width, film.height, film.mean()));
-    rf.strategy = "mis";
-    rf.mis_mode = "multi";
-    rf.heuristic = "balance";
-    film = st.render(rf, spp, true);
-    panels.push_back(srgb_panel("MIS balance", film.width, film.height, film.mean()));
-    const Panel weight = grey_panel("weight of 2 (balance)", film.width, film.height, film.mis_weight());
-    rf.heuristic = "power";
-    film = st.render(rf, spp);
-    panels.push_back(srgb_panel("MIS power", film.width, film.height, film.mean()));
-    panels.push_back(weight);
-    write_sheet(f.out + "/d-mis.png", "(d) Multiple importance sampling, " + std::to_string(spp) + " spp" + note,
-                panels, scale, 3);
-  }
+  mis_sheet(f.out + "/d-mis.png", "(d) Multiple importance sampling", "near-far.pbrt", q ? 40 : 320, q ? 30 : 240,
+            q ? 4 : 16, f.threads, scale);
 
   // (e) the 1D warm-up
   warmup_plot(f.out, q);
+
+  // (f) Veach's plates: four lights of equal power, radii x3 apart, on four plates of growing roughness
+  mis_sheet(f.out + "/f-veach-plates.png", "(f) Veach's plates, MIS", "veach-plates.pbrt", q ? 64 : 384,
+            q ? 48 : 288, q ? 2 : 8, f.threads, scale);
   return 0;
 }
 

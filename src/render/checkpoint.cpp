@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "render/filter_table.h"
 #include "scene/atomic_file.h"
 
 namespace tuile {
@@ -115,6 +116,7 @@ std::string render_fingerprint(const Scene& scene, const RenderOptions& options,
     << "resolution " << cam.width << "x" << cam.height << "\n"
     << "estimator " << describe(est) << "\n"
     << "mis-weight-aov " << (est.aov_mis_weight ? 1 : 0) << "\n"
+    << (options.filter == FilterParams{} ? "" : "filter " + describe(options.filter) + "\n")  // the default box: as before
     << "passes " << (plan.schedule == PassSchedule::doubling ? "doubling" : "fixed") << " " << plan.pass_spp << "\n";
   return s.str();
 }

@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "render/filter_table.h"
 #include "wave/tile.h"
 
 namespace tuile {
@@ -22,6 +23,9 @@ void validate(const RenderOptions& o) {
   if (e.bsdf_samples < 1 || e.bsdf_samples > 4096) throw std::invalid_argument("--bsdf-samples must be in 1..4096");
   if (o.threads < 0 || o.threads > 1024) throw std::invalid_argument("--threads must be in 0..1024");
   if (o.tile < 1 || o.tile > max_tile_side) throw std::invalid_argument("--tile must be in 1..32");
+  std::string param;
+  const std::string filter = filter_problem(o.filter, &param);
+  if (!filter.empty()) throw std::invalid_argument("--filter " + describe(o.filter) + ": " + param + " must be " + filter);
 }
 
 Strategy parse_strategy(const std::string& s) {

@@ -3,6 +3,7 @@
 #pragma once
 #include <string>
 
+#include "sample/filter.h"
 #include "wave/estimator.h"
 
 namespace tuile {
@@ -22,6 +23,7 @@ struct RenderOptions {
   bool aov_variance = false;
   bool aov_mis_weight = false;
   bool general_pipeline = false;  // --pipeline general: the unspecialised reference
+  FilterParams filter;            // the pixel filter (--filter, else the scene file's PixelFilter; default box 1/2)
 };
 
 // Throws std::invalid_argument, naming the flag, for settings out of range (every caller

@@ -5,7 +5,7 @@ namespace tuile {
 
 const char* stage_name(Stage s) {
   static const char* names[] = {"generate",       "intersect camera", "camera hits", "sample lights",
-                                "intersect shadow", "sample cosine",  "intersect bounce", "MIS weight",
+                                "intersect shadow", "sample BSDF",  "intersect bounce", "MIS weight",
                                 "accumulate"};
   return names[static_cast<int>(s)];
 }

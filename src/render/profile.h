@@ -16,7 +16,7 @@ enum class Stage : int {
   camera_hits,
   sample_lights,
   intersect_shadow,
-  sample_cosine,
+  sample_bsdf,
   intersect_bounce,
   mis_weight,
   accumulate,

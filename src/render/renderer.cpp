@@ -12,6 +12,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "render/filter_table.h"
 #include "render/tile_pipeline.h"
 #include "wave/accumulate.h"
 
@@ -32,6 +33,7 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   validate(opt_);
   opt_.est.aov_mis_weight = opt_.est.aov_mis_weight || opt_.aov_mis_weight;
   *views_ = build_views(scene, opt_.est.pick);
+  views_->camera.filter = build_filter(opt_.filter, views_->filter_table);  // the pixel filter's tables, once
   if (opt_.bounce == BounceTrace::automatic) {
     size_t all = scene.spheres.size(), emitting = 0;
     for (const Mesh& m : scene.meshes) {

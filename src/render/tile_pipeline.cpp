@@ -1,5 +1,5 @@
 // run_tile: one tile's stages back to back (generate, trace camera rays, camera hits,
-// sample lights, trace shadow rays, sample cosine, trace bounce rays, MIS weight,
+// sample lights, trace shadow rays, sample the BSDF, trace bounce rays, MIS weight,
 // accumulate), instantiated per scene shape; and the list of instantiated pipelines.
 #include "render/tile_pipeline.h"
 
@@ -15,7 +15,7 @@
 #include "wave/accumulate.h"
 #include "wave/emitter_hits.h"
 #include "wave/generate.h"
-#include "wave/sample_cosine.h"
+#include "wave/sample_bsdf.h"
 #include "wave/sample_lights.h"
 #include "wave/surface_hits.h"
 
@@ -124,7 +124,10 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     uint32_t want = bit(SampleLayout::camera);
     if (est.one_sample()) want |= bit(layout.technique_choice());
     if constexpr (F.bsdf)
-      for (int m = 0; m < c.bsdf_passes; ++m) want |= bit(layout.bsdf(static_cast<uint32_t>(m)));
+      for (int m = 0; m < c.bsdf_passes; ++m) {
+        want |= bit(layout.bsdf(static_cast<uint32_t>(m)));
+        if (F.bsdfs != bsdf_diffuse) want |= bit(layout.bsdf_lobe(static_cast<uint32_t>(m)));
+      }
     if constexpr (F.light)
       for (int j = 0; j < c.light_passes; ++j) {
         if (F.pick && est.pick != LightPick::all) want |= bit(layout.light_pick(static_cast<uint32_t>(j)));
@@ -150,7 +153,8 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     }
     tb.stats.rays_camera += static_cast<uint64_t>(lanes);
     timer.lap(Stage::intersect_camera);
-    camera_hits<F.emitter_lookup>(v.geom, v.lights, est, s, layout.technique_choice(), lanes, tb);
+    camera_hits<F.emitter_lookup, vfloat, F.bsdfs != bsdf_diffuse>(v.geom, v.lights, est, s, layout.technique_choice(),
+                                                                   lanes, tb);
     timer.lap(Stage::camera_hits);
     const int packets = packets_for(tb.points.count);
     if constexpr (F.light) {
@@ -160,7 +164,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
           pass.fixed_light = est.pick == LightPick::all ? j % c.light_count : (F.pick ? -1 : 0);
           pass.rate_light = c.rate_light;
           pass.rate_bsdf = c.rate_bsdf;
-          sample_lights<F.kinds, F.pick>(v.lights, est, pass, s, layout.light_pick(static_cast<uint32_t>(j)),
+          sample_lights<F.kinds, F.pick, F.bsdfs>(v.geom, v.lights, est, pass, s, layout.light_pick(static_cast<uint32_t>(j)),
                                          layout.light_point(static_cast<uint32_t>(j)), tb);
           timer.lap(Stage::sample_lights);
           clear_high_vector_registers();
@@ -181,8 +185,9 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     if constexpr (F.bsdf) {
       if (tb.points.count > 0) {
         for (int m = 0; m < c.bsdf_passes; ++m) {
-          sample_cosine(est, s, layout.bsdf(static_cast<uint32_t>(m)), tb);
-          timer.lap(Stage::sample_cosine);
+          sample_bsdf<F.bsdfs>(v.geom, est, s, layout.bsdf(static_cast<uint32_t>(m)),
+                               layout.bsdf_lobe(static_cast<uint32_t>(m)), tb, est.strategy == Strategy::light);
+          timer.lap(Stage::sample_bsdf);
           clear_high_vector_registers();
           const Bvh bvh = c.bounce_against_emitters ? Bvh::emitters : Bvh::scene;
           for (int p = 0; p < packets; ++p) {
@@ -194,7 +199,8 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
             tb.stats.rays_bounce += static_cast<uint64_t>(active);
           }
           timer.lap(Stage::intersect_bounce);
-          queue_bounce_hits<vfloat, F.kinds>(v.geom, v.lights, tb, c.bounce_against_emitters);
+          constexpr bool delta = (F.bsdfs & bsdf_delta_capable) != 0;
+          queue_bounce_hits<vfloat, F.kinds, delta>(v.geom, v.lights, tb, c.bounce_against_emitters);
           if (c.bounce_against_emitters && tb.queue.count > 0) {
             const int qpackets = bounce_visibility_rays(tb);
             timer.lap(Stage::mis_weight);
@@ -207,7 +213,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
             timer.lap(Stage::intersect_bounce);
             read_bounce_visibility(tb);
           }
-          weight_queue<F.kinds>(v.lights, est, c.rate_light, c.rate_bsdf, tb);
+          weight_queue<F.kinds, delta>(v.lights, est, c.rate_light, c.rate_bsdf, tb);
           timer.lap(Stage::mis_weight);
         }
       }
@@ -230,17 +236,23 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
 
 // The instantiated pipelines, one list. pick_pipeline chooses among them by the features a
 // scene and estimator need; a combination missing here is a bug (it throws).
+constexpr unsigned D = bsdf_diffuse;
 constexpr Features registered_pipelines[] = {
-    general_features,                                                     // also mixed/mis/pick
-    {kind_all, false, false, false, false},                               // no-lights
-    {kind_delta, true, false, true, false},  {kind_delta, true, false, false, false},
-    {kind_area | kind_rects, true, true, true, true},  {kind_area | kind_rects, true, true, false, true},
-    {kind_area | kind_rects, true, false, true, true}, {kind_area | kind_rects, true, false, false, true},
-    {kind_area | kind_rects, false, true, false, true},
-    {kind_area, true, true, true, true},  {kind_area, true, true, false, true},
-    {kind_area, true, false, true, true}, {kind_area, true, false, false, true},
-    {kind_area, false, true, false, true},
-    {kind_all, true, true, false, true},  {kind_all, true, false, true, true}, {kind_all, true, false, false, true},
+    general_features,                                                     // also mixed/mis/pick/materials
+    {kind_all, false, false, false, false, D},                            // no-lights
+    {kind_delta, true, false, true, false, D},  {kind_delta, true, false, false, false, D},
+    {kind_area | kind_rects, true, true, true, true, D},  {kind_area | kind_rects, true, true, false, true, D},
+    {kind_area | kind_rects, true, false, true, true, D}, {kind_area | kind_rects, true, false, false, true, D},
+    {kind_area | kind_rects, false, true, false, true, D},
+    {kind_area, true, true, true, true, D},  {kind_area, true, true, false, true, D},
+    {kind_area, true, false, true, true, D}, {kind_area, true, false, false, true, D},
+    {kind_area, false, true, false, true, D},
+    {kind_all, true, true, true, true, D},
+    {kind_all, true, true, false, true, D},  {kind_all, true, false, true, true, D}, {kind_all, true, false, false, true, D},
+    // scenes with other surfaces than diffuse: every kind of source and surface
+    {kind_all, true, true, false, true, bsdf_all},  {kind_all, false, true, false, true, bsdf_all},
+    {kind_all, true, false, true, true, bsdf_all},  {kind_all, true, false, false, true, bsdf_all},
+    {kind_all, true, false, true, false, bsdf_all}, {kind_all, true, false, false, false, bsdf_all},
 };
 constexpr size_t pipeline_count = std::size(registered_pipelines);
 
@@ -258,16 +270,22 @@ Features pipeline_features(const SceneViews& v, const Estimator& est, bool gener
     return general_features;
   }
   const bool area = v.has_area(), delta = v.has_delta();
+  const bool materials = v.has_materials();
   Features f;
   f.light = v.lights.count > 0 && (est.strategy != Strategy::bsdf || delta);
-  f.bsdf = area && est.strategy != Strategy::light;
+  // a specular surface needs its BSDF samples whatever the strategy: no light sample finds
+  // the light it reflects (sample_bsdf traces only those under --strategy light)
+  f.bsdf = area && (est.strategy != Strategy::light || (v.bsdf_kinds & bsdf_delta_capable) != 0);
   f.pick = f.light && v.lights.count > 1 && est.pick != LightPick::all;
   f.emitter_lookup = area;  // only area sources are seen by camera and bounce rays
   f.kinds = !area && !delta ? kind_all : !area ? kind_delta : delta ? kind_all : v.all_rects() ? kind_area | kind_rects : kind_area;
-  if (!f.light && !f.bsdf) f = Features{kind_all, false, false, false, false};
+  f.bsdfs = materials ? bsdf_all : bsdf_diffuse;
+  if (materials) f.kinds = kind_all;  // one pipeline per technique for every other surface
+  if (!f.light && !f.bsdf) f = Features{kind_all, false, false, false, false, bsdf_diffuse};
   why = std::string(area ? "area lights" : "no area light") + ", " + (delta ? "delta lights" : "no delta light") + ", " +
         std::to_string(v.lights.count) + " light(s), pick " + (f.pick ? "per lane" : "none") + ", strategy " +
-        (est.strategy == Strategy::mis ? "mis" : est.strategy == Strategy::light ? "light" : "bsdf");
+        (est.strategy == Strategy::mis ? "mis" : est.strategy == Strategy::light ? "light" : "bsdf") +
+        (materials ? ", surfaces other than diffuse" : ", diffuse surfaces");
   return f;
 }
 

@@ -144,6 +144,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   v.tri_light.reserve(tris + 1);
   for (const Mesh& m : scene.meshes) {
     v.geom_material.push_back(m.material >= 0 ? m.material : default_material);
+    v.geom_side.push_back(m.reverse_orientation ? -1.f : 1.f);
     v.tri_offset.push_back(static_cast<int32_t>(v.tri_light.size()));
     for (size_t t = 0; t < m.triangle_count(); ++t) {
       for (int k = 0; k < 3; ++k) {
@@ -158,6 +159,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   }
   for (const Sphere& s : scene.spheres) {
     v.geom_material.push_back(s.material >= 0 ? s.material : default_material);
+    v.geom_side.push_back(s.reverse_orientation ? -1.f : 1.f);
     v.sphere_center.insert(v.sphere_center.end(), {s.center.x, s.center.y, s.center.z, s.radius});
     v.sphere_light.push_back(s.light);
     v.tri_offset.push_back(0);
@@ -165,17 +167,39 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   v.sphere_light.push_back(-1);  // never empty
   v.tri_pos.insert(v.tri_pos.end(), 9, 0.f);  // a spare triangle: never empty
   v.tri_light.push_back(-1);
-  for (const Material& m : scene.materials) {
+  auto add_material = [&](const Material& m) {
     v.mat_r.push_back(m.reflectance.r);
     v.mat_g.push_back(m.reflectance.g);
     v.mat_b.push_back(m.reflectance.b);
     v.mat_texture.push_back(m.texture);
+    v.mat_kind.push_back(static_cast<int32_t>(m.kind));
+    const float p[mp_count] = {m.transmittance.r, m.transmittance.g, m.transmittance.b, m.eta_rgb.r, m.eta_rgb.g,
+                               m.eta_rgb.b,       m.k_rgb.r,         m.k_rgb.g,         m.k_rgb.b,   m.eta,
+                               m.alpha_u.value,   m.alpha_v.value,   m.base_alpha_u.value, m.base_alpha_v.value,
+                               m.thickness,       m.albedo.r,        m.albedo.g,        m.albedo.b};
+    for (int i = 0; i < mp_count; ++i) v.mat_param[i].push_back(p[i]);
+    v.mat_mix0.push_back(m.mix[0]);
+    v.mat_mix1.push_back(m.mix[1]);
+    v.mat_mix_amount.push_back(m.mix_amount.value);
+  };
+  for (const Material& m : scene.materials) {
+    add_material(m);
     v.geom.has_textures |= m.texture >= 0;
   }
-  v.mat_r.push_back(0.5f);  // the default material
-  v.mat_g.push_back(0.5f);
-  v.mat_b.push_back(0.5f);
-  v.mat_texture.push_back(-1);
+  add_material(Material{});  // the default material: diffuse grey 0.5
+  // the kinds of surface some geometry has (an empty scene counts as diffuse)
+  v.bsdf_kinds = 1u << static_cast<int>(MaterialKind::diffuse);
+  if (!v.geom_material.empty()) v.bsdf_kinds = 0;
+  for (const int32_t m : v.geom_material) {
+    const auto k = static_cast<size_t>(m);
+    if (v.mat_mix0[k] < 0) {
+      v.bsdf_kinds |= 1u << v.mat_kind[k];
+    } else {
+      v.geom.has_mix = true;
+      v.bsdf_kinds |= 1u << v.mat_kind[static_cast<size_t>(v.mat_mix0[k])];
+      v.bsdf_kinds |= 1u << v.mat_kind[static_cast<size_t>(v.mat_mix1[k])];
+    }
+  }
   for (const Texture& t : scene.textures) {
     v.tex_rgb.push_back(t.rgb.data());
     v.tex_w.push_back(t.width);
@@ -193,6 +217,13 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   G.mat_g = v.mat_g.data();
   G.mat_b = v.mat_b.data();
   G.mat_texture = v.mat_texture.data();
+  G.mat_kind = v.mat_kind.data();
+  G.mat_mix0 = v.mat_mix0.data();
+  G.mat_mix1 = v.mat_mix1.data();
+  G.mat_mix_amount = v.mat_mix_amount.data();
+  for (int i = 0; i < mp_count; ++i) G.mat_param[i] = v.mat_param[i].data();
+  v.geom_side.push_back(1.f);  // never empty
+  G.geom_side = v.geom_side.data();
   G.indices = v.indices.data();
   G.positions = v.positions.data();
   G.uvs = v.uvs.data();

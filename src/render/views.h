@@ -33,8 +33,16 @@ struct SceneViews {
   std::vector<const float*> positions;
   std::vector<const float*> uvs, tex_rgb;
   std::vector<float> mat_r, mat_g, mat_b;
+  std::vector<int32_t> mat_kind, mat_mix0, mat_mix1;
+  std::vector<float> mat_mix_amount;
+  std::vector<float> mat_param[mp_count];
+  std::vector<float> geom_side;
   GeomView geom;
   CameraView camera;
+  std::vector<float> filter_table;  // camera.filter's tables (render/filter_table.h), set by the renderer
+  uint32_t bsdf_kinds = 0;  // bit per MaterialKind some geometry uses (through a mix too)
+  // the pipelines for other surfaces than diffuse are needed (a kind, or a mix to resolve)
+  bool has_materials() const { return (bsdf_kinds & ~1u) != 0 || geom.has_mix; }
   uint32_t features = 0;  // the scene's (SceneFeature bits, detected by finalize_scene)
   bool has_area() const { return (features & feat_area_lights) != 0; }
   bool has_delta() const { return (features & feat_delta_lights) != 0; }

@@ -42,8 +42,8 @@ void add_box(Mesh& m, vec3f lo, vec3f hi) {
 Scene two_panels() {
   Scene s;
   s.source = "built-in:two-panels";
-  s.materials.push_back({Rgb{0.8f, 0.8f, 0.8f}, -1, ""});    // floor
-  s.materials.push_back({Rgb{0.2f, 0.2f, 0.2f}, -1, ""});    // panel backs
+  s.materials.push_back(diffuse_material(Rgb{0.8f, 0.8f, 0.8f}, -1));    // floor
+  s.materials.push_back(diffuse_material(Rgb{0.2f, 0.2f, 0.2f}, -1));    // panel backs
   Mesh floor = make_mesh("two-panels floor", 0);
   add_quad(floor, {-6, 0, -6}, {0, 0, 12}, {12, 0, 0});      // normal +y
   s.meshes.push_back(std::move(floor));
@@ -71,9 +71,9 @@ Scene two_panels() {
 Scene cornell() {
   Scene s;
   s.source = "built-in:cornell";
-  s.materials.push_back({Rgb{0.73f, 0.73f, 0.73f}, -1, ""});  // white
-  s.materials.push_back({Rgb{0.65f, 0.05f, 0.05f}, -1, ""});  // red
-  s.materials.push_back({Rgb{0.12f, 0.45f, 0.15f}, -1, ""});  // green
+  s.materials.push_back(diffuse_material(Rgb{0.73f, 0.73f, 0.73f}, -1));  // white
+  s.materials.push_back(diffuse_material(Rgb{0.65f, 0.05f, 0.05f}, -1));  // red
+  s.materials.push_back(diffuse_material(Rgb{0.12f, 0.45f, 0.15f}, -1));  // green
   Mesh white = make_mesh("cornell white walls", 0);
   add_quad(white, {0, 0, 0}, {0, 0, 1}, {1, 0, 0});   // floor, +y
   add_quad(white, {0, 1, 0}, {1, 0, 0}, {0, 0, 1});   // ceiling, -y

@@ -86,6 +86,51 @@ static bool match_parallelogram(const Mesh& m, size_t t, vec3f& p0, vec3f& e1, v
   return true;
 }
 
+namespace {
+
+// Checks every material's numbers and indices, and applies what tuile approximates, once,
+// with one warning per kind: a float texture for roughness becomes its mean (remapped as
+// pbrt would at each hit), a displacement texture is ignored, a mix's own textures are not
+// looked up by the materials it chooses between.
+void resolve_material_params(Scene& scene) {
+  const int nm = static_cast<int>(scene.materials.size());
+  const int nt = static_cast<int>(scene.textures.size()), nf = static_cast<int>(scene.float_textures.size());
+  bool averaged = false, bump = false;
+  for (Material& m : scene.materials) {
+    if (m.texture >= nt || m.transmittance_texture >= nt) throw SceneError("material: error: texture index out of range");
+    if (m.displacement >= nf) throw SceneError("material: error: displacement texture index out of range");
+    for (FloatParam* f : {&m.alpha_u, &m.alpha_v, &m.base_alpha_u, &m.base_alpha_v, &m.mix_amount}) {
+      if (f->texture >= nf) throw SceneError("material: error: float texture index out of range");
+      if (f->texture < 0) continue;
+      const FloatTexture& t = scene.float_textures[static_cast<size_t>(f->texture)];
+      double sum = 0;
+      for (float v : t.value) sum += v;
+      const float mean = t.value.empty() ? 0.f : static_cast<float>(sum / static_cast<double>(t.value.size()));
+      const bool alpha = f != &m.mix_amount;
+      f->value = alpha && m.remap_roughness ? std::sqrt(std::max(mean, 0.f)) : mean;
+      f->texture = -1;
+      averaged = averaged || t.width * t.height > 1;
+    }
+    for (float v : {m.eta, m.alpha_u.value, m.alpha_v.value, m.base_alpha_u.value, m.base_alpha_v.value, m.thickness,
+                    m.eta_rgb.r, m.eta_rgb.g, m.eta_rgb.b, m.k_rgb.r, m.k_rgb.g, m.k_rgb.b})
+      if (!std::isfinite(v) || v < 0) throw SceneError("material: error: a parameter is negative, NaN or infinite");
+    if (m.mix[0] >= 0) {
+      for (int i : m.mix)
+        if (i < 0 || i >= nm || scene.materials[static_cast<size_t>(i)].mix[0] >= 0)
+          throw SceneError("material: error: mix of a material index out of range, or of a mix");
+    }
+    if (m.displacement >= 0) {
+      const FloatTexture& t = scene.float_textures[static_cast<size_t>(m.displacement)];
+      bump = bump || t.width * t.height > 1;
+    }
+  }
+  if (averaged)
+    scene.warnings.push_back("textured roughness or mix amount: approximated by the texture's mean (one value per material)");
+  if (bump) scene.warnings.push_back("displacement (bump mapping): not supported, the surfaces are shaded flat");
+}
+
+}  // namespace
+
 void finalize_scene(Scene& scene) {
   // validation: numbers and indices
   for (Mesh& m : scene.meshes) {
@@ -111,8 +156,7 @@ void finalize_scene(Scene& scene) {
   for (const Sphere& s : scene.spheres)
     if (!finite3(s.center) || !std::isfinite(s.radius) || !(s.radius > 0))
       throw SceneError("sphere: error: centre and radius must be finite, radius > 0");
-  for (const Material& mt : scene.materials)
-    if (mt.texture >= static_cast<int>(scene.textures.size())) throw SceneError("material: error: texture index out of range");
+  resolve_material_params(scene);
   const Camera& c = scene.camera;
   if (c.width < 1 || c.height < 1 || c.width > 32768 || c.height > 32768 ||
       static_cast<double>(c.width) * c.height > double(1u << 28))

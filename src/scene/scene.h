@@ -9,7 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "bsdf/bsdf.h"
 #include "lanes/vec.h"
+#include "sample/filter.h"
 
 namespace tuile {
 
@@ -29,10 +31,55 @@ struct Texture {
   std::vector<float> rgb;  // linear RGB, row-major, top row first
 };
 
+// A float parameter pbrt lets a texture give: the constant, or a float texture
+// (Scene::float_textures) when texture >= 0, looked up at the hit's uv.
+struct FloatParam {
+  float value = 0;
+  int texture = -1;
+};
+
+// One material, pbrt-v4's parameters already resolved to what the BSDFs read: spectra to
+// linear RGB, roughness to Trowbridge-Reitz alphas (pbrt's RoughnessToAlpha where
+// remaproughness). Fields a kind does not use keep their defaults.
 struct Material {
-  Rgb reflectance{0.5f, 0.5f, 0.5f};
-  int texture = -1;  // index into Scene::textures, multiplies... replaces reflectance when >= 0
-  std::string approximated_from;  // non-empty when a non-diffuse material was approximated
+  MaterialKind kind = MaterialKind::diffuse;
+  Rgb reflectance{0.5f, 0.5f, 0.5f};  // diffuse, coated diffuse's base, diffuse transmission's R
+  int texture = -1;  // index into Scene::textures: replaces reflectance when >= 0
+  Rgb transmittance{0.25f, 0.25f, 0.25f};  // diffuse transmission's T (times its "scale", as reflectance)
+  int transmittance_texture = -1;          // index into Scene::textures, or -1
+  Rgb eta_rgb{1, 1, 1}, k_rgb{0, 0, 0};    // conductor and coated conductor's base (pbrt: eta / k spectra)
+  float eta = 1.5f;                        // dielectric, thin dielectric, and the coat of coated*
+  FloatParam alpha_u, alpha_v;             // Trowbridge-Reitz alphas: conductor, dielectric, coat interface
+  FloatParam base_alpha_u, base_alpha_v;   // coated conductor: the conductor's alphas
+  bool remap_roughness = true;             // textured roughness goes through RoughnessToAlpha at the hit
+  float thickness = 0.01f;                 // coated*: the layer between coat and base
+  Rgb albedo{0, 0, 0};                     // coated*: the layer's scattering albedo
+  float g = 0;                             // coated*: its Henyey-Greenstein asymmetry
+  int max_depth = 10, nsamples = 1;        // coated*: pbrt's random-walk settings (recorded)
+  int displacement = -1;                   // float texture for bump mapping, or -1
+  // pbrt's "mix": when mix[0] >= 0 this material is a choice, per hit, between materials
+  // mix[0] and mix[1] (indices into Scene::materials, never mixes themselves): the second
+  // where a hash of the hit is below amount (pbrt-v4's MixMaterial::ChooseMaterial).
+  int mix[2] = {-1, -1};
+  FloatParam mix_amount{0.5f, -1};
+  std::string approximated_from;  // non-empty when the material was approximated (pbrt type)
+};
+
+// A diffuse material of reflectance rho, or of the texture's texels when texture >= 0.
+inline Material diffuse_material(Rgb rho, int texture = -1) {
+  Material m;
+  m.reflectance = rho;
+  m.texture = texture;
+  return m;
+}
+
+// A float texture (pbrt's imagemap, constant, scale, mix of float textures) baked to an
+// image: one value per texel, looked up nearest with wrap at the hit's uv. A constant is a
+// 1x1 image.
+struct FloatTexture {
+  std::string name;
+  int width = 0, height = 0;
+  std::vector<float> value;  // row-major, top row first
 };
 
 struct Mesh {
@@ -115,6 +162,7 @@ struct Scene {
   std::vector<Sphere> spheres;
   std::vector<Material> materials;  // meshes with material -1 use a default grey 0.5
   std::vector<Texture> textures;
+  std::vector<FloatTexture> float_textures;
   std::vector<Light> lights;        // delta lights are added by loaders; area lights by finalize_scene
   std::vector<std::string> warnings;  // approximations made at load, one per kind
   // Settings from the file (pbrt Sampler/Film/Integrator); the command line overrides them.
@@ -122,6 +170,7 @@ struct Scene {
   std::string file_sampler;       // "", "independent", "stratified", "sobol"
   std::string file_light_pick;    // "", "uniform", "power", "area"
   std::string file_output;        // Film "filename"
+  FilterParams file_filter;       // PixelFilter (pbrt-v4's defaults per filter; none: the box of radius 1/2)
   uint32_t features = 0;
   size_t triangle_count() const;
 };

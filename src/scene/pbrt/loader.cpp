@@ -12,6 +12,7 @@
 #include "lexer.h"
 #include "loader_state.h"
 #include "params.h"
+#include "render/filter_table.h"
 #include "util.h"
 
 namespace tuile {
@@ -203,7 +204,28 @@ void Loader::directive(Lexer& lx, const Token& t) {
     require_world(lx, t, false);
     const std::string type = string_arg(lx, "filter type");
     Params ps = read_params(lx);
-    if (type != "box") warn("filter", where + ": PixelFilter \"" + type + "\" approximated by tuile's box filter");
+    FilterKind kind;
+    if (!filter_kind_from_name(type, kind))
+      lx.fail(t, "unknown PixelFilter \"" + type + "\"", "box, triangle, gaussian, mitchell or sinc");
+    // pbrt-v4's parameters and defaults (filters.cpp); a bad value is an error at its line
+    FilterParams f = default_filter(kind);
+    f.xradius = ps.one_float("xradius", f.xradius);
+    f.yradius = ps.one_float("yradius", f.yradius);
+    if (kind == FilterKind::gaussian) f.sigma = ps.one_float("sigma", f.sigma);
+    if (kind == FilterKind::mitchell) {
+      f.b = ps.one_float("B", f.b);
+      f.c = ps.one_float("C", f.c);
+    }
+    if (kind == FilterKind::sinc) f.tau = ps.one_float("tau", f.tau);
+    std::string param;
+    const std::string problem = filter_problem(f, &param);
+    if (!problem.empty()) {
+      const Param* p = ps.get(param, "float");
+      if (p) p->fail("PixelFilter \"" + type + "\": " + param + " out of range", problem);
+      lx.fail(t, "PixelFilter \"" + type + "\": " + param + " out of range", problem);
+    }
+    scene.file_filter = f;
+    warn_unused(ps, "PixelFilter \"" + type + "\"", lx, t);
   } else if (d == "Integrator") {
     require_world(lx, t, false);
     const std::string type = string_arg(lx, "integrator type");

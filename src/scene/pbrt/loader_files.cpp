@@ -1,7 +1,8 @@
 // The pbrt-v4 reader's file loading at the end of parsing: the PLY meshes and the image
 // textures a material reaches are read in parallel (oneTBB, one task per file, largest
 // first); errors in PLY files become load errors at the Shape that named them, unreadable
-// images a warning and grey 0.5.
+// images of spectrum textures a warning and grey 0.5 (of float textures: an error at the
+// Texture, when textures are resolved).
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
@@ -26,8 +27,7 @@ void Loader::load_files() {
   // Images only when a material reaches them.
   std::vector<char> seen(texdefs_.size(), 0);
   std::vector<int> todo;
-  for (int td : material_tex_)
-    if (td >= 0) todo.push_back(td);
+  for (const SpectrumFix& f : spectrum_fixes_) todo.push_back(f.def);
   while (!todo.empty()) {
     const int td = todo.back();
     todo.pop_back();
@@ -37,6 +37,17 @@ void Loader::load_files() {
     if (d.job >= 0) images_[size_t(d.job)].needed = true;
     if (d.a >= 0) todo.push_back(d.a);
     if (d.b >= 0) todo.push_back(d.b);
+  }
+  std::vector<char> seen_float(float_defs_.size(), 0);
+  for (const FloatFix& f : float_fixes_) todo.push_back(f.def);
+  while (!todo.empty()) {
+    const int fd = todo.back();
+    todo.pop_back();
+    if (fd < 0 || seen_float[size_t(fd)]) continue;
+    seen_float[size_t(fd)] = 1;
+    const FloatTexDef& d = float_defs_[size_t(fd)];
+    if (d.job >= 0) images_[size_t(d.job)].needed = true;
+    for (int o : {d.a, d.b, d.amount}) todo.push_back(o);
   }
   // One task per file, largest first.
   std::vector<int> order;

@@ -1,11 +1,17 @@
 // The pbrt-v4 reader's materials and textures: the materials of Material and
-// MakeNamedMaterial (diffuse; others approximated as diffuse), Texture definitions (imagemap, constant, scale, mix,
-// checkerboard) recorded as TexDefs while parsing, and at the end their resolution to
-// scene textures or constants, baked into the materials that use them.
+// MakeNamedMaterial (diffuse, conductor, dielectric, thindielectric, diffusetransmission,
+// coateddiffuse, coatedconductor, mix; the others approximated as diffuse) resolved to what
+// tuile's BSDFs read (spectra to linear RGB, roughness to Trowbridge-Reitz alphas), Texture
+// definitions -- spectrum (imagemap, constant, scale, mix, checkerboard) as TexDefs and float
+// (imagemap, constant, scale, mix, checkerboard) as FloatTexDefs -- recorded while parsing,
+// and at the end their resolution to scene textures, float textures or constants, set into
+// the material fields that use them (SpectrumFix, FloatFix).
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <tuple>
 #include <utility>
+#include <vector>
 
 #include "lexer.h"
 #include "loader_state.h"
@@ -24,48 +30,410 @@ int Loader::reflectance_texture(Lexer&, const Param& p) {
   p.fail("unknown texture \"" + p.strs[0] + "\"", "a name defined by Texture before its use");
 }
 
+// pbrt-v4's named spectra that are refractive indices (util/spectrum.cpp: metal-*-eta/k,
+// glass-*), as tuile uses them: linear sRGB (conductor eta and k) and the value at 550 nm
+// (a dielectric's eta). Derived once, offline, from the tables of pbrt-v4's
+// src/pbrt/util/spectrum.cpp (mmp/pbrt-v4 at 5f7a6068) with the method of
+// unbounded_spectrum_rgb (util.h): D65-weighted CIE 1931 (Wyman et al. fit) integration at
+// 1 nm over 360..830 nm, XYZ to linear sRGB, each channel divided by the constant 1's.
+// Tiny negative values (MgO and TiO2 k) are clamped to 0 when read.
+struct NamedSpectrum {
+  const char* name;
+  float r, g, b;
+  float at550;
+};
+static const NamedSpectrum named_spectra[] = {
+    {"metal-Ag-eta", 0.128427f, 0.123528f, 0.150882f, 0.124777f},
+    {"metal-Ag-k", 4.054051f, 3.291666f, 2.391447f, 3.339600f},
+    {"metal-Al-eta", 1.400204f, 0.929958f, 0.583756f, 0.958569f},
+    {"metal-Al-k", 7.725633f, 6.609999f, 5.359810f, 6.686968f},
+    {"metal-Au-eta", 0.084692f, 0.401523f, 1.561496f, 0.350409f},
+    {"metal-Au-k", 3.379563f, 2.508803f, 1.770199f, 2.714063f},
+    {"metal-Cu-eta", 0.109572f, 0.975436f, 1.205131f, 0.958162f},
+    {"metal-Cu-k", 3.261362f, 2.597568f, 2.368913f, 2.577065f},
+    {"metal-CuZn-eta", 0.420815f, 0.518423f, 1.123046f, 0.527000f},
+    {"metal-CuZn-k", 3.655826f, 2.686849f, 1.770408f, 2.765000f},
+    {"metal-MgO-eta", 1.733812f, 1.740892f, 1.753548f, 1.740468f},
+    {"metal-MgO-k", 0.0f, 0.0f, 0.0f, 0.0f},
+    {"metal-TiO2-eta", 2.861729f, 2.955728f, 3.185504f, 2.954974f},
+    {"metal-TiO2-k", 0.000092f, 0.0f, 0.000553f, 0.0f},
+    {"glass-BK7", 1.514609f, 1.518771f, 1.525992f, 1.518537f},
+    {"glass-BAF10", 1.666212f, 1.673456f, 1.686639f, 1.673051f},
+    {"glass-FK51A", 1.484982f, 1.487967f, 1.493097f, 1.487796f},
+    {"glass-LASF9", 1.843265f, 1.856525f, 1.881816f, 1.855809f},
+    {"glass-F5", 1.667208f, 1.677646f, 1.697698f, 1.677089f},
+    {"glass-F10", 1.721583f, 1.734298f, 1.759067f, 1.733574f},
+    {"glass-F11", 1.776746f, 1.791907f, 1.821846f, 1.791119f},
+};
+
+static const NamedSpectrum& named_spectrum(const Param& p) {
+  for (const NamedSpectrum& n : named_spectra)
+    if (p.strs[0] == n.name) return n;
+  std::string all;
+  for (const NamedSpectrum& n : named_spectra) all += std::string(all.empty() ? "" : ", ") + n.name;
+  p.fail("unknown named spectrum \"" + p.strs[0] + "\" for \"" + p.name + "\"", "one of " + all);
+}
+
+// (lambda, value) pairs: increasing wavelengths, non-negative values.
+static void check_pairs(const Param& p) {
+  for (size_t i = 0; i < p.nums.size(); i += 2)
+    if (p.nums[i + 1] < 0 || (i > 0 && p.nums[i] < p.nums[i - 2]))
+      p.fail("spectrum '" + p.name + "' has a negative value or decreasing wavelengths", "increasing wavelengths and non-negative values");
+}
+
+static Rgb clamp0(Rgb c) { return {std::max(c.r, 0.f), std::max(c.g, 0.f), std::max(c.b, 0.f)}; }
+
+// pbrt-v4's ConductorMaterial given a reflectance: eta = 1, k = 2 sqrt(r) / sqrt(1 - r), r
+// clamped to [0, 0.9999].
+static Rgb k_from_reflectance(Rgb r) {
+  auto k = [](float x) {
+    const double c = std::clamp(double(x), 0.0, 0.9999);
+    return float(2 * std::sqrt(c) / std::sqrt(1 - c));
+  };
+  return {k(r.r), k(r.g), k(r.b)};
+}
+
+int Loader::float_texture_ref(const Param& p) {
+  if (p.strs.size() != 1) p.fail("parameter \"texture " + p.name + "\" has " + std::to_string(p.count()) + " values", "1 texture name");
+  auto it = float_textures_.find(p.strs[0]);
+  if (it != float_textures_.end()) return it->second;
+  if (textures_.count(p.strs[0])) p.fail("texture \"" + p.strs[0] + "\" is a spectrum texture", "a float texture for " + p.name);
+  p.fail("unknown float texture \"" + p.strs[0] + "\"", "a name defined by Texture \"NAME\" \"float\" before its use");
+}
+
+bool Loader::constant_float(int fd, float& v, int depth) const {
+  if (fd < 0 || depth > 64) return false;
+  const FloatTexDef& d = float_defs_[size_t(fd)];
+  float a = 0, b = 0, w = 0;
+  switch (d.kind) {
+    case FloatTexDef::constant: v = d.value; return true;
+    case FloatTexDef::product:
+      if (!constant_float(d.a, a, depth + 1) || !constant_float(d.b, b, depth + 1)) return false;
+      v = a * b;
+      return true;
+    case FloatTexDef::mix:
+      if (!constant_float(d.a, a, depth + 1) || !constant_float(d.b, b, depth + 1) || !constant_float(d.amount, w, depth + 1))
+        return false;
+      v = (1 - w) * a + w * b;
+      return true;
+    case FloatTexDef::checker:
+      if (!constant_float(d.a, a, depth + 1) || !constant_float(d.b, b, depth + 1) || a != b) return false;
+      v = a;
+      return true;
+    default: return false;
+  }
+}
+
+// Checks a constant for a material's float field and stores it (roughness through
+// RoughnessToAlpha = sqrt when remap_roughness). Errors name the parameter.
+void Loader::set_float(Material& m, FloatFix::Field field, float v, const std::string& file, int line, int col,
+                       const std::string& name) {
+  switch (field) {
+    case FloatFix::alpha_u:
+    case FloatFix::alpha_v:
+    case FloatFix::base_alpha_u:
+    case FloatFix::base_alpha_v: {
+      if (v < 0) fail(file, line, col, "roughness \"" + name + "\" is negative (" + std::to_string(v) + ")", "a roughness >= 0");
+      const float alpha = m.remap_roughness ? std::sqrt(v) : v;
+      FloatParam& f = field == FloatFix::alpha_u ? m.alpha_u
+                      : field == FloatFix::alpha_v ? m.alpha_v
+                      : field == FloatFix::base_alpha_u ? m.base_alpha_u
+                                                        : m.base_alpha_v;
+      f = {alpha, -1};
+      break;
+    }
+    case FloatFix::mix_amount: m.mix_amount = {v, -1}; break;
+    case FloatFix::displacement: {
+      FloatTexture t;
+      t.name = name;
+      t.width = t.height = 1;
+      t.value = {v};
+      m.displacement = add_float_texture(std::move(t));
+      break;
+    }
+    case FloatFix::thickness:
+      if (v < 0) fail(file, line, col, "\"" + name + "\" is negative (" + std::to_string(v) + ")", "a thickness >= 0");
+      m.thickness = v;
+      break;
+    case FloatFix::g: m.g = std::clamp(v, -1.f, 1.f); break;  // pbrt-v4 clamps g
+  }
+}
+
+// A float parameter pbrt lets a texture give ("float NAME" or "texture NAME"): a constant is
+// stored at once, a texture when textures are resolved. Returns whether it was given.
+bool Loader::float_param(Params& ps, const std::string& name, Material& m, int material, FloatFix::Field field) {
+  const Param* p = ps.get(name, "float|texture");
+  if (!p) return false;
+  if (p->type == "float") {
+    if (p->nums.size() != 1) p->fail("parameter \"float " + name + "\" has " + std::to_string(p->nums.size()) + " values", "1 value");
+    set_float(m, field, float(p->nums[0]), p->file, p->line, p->col, name);
+    return true;
+  }
+  FloatFix f;
+  f.field = field;
+  f.material = material;
+  f.def = float_texture_ref(*p);
+  f.file = p->file;
+  f.name = name;
+  f.line = p->line;
+  f.col = p->col;
+  float_fixes_.push_back(f);
+  return true;
+}
+
+// An unbounded spectrum (eta, k): rgb, (lambda, value) pairs or one of pbrt's named
+// spectra, to linear RGB; a spectrum texture is resolved at the end.
+bool Loader::unbounded_param(Lexer& lx, Params& ps, const std::string& name, int material, SpectrumFix::Field field,
+                             const std::string& where, Rgb& out) {
+  const Param* p = ps.get(name, "rgb|spectrum|texture");
+  if (!p) return false;
+  if (p->type == "texture") {
+    spectrum_fixes_.push_back({field, material, reflectance_texture(lx, *p), 1, where});
+  } else if (p->type == "rgb") {
+    if (p->nums[0] < 0 || p->nums[1] < 0 || p->nums[2] < 0)
+      p->fail("parameter \"rgb " + name + "\" has a negative value", "non-negative values");
+    out = {float(p->nums[0]), float(p->nums[1]), float(p->nums[2])};
+  } else if (!p->nums.empty()) {
+    check_pairs(*p);
+    out = clamp0(unbounded_spectrum_rgb(p->nums.data(), p->nums.size() / 2));
+  } else {
+    const NamedSpectrum& n = named_spectrum(*p);
+    out = clamp0({n.r, n.g, n.b});
+  }
+  return true;
+}
+
+// A dielectric's (or a coat's) index of refraction: a float, or a spectrum taken at 550 nm
+// (tuile renders RGB: no dispersion). pbrt-v4 reads an eta of 0 as 1.
+float Loader::eta_param(Params& ps, const std::string& name, const std::string& where) {
+  const Param* p = ps.get(name, "float|spectrum|rgb");
+  if (!p) return 1.5f;
+  double v = 1.5;
+  bool dispersive = false;
+  if (p->type == "float") {
+    if (p->nums.size() != 1) p->fail("parameter \"float " + name + "\" has " + std::to_string(p->nums.size()) + " values", "1 value");
+    v = p->nums[0];
+  } else if (p->type == "rgb") {
+    v = p->nums[1];
+    dispersive = p->nums[0] != p->nums[1] || p->nums[1] != p->nums[2];
+  } else if (!p->nums.empty()) {
+    check_pairs(*p);
+    v = spectrum_at(p->nums.data(), p->nums.size() / 2, 550);
+    for (size_t i = 3; i < p->nums.size(); i += 2) dispersive = dispersive || p->nums[i] != p->nums[1];
+  } else {
+    v = named_spectrum(*p).at550;
+    dispersive = true;
+  }
+  if (v < 0) p->fail("index of refraction \"" + name + "\" is negative", "a positive index of refraction");
+  if (dispersive)
+    warn("dispersion", where + ": a spectrally varying \"" + name + "\" is rendered without dispersion (its value at 550 nm)");
+  return v == 0 ? 1.f : float(v);
+}
+
+// pbrt-v4's mix: two named materials and an amount. tuile's mixes choose between two
+// materials that are not mixes: a mix of mixes with constant amounts becomes the
+// distribution over its leaf materials, exact when it has at most two.
+void Loader::make_mix(Lexer& lx, const Token& t, Params& ps, const std::string& where, Material& m, int index) {
+  const Param* mp = ps.get("materials", "string");
+  if (!mp) lx.fail(t, "material \"mix\" without \"materials\"", "a \"string materials\" parameter with 2 names");
+  if (mp->strs.size() != 2)
+    mp->fail("parameter \"string materials\" has " + std::to_string(mp->strs.size()) + " values", "the names of 2 materials");
+  int e[2] = {-1, -1};
+  for (int i = 0; i < 2; ++i) {
+    auto it = named_materials_.find(mp->strs[size_t(i)]);
+    if (it == named_materials_.end())
+      mp->fail("unknown named material \"" + mp->strs[size_t(i)] + "\" in mix", "a name defined by MakeNamedMaterial");
+    if (scene.materials[size_t(it->second)].approximated_from == "interface")
+      mp->fail("material \"" + mp->strs[size_t(i)] + "\" is an \"interface\"", "materials that are not \"interface\" in a mix");
+    e[i] = it->second;
+  }
+  const bool nested = scene.materials[size_t(e[0])].mix[0] >= 0 || scene.materials[size_t(e[1])].mix[0] >= 0;
+  if (!nested) {
+    m.mix[0] = e[0];
+    m.mix[1] = e[1];
+    m.mix_amount = {0.5f, -1};
+    const size_t before = float_fixes_.size();
+    float_param(ps, "amount", m, index, FloatFix::mix_amount);
+    if (float_fixes_.size() > before) mix_amount_def_[index] = float_fixes_.back().def;
+    return;
+  }
+  // The leaves of each entry with their probabilities (entries that are mixes are flat).
+  bool textured = false;
+  auto amount_of = [&](int mat) {
+    auto it = mix_amount_def_.find(mat);
+    float a = scene.materials[size_t(mat)].mix_amount.value;
+    if (it != mix_amount_def_.end() && !constant_float(it->second, a)) {
+      textured = true;
+      a = 0.5f;
+    }
+    return std::clamp(a, 0.f, 1.f);
+  };
+  float amount = 0.5f;
+  if (const Param* ap = ps.get("amount", "float|texture")) {
+    if (ap->type == "float") {
+      if (ap->nums.size() != 1) ap->fail("parameter \"float amount\" has " + std::to_string(ap->nums.size()) + " values", "1 value");
+      amount = float(ap->nums[0]);
+    } else if (!constant_float(float_texture_ref(*ap), amount)) {
+      textured = true;
+      amount = 0.5f;
+    }
+  }
+  amount = std::clamp(amount, 0.f, 1.f);
+  std::vector<std::pair<int, double>> leaves;
+  auto add = [&](int mat, double p) {
+    if (p <= 0) return;
+    for (auto& l : leaves)
+      if (l.first == mat) {
+        l.second += p;
+        return;
+      }
+    leaves.push_back({mat, p});
+  };
+  for (int i = 0; i < 2; ++i) {
+    const double p = i == 0 ? 1.0 - amount : amount;
+    const Material& x = scene.materials[size_t(e[i])];
+    if (x.mix[0] < 0) {
+      add(e[i], p);
+    } else {
+      const float a = amount_of(e[i]);
+      add(x.mix[0], p * (1 - a));
+      add(x.mix[1], p * a);
+    }
+  }
+  if (leaves.empty()) leaves.push_back({e[0], 1.0});
+  bool approximated = textured;
+  if (leaves.size() > 2) {
+    std::stable_sort(leaves.begin(), leaves.end(), [](auto& a, auto& b) { return a.second > b.second; });
+    leaves.resize(2);
+    approximated = true;
+  }
+  if (leaves.size() == 1) leaves.push_back(leaves[0]);
+  m.mix[0] = leaves[0].first;
+  m.mix[1] = leaves[1].first;
+  const double total = leaves[0].second + leaves[1].second;
+  m.mix_amount = {leaves[0].first == leaves[1].first ? 0.f : float(leaves[1].second / total), -1};
+  if (approximated) {
+    m.approximated_from = "mix";
+    warn("material:mixnested", where + ": a \"mix\" of mixes " +
+                                   std::string(textured ? "with a textured amount (0.5 used)" : "of more than two materials") +
+                                   " approximated by a mix of its two most likely materials");
+  }
+}
+
 int Loader::make_material(Lexer& lx, const Token& t, const std::string& type, Params& ps) {
   const std::string where = loc_str(lx, t);
+  const int index = int(scene.materials.size());
   Material m;
-  int tex = -1;
-  auto read_reflectance = [&](const char* name) {
+  auto spectrum_fix = [&](SpectrumFix::Field f, const Param& p, float scale = 1) {
+    spectrum_fixes_.push_back({f, index, reflectance_texture(lx, p), scale, where});
+  };
+  // A spectrum a texture may give (reflectance, transmittance, albedo): rgb, blackbody or
+  // (lambda, value) pairs; named spectra are not reflectances tuile knows (default kept).
+  auto albedo = [&](const char* name, SpectrumFix::Field f, Rgb& out, float scale = 1) {
     const Param* p = ps.get(name, "rgb|blackbody|spectrum|texture");
     if (!p) return false;
-    if (p->type == "texture") {
-      tex = reflectance_texture(lx, *p);
-    } else if (!ps.spectrum(name, false, m.reflectance)) {
-      warn("namedspectrum", where + ": named spectra are not supported; grey 0.5 used");
-    }
+    if (p->type == "texture") spectrum_fix(f, *p, scale);
+    else if (!ps.spectrum(name, false, out))
+      warn("namedspectrum:" + std::string(name), where + ": the named spectrum \"" + p->strs[0] + "\" as \"" + name +
+                                                     "\" is not supported: the default used");
     return true;
   };
-  if (type == "diffuse") {
-    read_reflectance("reflectance");
-    for (Param& p : ps.items)
-      if (p.name == "displacement" || p.name == "normalmap") {
-        p.used = true;
-        warn("bump", where + ": displacement and normal maps are not supported and were ignored");
-      }
-    warn_unused(ps, "Material \"diffuse\"", lx, t);
-  } else if (type == "mix") {
-    const Param* mp = ps.get("materials", "string");
-    auto it = mp && mp->strs.size() == 2 ? named_materials_.find(mp->strs[0]) : named_materials_.end();
-    ps.mark_all_used();
-    warn("material:mix", where + ": material \"mix\" approximated by its first material");
-    if (it != named_materials_.end()) {
-      m = scene.materials[size_t(it->second)];
-      tex = material_tex_[size_t(it->second)];
+  // roughness / uroughness / vroughness (with a prefix for coatedconductor), default 0.
+  auto roughness = [&](const std::string& prefix, FloatFix::Field fu, FloatFix::Field fv) {
+    if (!float_param(ps, prefix + "uroughness", m, index, fu) && !float_param(ps, prefix + "roughness", m, index, fu))
+      set_float(m, fu, 0, "", 0, 0, prefix + "roughness");
+    if (!float_param(ps, prefix + "vroughness", m, index, fv) && !float_param(ps, prefix + "roughness", m, index, fv))
+      set_float(m, fv, 0, "", 0, 0, prefix + "roughness");
+  };
+  auto surface = [&] {  // parameters every pbrt-v4 surface material takes
+    float_param(ps, "displacement", m, index, FloatFix::displacement);
+    if (ps.get("normalmap", "string")) warn("normalmap", where + ": normal maps (\"normalmap\") are not supported and were ignored");
+  };
+  auto layer = [&] {  // coated*: the medium between coat and base
+    if (!float_param(ps, "thickness", m, index, FloatFix::thickness)) m.thickness = 0.01f;
+    albedo("albedo", SpectrumFix::albedo, m.albedo);
+    float_param(ps, "g", m, index, FloatFix::g);
+    m.max_depth = ps.one_int("maxdepth", 10);
+    m.nsamples = ps.one_int("nsamples", 1);
+    if (m.max_depth < 0) ps.get("maxdepth", "integer")->fail("\"maxdepth\" is negative", "a depth >= 0");
+    if (m.nsamples < 1) ps.get("nsamples", "integer")->fail("\"nsamples\" is less than 1", "at least 1 sample");
+  };
+  // A conductor's eta and k, or its reflectance (pbrt-v4: not both); default copper.
+  auto conductor = [&](const std::string& prefix) {
+    const bool has_eta = unbounded_param(lx, ps, prefix + "eta", index, SpectrumFix::eta, where, m.eta_rgb);
+    const bool has_k = unbounded_param(lx, ps, prefix + "k", index, SpectrumFix::k, where, m.k_rgb);
+    const Param* rp = ps.get("reflectance", "rgb|blackbody|spectrum|texture");
+    if (rp && (has_eta || has_k))
+      rp->fail("both \"reflectance\" and \"" + prefix + "eta\"/\"" + prefix + "k\" given", "either a reflectance or eta and k");
+    if (rp) {
+      Rgb r{0.5f, 0.5f, 0.5f};
+      albedo("reflectance", SpectrumFix::conductor_reflectance, r);
+      m.eta_rgb = {1, 1, 1};
+      m.k_rgb = k_from_reflectance(r);
+      return;
     }
-    if (m.approximated_from.empty()) m.approximated_from = "mix";
+    const NamedSpectrum& cu_eta = named_spectra[6];
+    const NamedSpectrum& cu_k = named_spectra[7];
+    if (!has_eta) m.eta_rgb = {cu_eta.r, cu_eta.g, cu_eta.b};
+    if (!has_k) m.k_rgb = {cu_k.r, cu_k.g, cu_k.b};
+  };
+  if (type == "diffuse") {
+    albedo("reflectance", SpectrumFix::reflectance, m.reflectance);
+    surface();
+  } else if (type == "conductor") {
+    m.kind = MaterialKind::conductor;
+    m.remap_roughness = ps.one_bool("remaproughness", true);
+    conductor("");
+    roughness("", FloatFix::alpha_u, FloatFix::alpha_v);
+    surface();
+  } else if (type == "dielectric" || type == "thindielectric") {
+    m.kind = type == "dielectric" ? MaterialKind::dielectric : MaterialKind::thin_dielectric;
+    m.eta = eta_param(ps, "eta", where);
+    if (type == "dielectric") {
+      m.remap_roughness = ps.one_bool("remaproughness", true);
+      roughness("", FloatFix::alpha_u, FloatFix::alpha_v);
+    }
+    surface();
+  } else if (type == "diffusetransmission") {
+    m.kind = MaterialKind::diffuse_transmission;
+    const float scale = ps.one_float("scale", 1);
+    if (scale < 0) ps.get("scale", "float")->fail("\"scale\" is negative", "a scale >= 0");
+    m.reflectance = m.transmittance = {0.25f, 0.25f, 0.25f};
+    albedo("reflectance", SpectrumFix::reflectance, m.reflectance, scale);
+    albedo("transmittance", SpectrumFix::transmittance, m.transmittance, scale);
+    m.reflectance = mul(m.reflectance, scale);
+    m.transmittance = mul(m.transmittance, scale);
+    surface();
+  } else if (type == "coateddiffuse") {
+    m.kind = MaterialKind::coated_diffuse;
+    m.remap_roughness = ps.one_bool("remaproughness", true);
+    albedo("reflectance", SpectrumFix::reflectance, m.reflectance);
+    roughness("", FloatFix::alpha_u, FloatFix::alpha_v);
+    m.eta = eta_param(ps, "eta", where);
+    layer();
+    surface();
+  } else if (type == "coatedconductor") {
+    m.kind = MaterialKind::coated_conductor;
+    m.remap_roughness = ps.one_bool("remaproughness", true);
+    roughness("interface.", FloatFix::alpha_u, FloatFix::alpha_v);
+    m.eta = eta_param(ps, "interface.eta", where);
+    conductor("conductor.");
+    roughness("conductor.", FloatFix::base_alpha_u, FloatFix::base_alpha_v);
+    layer();
+    surface();
+  } else if (type == "mix") {
+    make_mix(lx, t, ps, where, m, index);
   } else {
-    const bool found = read_reflectance("reflectance") || (ps.get("Kd", "rgb|spectrum|texture") && read_reflectance("Kd"));
+    const bool found = albedo("reflectance", SpectrumFix::reflectance, m.reflectance) ||
+                       (ps.get("Kd", "rgb|spectrum|texture") && albedo("Kd", SpectrumFix::reflectance, m.reflectance));
     m.approximated_from = type.empty() ? "none" : type;
     ps.mark_all_used();
     warn("material:" + type, where + ": material \"" + type + "\" approximated as diffuse (" +
                                  (found ? "its reflectance" : "grey 0.5") + ")");
   }
+  warn_unused(ps, "Material \"" + type + "\"", lx, t);
   scene.materials.push_back(m);
-  material_tex_.push_back(tex);
-  return int(scene.materials.size() - 1);
+  return index;
 }
 
 int Loader::tex_operand(Lexer& lx, Params& ps, const std::string& name, Rgb def) {
@@ -93,9 +461,7 @@ void Loader::texture(Lexer& lx, const Token& t) {
   const std::string cls = string_arg(lx, "texture class");
   Params ps = read_params(lx);
   if (kind == "float") {
-    ps.mark_all_used();
-    float_textures_[name] = 0;
-    warn("floattex", where + ": float textures (bump maps, roughness) are not supported and were ignored");
+    float_texture(lx, t, name, cls, ps);
     return;
   }
   if (kind != "spectrum" && kind != "color") lx.fail(t, "unknown texture type \"" + kind + "\"", "\"spectrum\" or \"float\"");
@@ -109,17 +475,7 @@ void Loader::texture(Lexer& lx, const Token& t) {
     const std::string enc = ps.one_string("encoding", "sRGB");
     d.kind = TexDef::image;
     d.scale = ps.one_float("scale", 1);
-    auto key = std::make_pair(path, enc);
-    auto it = image_by_path_.find(key);
-    if (it == image_by_path_.end()) {
-      ImageJob j;
-      j.path = path;
-      j.encoding = enc;
-      j.where = where;
-      images_.push_back(std::move(j));
-      it = image_by_path_.emplace(key, int(images_.size() - 1)).first;
-    }
-    d.job = it->second;
+    d.job = image_job(path, enc, where);
     if (ps.one_bool("invert", false)) warn("invert", where + ": imagemap \"invert\" is not supported and was ignored");
     const std::string wrap = ps.one_string("wrap", "repeat");
     if (wrap != "repeat") warn("wrap", where + ": imagemap wrap \"" + wrap + "\" is not supported: textures repeat");
@@ -169,6 +525,13 @@ void Loader::texture(Lexer& lx, const Token& t) {
     ps.mark_all_used();
     warn("texture:" + cls, where + ": texture class \"" + cls + "\" is not supported: grey 0.5 used");
   }
+  mapping_warnings(ps, where);
+  warn_unused(ps, "Texture \"" + cls + "\"", lx, t);
+  texdefs_.push_back(d);
+  textures_[name] = int(texdefs_.size() - 1);
+}
+
+void Loader::mapping_warnings(Params& ps, const std::string& where) {
   for (Param& p : ps.items)
     if (p.name == "mapping" || p.name == "uscale" || p.name == "vscale" || p.name == "udelta" || p.name == "vdelta") {
       if (!p.used && !(p.strs.size() == 1 && p.strs[0] == "uv") &&
@@ -176,9 +539,100 @@ void Loader::texture(Lexer& lx, const Token& t) {
         warn("mapping", where + ": texture mappings other than plain uv are not supported and were ignored");
       p.used = true;
     }
+}
+
+int Loader::image_job(const std::string& path, const std::string& encoding, const std::string& where) {
+  auto key = std::make_pair(path, encoding);
+  auto it = image_by_path_.find(key);
+  if (it == image_by_path_.end()) {
+    ImageJob j;
+    j.path = path;
+    j.encoding = encoding;
+    j.where = where;
+    images_.push_back(std::move(j));
+    it = image_by_path_.emplace(key, int(images_.size() - 1)).first;
+  }
+  return it->second;
+}
+
+// A float operand of a float texture: "float NAME" (or the default) or "texture NAME".
+int Loader::float_operand(Params& ps, const std::string& name, float def) {
+  const Param* p = ps.get(name, "float|texture");
+  if (p && p->type == "texture") return float_texture_ref(*p);
+  FloatTexDef c;
+  c.value = def;
+  if (p) {
+    if (p->nums.size() != 1) p->fail("parameter \"float " + name + "\" has " + std::to_string(p->nums.size()) + " values", "1 value");
+    c.value = float(p->nums[0]);
+  }
+  float_defs_.push_back(c);
+  return int(float_defs_.size() - 1);
+}
+
+// Texture "name" "float" CLASS: constant, imagemap (its first channel, as pbrt-v4's float
+// image lookup), scale, mix and 2D checkerboard are baked at the end; bilerp and the
+// procedural classes are approximated by a constant.
+void Loader::float_texture(Lexer& lx, const Token& t, const std::string& name, const std::string& cls, Params& ps) {
+  const std::string where = loc_str(lx, t);
+  FloatTexDef d;
+  d.name = name;
+  d.where = where;
+  d.file = lx.file();
+  d.line = t.line;
+  d.col = t.col;
+  if (cls == "constant") {
+    d.value = ps.one_float("value", 1);
+  } else if (cls == "imagemap") {
+    const Param* fp = ps.get("filename", "string");
+    if (!fp || fp->strs.size() != 1) lx.fail(t, "imagemap texture \"" + name + "\" without a filename", "a \"string filename\" parameter");
+    const std::string path = resolve_path(lx.dir(), fp->strs[0]);
+    const bool png = path.size() >= 4 && (path.compare(path.size() - 4, 4, ".png") == 0 || path.compare(path.size() - 4, 4, ".PNG") == 0);
+    const std::string enc = ps.one_string("encoding", png ? "sRGB" : "linear");  // pbrt-v4's default
+    d.kind = FloatTexDef::image;
+    d.scale = ps.one_float("scale", 1);
+    d.invert = ps.one_bool("invert", false);
+    d.job = image_job(path, enc, where);
+    const std::string wrap = ps.one_string("wrap", "repeat");
+    if (wrap != "repeat") warn("wrap", where + ": imagemap wrap \"" + wrap + "\" is not supported: textures repeat");
+    ps.get("filter", "string");
+    ps.get("maxanisotropy", "float");
+  } else if (cls == "scale") {
+    d.kind = FloatTexDef::product;
+    d.a = float_operand(ps, "tex", 1);
+    d.b = float_operand(ps, "scale", 1);
+  } else if (cls == "mix") {
+    d.kind = FloatTexDef::mix;
+    d.a = float_operand(ps, "tex1", 0);
+    d.b = float_operand(ps, "tex2", 1);
+    d.amount = float_operand(ps, "amount", 0.5f);
+  } else if (cls == "checkerboard") {
+    d.kind = FloatTexDef::checker;
+    d.a = float_operand(ps, "tex1", 1);
+    d.b = float_operand(ps, "tex2", 0);
+    d.uscale = ps.one_float("uscale", 1);
+    d.vscale = ps.one_float("vscale", 1);
+    d.udelta = ps.one_float("udelta", 0);
+    d.vdelta = ps.one_float("vdelta", 0);
+    if (ps.one_int("dimension", 2) != 2) {
+      warn("checker3d", where + ": 3D checkerboard approximated by the average of its two textures");
+      d.kind = FloatTexDef::mix;
+      FloatTexDef half;
+      half.value = 0.5f;
+      float_defs_.push_back(half);
+      d.amount = int(float_defs_.size() - 1);
+    }
+  } else if (cls == "bilerp") {
+    d.value = (ps.one_float("v00", 0) + ps.one_float("v01", 1) + ps.one_float("v10", 0) + ps.one_float("v11", 1)) / 4;
+    warn("floattex:bilerp", where + ": float texture \"bilerp\" approximated by the average of its corners");
+  } else {
+    ps.mark_all_used();
+    d.value = 0.5f;
+    warn("floattex:" + cls, where + ": float texture class \"" + cls + "\" is not supported: the constant 0.5 used");
+  }
+  mapping_warnings(ps, where);
   warn_unused(ps, "Texture \"" + cls + "\"", lx, t);
-  texdefs_.push_back(d);
-  textures_[name] = int(texdefs_.size() - 1);
+  float_defs_.push_back(d);
+  float_textures_[name] = int(float_defs_.size() - 1);
 }
 
 static Rgb average(const Texture& t) {
@@ -271,12 +725,179 @@ Resolved Loader::resolve(int td, int depth) {
   return r;
 }
 
+const Texture& Loader::job_texture(ImageJob& j) {
+  return j.scene_index >= 0 ? scene.textures[size_t(j.scene_index)] : j.tex;
+}
+
+int Loader::add_float_texture(FloatTexture t) {
+  scene.float_textures.push_back(std::move(t));
+  return int(scene.float_textures.size() - 1);
+}
+
+static float average(const FloatTexture& t) {
+  double s = 0;
+  for (float v : t.value) s += v;
+  return t.value.empty() ? 0.f : float(s / double(t.value.size()));
+}
+
+ResolvedFloat Loader::resolve_float(int fd, int depth) {
+  auto memo = resolved_float_.find(fd);
+  if (memo != resolved_float_.end()) return memo->second;
+  const FloatTexDef d = float_defs_[size_t(fd)];
+  ResolvedFloat r;
+  r.value = d.value;
+  auto value_of = [&](const ResolvedFloat& x) { return x.image ? average(scene.float_textures[size_t(x.texture)]) : x.value; };
+  // f over operands texel by texel: constants broadcast; images must have one size, else a
+  // constant from their averages.
+  auto combine = [&](std::vector<ResolvedFloat> ops, auto f) {
+    ResolvedFloat out;
+    int w = -1, h = -1;
+    bool same = true;
+    for (const ResolvedFloat& o : ops)
+      if (o.image) {
+        const FloatTexture& t = scene.float_textures[size_t(o.texture)];
+        if (w < 0) w = t.width, h = t.height;
+        else if (t.width != w || t.height != h) same = false;
+      }
+    std::vector<float> v(ops.size());
+    if (w < 0 || !same) {
+      if (!same)
+        warn("floatcombine", d.where + ": float texture \"" + d.name + "\" combines images of different sizes: approximated by a constant");
+      for (size_t i = 0; i < ops.size(); ++i) v[i] = value_of(ops[i]);
+      out.value = f(v);
+      return out;
+    }
+    FloatTexture t;
+    t.name = d.name;
+    t.width = w;
+    t.height = h;
+    t.value.resize(size_t(w) * size_t(h));
+    for (size_t k = 0; k < t.value.size(); ++k) {
+      for (size_t i = 0; i < ops.size(); ++i)
+        v[i] = ops[i].image ? scene.float_textures[size_t(ops[i].texture)].value[k] : ops[i].value;
+      t.value[k] = f(v);
+    }
+    out.image = true;
+    out.texture = add_float_texture(std::move(t));
+    return out;
+  };
+  if (depth > 64) {
+    r.value = 0.5f;
+  } else if (d.kind == FloatTexDef::image) {
+    ImageJob& j = images_[size_t(d.job)];
+    if (!j.ok)
+      fail(d.file, d.line, d.col, "cannot read image '" + j.path + "' of float texture \"" + d.name + "\": " + j.reason,
+           "an existing, readable image file");
+    const auto key = std::make_tuple(d.job, d.scale, d.invert);
+    auto it = float_images_.find(key);
+    if (it == float_images_.end()) {
+      const Texture& src = job_texture(j);
+      FloatTexture t;
+      t.name = d.name;
+      t.width = src.width;
+      t.height = src.height;
+      t.value.resize(size_t(src.width) * size_t(src.height));
+      for (size_t i = 0; i < t.value.size(); ++i) {
+        const float v = d.scale * src.rgb[3 * i];  // the first channel, as pbrt-v4's float lookup
+        t.value[i] = d.invert ? std::max(0.f, 1 - v) : v;
+      }
+      it = float_images_.emplace(key, add_float_texture(std::move(t))).first;
+    }
+    r.image = true;
+    r.texture = it->second;
+  } else if (d.kind == FloatTexDef::product) {
+    r = combine({resolve_float(d.a, depth + 1), resolve_float(d.b, depth + 1)}, [](const std::vector<float>& v) { return v[0] * v[1]; });
+  } else if (d.kind == FloatTexDef::mix) {
+    r = combine({resolve_float(d.a, depth + 1), resolve_float(d.b, depth + 1), resolve_float(d.amount, depth + 1)},
+                [](const std::vector<float>& v) { return (1 - v[2]) * v[0] + v[2] * v[1]; });
+  } else if (d.kind == FloatTexDef::checker) {
+    const ResolvedFloat a = resolve_float(d.a, depth + 1), b = resolve_float(d.b, depth + 1);
+    if (a.image || b.image) {
+      warn("checkerimage", d.where + ": checkerboard of image textures approximated by their average");
+      r.value = (value_of(a) + value_of(b)) / 2;
+    } else {
+      warn("checkerbake", d.where + ": checkerboard texture baked into an image over uv [0,1]");
+      FloatTexture t;
+      t.name = d.name;
+      const float checks = std::max(std::abs(d.uscale), std::abs(d.vscale));
+      t.width = t.height = int(std::clamp(checks * 16.f, 16.f, 1024.f));
+      t.value.resize(size_t(t.width) * size_t(t.height));
+      for (int y = 0; y < t.height; ++y)
+        for (int x = 0; x < t.width; ++x) {
+          const float u = (x + 0.5f) / t.width, v = 1 - (y + 0.5f) / t.height;
+          const double s = std::floor(double(u) * d.uscale + d.udelta) + std::floor(double(v) * d.vscale + d.vdelta);
+          t.value[size_t(y) * size_t(t.width) + size_t(x)] = std::fmod(std::abs(s), 2.0) == 0 ? a.value : b.value;
+        }
+      r.image = true;
+      r.texture = add_float_texture(std::move(t));
+    }
+  }
+  resolved_float_[fd] = r;
+  return r;
+}
+
 void Loader::bake_materials() {
-  for (size_t i = 0; i < scene.materials.size(); ++i) {
-    if (material_tex_[i] < 0) continue;
-    const Resolved r = resolve(material_tex_[i]);
-    if (r.image) scene.materials[i].texture = r.texture;
-    else scene.materials[i].reflectance = r.value;
+  static const char* const spectrum_field_names[] = {"reflectance", "transmittance", "albedo", "eta", "k", "reflectance"};
+  for (const SpectrumFix& f : spectrum_fixes_) {
+    const Resolved r = resolve(f.def);
+    Material& m = scene.materials[size_t(f.material)];
+    const bool texturable = f.field == SpectrumFix::reflectance || f.field == SpectrumFix::transmittance;
+    if (r.image && texturable) {
+      int tex = r.texture;
+      if (f.scale != 1) {
+        auto key = std::make_pair(tex, f.scale);
+        auto it = scaled_textures_.find(key);
+        if (it == scaled_textures_.end()) {
+          Texture t = scene.textures[size_t(tex)];
+          for (float& v : t.rgb) v *= f.scale;
+          scene.textures.push_back(std::move(t));
+          it = scaled_textures_.emplace(key, int(scene.textures.size() - 1)).first;
+        }
+        tex = it->second;
+      }
+      (f.field == SpectrumFix::reflectance ? m.texture : m.transmittance_texture) = tex;
+      continue;
+    }
+    Rgb v = r.value;
+    if (r.image) {
+      v = average(scene.textures[size_t(r.texture)]);
+      const std::string what = std::string(material_kind_names[int(m.kind)]) + " " + spectrum_field_names[f.field];
+      warn("texavg:" + what, f.where + ": a texture as the " + what + " is not supported: its average used");
+    }
+    v = mul(v, f.scale);
+    switch (f.field) {
+      case SpectrumFix::reflectance: m.reflectance = v; break;
+      case SpectrumFix::transmittance: m.transmittance = v; break;
+      case SpectrumFix::albedo: m.albedo = v; break;
+      case SpectrumFix::eta: m.eta_rgb = clamp0(v); break;
+      case SpectrumFix::k: m.k_rgb = clamp0(v); break;
+      case SpectrumFix::conductor_reflectance:
+        m.eta_rgb = {1, 1, 1};
+        m.k_rgb = k_from_reflectance(v);
+        break;
+    }
+  }
+  for (const FloatFix& f : float_fixes_) {
+    const ResolvedFloat r = resolve_float(f.def);
+    Material& m = scene.materials[size_t(f.material)];
+    if (!r.image) {
+      set_float(m, f.field, r.value, f.file, f.line, f.col, f.name);
+      continue;
+    }
+    switch (f.field) {
+      case FloatFix::alpha_u: m.alpha_u = {0, r.texture}; break;
+      case FloatFix::alpha_v: m.alpha_v = {0, r.texture}; break;
+      case FloatFix::base_alpha_u: m.base_alpha_u = {0, r.texture}; break;
+      case FloatFix::base_alpha_v: m.base_alpha_v = {0, r.texture}; break;
+      case FloatFix::mix_amount: m.mix_amount = {0.5f, r.texture}; break;
+      case FloatFix::displacement: m.displacement = r.texture; break;
+      case FloatFix::thickness:
+      case FloatFix::g:
+        warn("texavg:" + f.name, f.file + ":" + std::to_string(f.line) + ": a texture as \"" + f.name +
+                                     "\" of a coated material is not supported: its average used");
+        set_float(m, f.field, average(scene.float_textures[size_t(r.texture)]), f.file, f.line, f.col, f.name);
+        break;
+    }
   }
 }
 

@@ -11,6 +11,7 @@
 #include <memory>
 #include <set>
 #include <string>
+#include <tuple>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -58,6 +59,45 @@ struct TexDef {
   float amount = 0.5f;   // mix
   float uscale = 1, vscale = 1, udelta = 0, vdelta = 0;
   std::string name, where;
+};
+
+// A float texture as defined in the file (Texture "name" "float" CLASS), baked at the end
+// into a FloatTexture or a constant.
+struct FloatTexDef {
+  enum Kind { constant, image, product, mix, checker } kind = constant;
+  float value = 0;          // constant (also the stand-in of classes tuile cannot bake)
+  float scale = 1;          // image: pbrt's "scale"
+  bool invert = false;      // image: max(0, 1 - v)
+  int job = -1;             // image: index into image jobs
+  int a = -1, b = -1;       // product (pbrt's scale texture: a * b), mix and checker operands (FloatTexDef indices)
+  int amount = -1;          // mix: FloatTexDef index
+  float uscale = 1, vscale = 1, udelta = 0, vdelta = 0;  // checker
+  std::string name, where, file;
+  int line = 0, col = 0;
+};
+
+struct ResolvedFloat {
+  bool image = false;
+  float value = 0;
+  int texture = -1;  // Scene::float_textures
+};
+
+// A material field given by a spectrum texture, set when textures are resolved.
+struct SpectrumFix {
+  enum Field { reflectance, transmittance, albedo, eta, k, conductor_reflectance } field = reflectance;
+  int material = -1;
+  int def = -1;       // TexDef index
+  float scale = 1;    // diffusetransmission's "scale"
+  std::string where;  // "FILE:LINE" of the material
+};
+
+// A material field given by a float texture (or a float constant), set at the end.
+struct FloatFix {
+  enum Field { alpha_u, alpha_v, base_alpha_u, base_alpha_v, mix_amount, displacement, thickness, g } field = alpha_u;
+  int material = -1;
+  int def = -1;  // FloatTexDef index
+  std::string file, name;  // the parameter, for errors
+  int line = 0, col = 0;
 };
 
 struct ImageJob {
@@ -123,6 +163,19 @@ class Loader {
   int reflectance_texture(Lexer& lx, const Param& p);
   void texture(Lexer& lx, const Token& t);
   int tex_operand(Lexer& lx, Params& ps, const std::string& name, Rgb def);
+  void mapping_warnings(Params& ps, const std::string& where);
+  int image_job(const std::string& path, const std::string& encoding, const std::string& where);
+  void float_texture(Lexer& lx, const Token& t, const std::string& name, const std::string& cls, Params& ps);
+  int float_operand(Params& ps, const std::string& name, float def);
+  int float_texture_ref(const Param& p);
+  bool constant_float(int fd, float& v, int depth = 0) const;
+  bool float_param(Params& ps, const std::string& name, Material& m, int material, FloatFix::Field field);
+  void set_float(Material& m, FloatFix::Field field, float v, const std::string& file, int line, int col,
+                 const std::string& name);
+  bool unbounded_param(Lexer& lx, Params& ps, const std::string& name, int material, SpectrumFix::Field field,
+                       const std::string& where, Rgb& out);
+  float eta_param(Params& ps, const std::string& name, const std::string& where);
+  void make_mix(Lexer& lx, const Token& t, Params& ps, const std::string& where, Material& m, int index);
   void area_light(Lexer& lx, const Token& t, const std::string& type, Params& ps);
   void light(Lexer& lx, const Token& t, const std::string& type, Params& ps);
   void shape(Lexer& lx, const Token& t, const std::string& type, Params& ps);
@@ -133,6 +186,9 @@ class Loader {
   void finish();
   void load_files();
   Resolved resolve(int td, int depth = 0);
+  ResolvedFloat resolve_float(int fd, int depth = 0);
+  const Texture& job_texture(ImageJob& j);
+  int add_float_texture(FloatTexture t);
   void bake_materials();
   void flatten();
 
@@ -144,11 +200,14 @@ class Loader {
   std::map<std::string, Mat4> coord_systems_;
   std::unordered_map<std::string, int> named_materials_;
   std::unordered_map<std::string, int> textures_;       // spectrum textures by name
-  std::unordered_map<std::string, int> float_textures_;
+  std::unordered_map<std::string, int> float_textures_;  // float textures by name: FloatTexDef index
   std::unordered_map<std::string, int> objects_;
   std::vector<std::string> object_names_;
   std::vector<TexDef> texdefs_;
-  std::vector<int> material_tex_;  // per scene material: TexDef index or -1
+  std::vector<FloatTexDef> float_defs_;
+  std::vector<SpectrumFix> spectrum_fixes_;
+  std::vector<FloatFix> float_fixes_;
+  std::map<int, int> mix_amount_def_;  // mix material -> FloatTexDef of its amount
   std::vector<ImageJob> images_;
   std::map<std::pair<std::string, std::string>, int> image_by_path_;
   std::vector<PlyJob> plys_;
@@ -156,6 +215,9 @@ class Loader {
   std::vector<OwnedSphere> spheres_;
   std::vector<Instance> instances_;
   std::map<int, Resolved> resolved_;
+  std::map<int, ResolvedFloat> resolved_float_;
+  std::map<std::pair<int, float>, int> scaled_textures_;       // (texture, scale) -> scaled copy
+  std::map<std::tuple<int, float, bool>, int> float_images_;   // (job, scale, invert) -> float texture
   std::set<std::string> warned_;
   std::string camera_where_;
 };

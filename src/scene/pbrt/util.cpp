@@ -3,6 +3,7 @@
 
 #include <zlib.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -235,19 +236,49 @@ Rgb blackbody_rgb(double kelvin) {
   return rgb;
 }
 
-Rgb sampled_spectrum_rgb(const double* pairs, size_t count, bool emission) {
-  auto eval = [&](double l) {
-    if (count == 0) return 0.0;
-    if (l <= pairs[0]) return pairs[1];
-    for (size_t i = 0; i + 1 < count; ++i) {
-      const double l0 = pairs[2 * i], l1 = pairs[2 * i + 2];
-      if (l <= l1) {
-        const double t = l1 > l0 ? (l - l0) / (l1 - l0) : 0;
-        return pairs[2 * i + 1] * (1 - t) + pairs[2 * i + 3] * t;
-      }
+double spectrum_at(const double* pairs, size_t count, double l) {
+  if (count == 0) return 0.0;
+  if (l <= pairs[0]) return pairs[1];
+  for (size_t i = 0; i + 1 < count; ++i) {
+    const double l0 = pairs[2 * i], l1 = pairs[2 * i + 2];
+    if (l <= l1) {
+      const double t = l1 > l0 ? (l - l0) / (l1 - l0) : 0;
+      return pairs[2 * i + 1] * (1 - t) + pairs[2 * i + 3] * t;
     }
-    return pairs[2 * count - 1];
+  }
+  return pairs[2 * count - 1];
+}
+
+// CIE standard illuminant D65 at 10 nm from 360 to 830 nm (the 10 nm entries of pbrt-v4's
+// CIE_Illum_D6500 table), linearly interpolated.
+static double d65(double l) {
+  static constexpr double table[48] = {
+      46.6383, 52.0891, 49.9755, 54.6482, 82.7549, 91.486,  93.4318, 86.6823, 104.865, 117.008, 117.812, 114.861,
+      115.923, 108.811, 109.354, 107.802, 104.79,  107.689, 104.405, 104.046, 100,     96.3342, 95.788,  88.6856,
+      90.0062, 89.5991, 87.6987, 83.2886, 83.6992, 80.0268, 80.2146, 82.2778, 78.2842, 69.7213, 71.6091, 74.349,
+      61.604,  69.8856, 75.087,  63.5927, 46.4182, 66.8054, 63.3828, 64.304,  59.4519, 51.959,  57.4406, 60.3125};
+  const double x = std::clamp((l - 360) / 10, 0.0, 47.0);
+  const int i = std::min(int(x), 46);
+  const double t = x - i;
+  return table[i] * (1 - t) + table[i + 1] * t;
+}
+
+Rgb unbounded_spectrum_rgb(const double* pairs, size_t count) {
+  double X, Y, Z, wx, wy, wz;
+  integrate_xyz([&](double l) { return d65(l) * spectrum_at(pairs, count, l); }, X, Y, Z);
+  integrate_xyz([&](double l) { return d65(l); }, wx, wy, wz);
+  auto row = [](int c, double x, double y, double z) {
+    static constexpr double m[3][3] = {{3.2404542, -1.5371385, -0.4985314},
+                                       {-0.9692660, 1.8760108, 0.0415560},
+                                       {0.0556434, -0.2040259, 1.0572252}};
+    return m[c][0] * x + m[c][1] * y + m[c][2] * z;
   };
+  return {float(row(0, X, Y, Z) / row(0, wx, wy, wz)), float(row(1, X, Y, Z) / row(1, wx, wy, wz)),
+          float(row(2, X, Y, Z) / row(2, wx, wy, wz))};
+}
+
+Rgb sampled_spectrum_rgb(const double* pairs, size_t count, bool emission) {
+  auto eval = [&](double l) { return spectrum_at(pairs, count, l); };
   double X, Y, Z;
   integrate_xyz(eval, X, Y, Z);
   if (emission) {

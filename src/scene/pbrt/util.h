@@ -95,5 +95,16 @@ Rgb blackbody_rgb(double kelvin);
 // Piecewise-linear spectrum given as (lambda nm, value) pairs. emission: normalised to
 // luminance 1; otherwise a reflectance (a constant 1 maps to white).
 Rgb sampled_spectrum_rgb(const double* pairs, size_t count, bool emission);
+// An unbounded spectrum (a refractive index eta or an absorption k), given as (lambda nm,
+// value) pairs, piecewise linear and clamped to its end values, as linear sRGB: weighted
+// by D65 and the CIE 1931 matching functions, XYZ to linear sRGB, each channel divided by
+// that of the constant 1, so a constant c maps to (c, c, c). Linear in the spectrum; the
+// sRGB matching functions have negative lobes, so a channel may leave the spectrum's range
+// (copper's red eta is below its smallest value) -- chosen because the normal-incidence
+// Fresnel reflectance of the RGB eta/k then matches the RGB of pbrt's spectral one within
+// about 0.01 for Cu, Ag, Al (0.05 for Au's out-of-gamut red). Callers clamp.
+Rgb unbounded_spectrum_rgb(const double* pairs, size_t count);
+// The same spectrum's value at lambda nm (piecewise linear, clamped to its end values).
+double spectrum_at(const double* pairs, size_t count, double lambda);
 
 }  // namespace tuile::pbrt

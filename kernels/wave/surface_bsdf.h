@@ -1,0 +1,30 @@
+// The BSDF of shading points [k, k + width): the material, reflectance, normal, direction
+// towards the viewer and side the camera-hit stage stored (bsdf/material.h). With Bsdfs =
+// bsdf_diffuse only the reflectance and normal are read (the other arrays are not filled).
+#pragma once
+#include "bsdf/material.h"
+#include "wave/tile.h"
+
+namespace tuile {
+
+template <class T, unsigned Bsdfs>
+inline SurfaceBsdf<T, Bsdfs> load_surface_bsdf(const GeomView& G, const ShadingPoints& P, int k, const Vec3<T>& n) noexcept {
+  SurfaceBsdf<T, Bsdfs> b;
+  b.G = &G;
+  b.rho = {load<T>(P.ar + k), load<T>(P.ag + k), load<T>(P.ab + k)};
+  b.n = n;
+  if constexpr (Bsdfs == bsdf_diffuse) {
+    b.mat = i32_t<T>(0);
+    b.kind = i32_t<T>(0);
+    b.wo = Vec3<T>(T(0.f), T(0.f), T(0.f));
+    b.side = T(1.f);
+  } else {
+    b.mat = load_i32<T>(P.mat + k);
+    b.kind = gather(G.mat_kind, b.mat);
+    b.wo = load3<T>(P.wox + k, P.woy + k, P.woz + k);
+    b.side = load<T>(P.side + k);
+  }
+  return b;
+}
+
+}  // namespace tuile

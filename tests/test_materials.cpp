@@ -1,0 +1,768 @@
+// pbrt-v4's BSDFs as lane kernels (kernels/bsdf/: conductor, dielectric, thin dielectric,
+// diffuse transmission, coated diffuse): sample() draws what pdf() reports (chi-square),
+// pdf() integrates to the non-delta lobes' probability, samples agree with eval(), energy
+// is conserved, the refraction Jacobian is right, reciprocity holds, stiff inputs stay
+// finite, every SIMD lane equals the scalar reference bit for bit (with different
+// materials in the lanes of one batch), and the deterministic coated-diffuse model is
+// compared with a random walk through the layers written after pbrt-v4's LayeredBxDF.
+//
+// Every random input comes from a fixed seed, so a run is deterministic; the false-alarm
+// probabilities stated below are what the thresholds would give a correct implementation
+// over random seeds. Tolerances are from the error analyses beside them.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <cstring>
+#include <functional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "bsdf/coated.h"
+#include "bsdf/conductor.h"
+#include "bsdf/dielectric.h"
+#include "bsdf/diffuse_transmission.h"
+#include "bsdf/fresnel.h"
+#include "bsdf/microfacet.h"
+#include "bsdf/thin_dielectric.h"
+
+using namespace tuile;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Wilson-Hilferty: the normal deviate of a chi-square statistic with k degrees of freedom.
+double chi2_z(double chi2, int k) {
+  const double a = 2.0 / (9.0 * k);
+  return (std::cbrt(chi2 / k) - (1.0 - a)) / std::sqrt(a);
+}
+
+vec3f dir_from(double theta_deg, double phi = 0.3) {
+  const double t = theta_deg * kPi / 180;
+  return {float(std::sin(t) * std::cos(phi)), float(std::sin(t) * std::sin(phi)), float(std::cos(t))};
+}
+vec3f sph(double ct, double phi) {
+  const double st = std::sqrt(std::max(0.0, 1 - ct * ct));
+  return {float(st * std::cos(phi)), float(st * std::sin(phi)), float(ct)};
+}
+
+// A BSDF under test, type-erased for the scalar checks.
+struct Subject {
+  std::string name;
+  std::function<BsdfEval<float>(vec3f, vec3f)> eval;
+  std::function<float(vec3f, vec3f)> pdf;
+  std::function<BsdfSample<float>(vec3f, float, float, float)> sample;
+};
+template <class B> Subject subject(const std::string& name, const B& b) {
+  return {name, [b](vec3f o, vec3f i) { return b.eval(o, i); }, [b](vec3f o, vec3f i) { return b.pdf(o, i); },
+          [b](vec3f o, float uc, float u1, float u2) { return b.sample(o, uc, u1, u2); }};
+}
+
+// Adaptive Simpson in one dimension (double), with a depth limit.
+double simpson(const std::function<double(double)>& f, double a, double b, double fa, double fm, double fb, double whole,
+               double eps, int depth) {
+  const double m = 0.5 * (a + b), lm = 0.5 * (a + m), rm = 0.5 * (m + b);
+  const double flm = f(lm), frm = f(rm);
+  const double left = (m - a) / 6 * (fa + 4 * flm + fm), right = (b - m) / 6 * (fm + 4 * frm + fb);
+  if (depth <= 0 || std::abs(left + right - whole) <= 15 * eps) return left + right + (left + right - whole) / 15;
+  return simpson(f, a, m, fa, flm, fm, left, eps / 2, depth - 1) + simpson(f, m, b, fm, frm, fb, right, eps / 2, depth - 1);
+}
+double adaptive(const std::function<double(double)>& f, double a, double b, double eps, int depth = 12) {
+  // start from 4 panels so that a narrow lobe is seen by the first samples
+  double sum = 0;
+  for (int k = 0; k < 4; ++k) {
+    const double x0 = a + (b - a) * k / 4, x1 = a + (b - a) * (k + 1) / 4, xm = 0.5 * (x0 + x1);
+    const double f0 = f(x0), fm = f(xm), f1 = f(x1);
+    sum += simpson(f, x0, x1, f0, fm, f1, (x1 - x0) / 6 * (f0 + 4 * fm + f1), eps / 4, depth);
+  }
+  return sum;
+}
+// integral of pdf over theta in [t0, t1], phi in [p0, p1] (solid angle measure)
+double cell_integral(const Subject& s, vec3f wo, double t0, double t1, double p0, double p1, double eps) {
+  return adaptive(
+      [&](double t) {
+        const double st = std::sin(t), ct = std::cos(t);
+        return st * adaptive(
+                        [&](double p) {
+                          const vec3f wi{float(st * std::cos(p)), float(st * std::sin(p)), float(ct)};
+                          return double(s.pdf(wo, wi));
+                        },
+                        p0, p1, eps, 6);
+      },
+      t0, t1, eps, 6);
+}
+
+// Chi-square of sample() against pdf() on a 12 x 24 (theta, phi) grid of the whole sphere: N
+// samples; the expected count of a cell is N times the pdf's integral over it (adaptive
+// Simpson), delta and invalid samples are left out of both. Cells with an expected count
+// below 5 are pooled (pbrt's rule). Fails when z > 3.09: one-sided p = 0.1% for a correct
+// sampler (the Wilson-Hilferty deviate is close to normal for these degrees of freedom).
+void chi_square(const Subject& s, vec3f wo, int N, uint32_t seed) {
+  constexpr int nt = 12, np = 24;
+  std::vector<double> obs(nt * np, 0.0), expc(nt * np, 0.0);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  for (int k = 0; k < N; ++k) {
+    const float uc = U(rng), u1 = U(rng), u2 = U(rng);
+    const BsdfSample<float> b = s.sample(wo, uc, u1, u2);
+    if (!b.valid || b.delta) continue;
+    const double t = std::acos(std::clamp(double(b.wi.z), -1.0, 1.0));
+    double p = std::atan2(double(b.wi.y), double(b.wi.x));
+    if (p < 0) p += 2 * kPi;
+    const int it = std::min(nt - 1, int(t / kPi * nt)), ip = std::min(np - 1, int(p / (2 * kPi) * np));
+    obs[size_t(it) * np + ip] += 1;
+  }
+  for (int it = 0; it < nt; ++it)
+    for (int ip = 0; ip < np; ++ip)
+      expc[size_t(it) * np + ip] = N * cell_integral(s, wo, kPi * it / nt, kPi * (it + 1) / nt, 2 * kPi * ip / np,
+                                                     2 * kPi * (ip + 1) / np, 1e-6);
+  std::vector<int> order(obs.size());
+  for (size_t k = 0; k < order.size(); ++k) order[k] = int(k);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return expc[a] < expc[b]; });
+  double pool_o = 0, pool_e = 0, chi2 = 0;
+  int dof = 0;
+  for (int k : order) {
+    if (pool_e < 5 && expc[k] < 5) {
+      pool_o += obs[k];
+      pool_e += expc[k];
+      continue;
+    }
+    chi2 += (obs[k] - expc[k]) * (obs[k] - expc[k]) / expc[k];
+    ++dof;
+  }
+  if (pool_e > 0) {
+    chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+    ++dof;
+  }
+  if (dof < 2) return;  // everything in one cell: nothing to test
+  EXPECT_LT(chi2_z(chi2, dof - 1), 3.09) << s.name << " wo.z " << wo.z << " chi2 " << chi2 << " dof " << dof;
+}
+
+// The integral of pdf over the sphere, by adaptive Simpson in (theta, phi) on 4 x 8
+// panels (tolerance 1e-7 each), against the probability that sample() returns a valid
+// non-delta direction, estimated from M samples: |difference| <= 5 sigma_binomial + 2e-3
+// (the quadrature's error budget for the sharpest lobes; false alarm < 1e-6).
+void pdf_integrates(const Subject& s, vec3f wo, uint32_t seed) {
+  double integral = 0;
+  for (int it = 0; it < 4; ++it)
+    for (int ip = 0; ip < 8; ++ip)
+      integral += cell_integral(s, wo, kPi * it / 4, kPi * (it + 1) / 4, 2 * kPi * ip / 8, 2 * kPi * (ip + 1) / 8, 1e-7);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  const int M = 20000;
+  int hit = 0;
+  for (int k = 0; k < M; ++k) {
+    const BsdfSample<float> b = s.sample(wo, U(rng), U(rng), U(rng));
+    hit += b.valid && !b.delta;
+  }
+  const double p = double(hit) / M;
+  const double sigma = std::sqrt(std::max(p * (1 - p), 1e-4) / M);
+  EXPECT_NEAR(integral, p, 5 * sigma + 2e-3) << s.name << " wo.z " << wo.z;
+}
+
+// For non-delta samples: s.pdf == pdf(wo, s.wi) exactly (both come from the same code at
+// the same direction), eval agrees, weight = f |cos| / pdf within 2e-5 relative (the
+// weight is the analytic G / G1 form, f cos / pdf the ratio of separately rounded
+// products: each a few tens of roundings of 6e-8), unit directions, finite values.
+void sample_matches_eval(const Subject& s, vec3f wo, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  for (int k = 0; k < 2000; ++k) {
+    const BsdfSample<float> b = s.sample(wo, U(rng), U(rng), U(rng));
+    ASSERT_TRUE(std::isfinite(b.pdf) && std::isfinite(b.weight.r) && std::isfinite(b.weight.g) && std::isfinite(b.weight.b));
+    ASSERT_TRUE(std::isfinite(b.wi.x) && std::isfinite(b.wi.y) && std::isfinite(b.wi.z));
+    if (!b.valid) {
+      ASSERT_EQ(b.weight.r, 0.f);
+      continue;
+    }
+    ASSERT_NEAR(length(b.wi), 1.f, 1e-5f) << s.name;
+    ASSERT_GT(b.pdf, 0.f) << s.name;
+    if (b.delta) continue;
+    ASSERT_EQ(b.pdf, s.pdf(wo, b.wi)) << s.name;
+    const BsdfEval<float> e = s.eval(wo, b.wi);
+    ASSERT_EQ(e.pdf, b.pdf) << s.name;
+    const float c = std::abs(b.wi.z);
+    const float ws[3] = {b.weight.r, b.weight.g, b.weight.b}, fs[3] = {e.f.r, e.f.g, e.f.b};
+    for (int q = 0; q < 3; ++q)
+      ASSERT_NEAR(double(fs[q]) * c / b.pdf, ws[q], 2e-5 * std::max(1.0, double(ws[q]))) << s.name << " channel " << q;
+  }
+}
+
+const float kAlphas[] = {1.5e-3f, 0.05f, 0.3f, 1.f};
+
+std::vector<vec3f> incident(bool both_sides) {
+  std::vector<vec3f> v{dir_from(0.5), dir_from(35), dir_from(70), dir_from(89)};
+  if (both_sides) {
+    v.push_back(-dir_from(30, 1.1));
+    v.push_back(-dir_from(80, 2.0));
+  }
+  return v;
+}
+
+std::vector<Subject> rough_subjects() {
+  std::vector<Subject> out;
+  for (float a : kAlphas) {
+    const std::string tag = " alpha " + std::to_string(a);
+    out.push_back(subject("conductor" + tag, ConductorBsdf<float>{a, a, {0.2f, 0.9f, 1.5f}, {3.9f, 2.4f, 1.9f}}));
+    out.push_back(subject("conductor-aniso" + tag, ConductorBsdf<float>{a, 0.5f * a + 0.1f, {0.2f, 0.9f, 1.5f}, {3.9f, 2.4f, 1.9f}}));
+    out.push_back(subject("dielectric" + tag, DielectricBsdf<float>{1.5f, a, a}));
+    out.push_back(subject("dielectric-low" + tag, DielectricBsdf<float>{1.f / 1.33f, a, 0.7f * a + 0.05f}));
+    out.push_back(subject("coated" + tag, CoatedDiffuseBsdf<float>{1.5f, a, a, {0.7f, 0.4f, 0.1f}, 0.01f, {0.f, 0.f, 0.f}}));
+  }
+  out.push_back(subject("diffuse-transmission", DiffuseTransmissionBsdf<float>{{0.5f, 0.2f, 0.1f}, {0.1f, 0.3f, 0.6f}}));
+  return out;
+}
+bool transmissive(const std::string& n) { return n.rfind("dielectric", 0) == 0 || n.rfind("diffuse", 0) == 0; }
+
+}  // namespace
+
+// (a) The chi-square test for every BSDF, alpha and incident direction above 1e-3 (the
+// alpha = 1.5e-3 lobes are narrower than any cell of a sphere grid: their pdf is checked by
+// (b) and (c) instead). 48 tests at p = 0.1% each: a family-wise false alarm of 5% over
+// random seeds; the seeds are fixed.
+TEST(MaterialBsdf, SampleMatchesPdfChiSquare) {
+  uint32_t seed = 11;
+  for (const Subject& s : rough_subjects()) {
+    if (s.name.find("alpha 0.00") != std::string::npos) continue;
+    for (vec3f wo : incident(transmissive(s.name))) {
+      if (wo.z < 0 && !transmissive(s.name) && ++seed) continue;
+      chi_square(s, normalize(wo), 30000, ++seed);
+    }
+  }
+}
+
+// (b) pdf integrates to the probability of a valid non-delta sample.
+// The alpha = 1.5e-3 lobes are left out: a (theta, phi) quadrature cannot resolve a peak of
+// width 1e-3 at every incidence (not done: a quadrature centred on the lobes).
+TEST(MaterialBsdf, PdfIntegratesToNonDeltaProbability) {
+  uint32_t seed = 101;
+  for (const Subject& s : rough_subjects()) {
+    if (s.name.find("alpha 0.00") != std::string::npos) continue;
+    for (vec3f wo : incident(transmissive(s.name))) pdf_integrates(s, normalize(wo), ++seed);
+  }
+}
+
+// (c) sample / eval / pdf agreement, including the near-delta alpha = 1.5e-3 lobes.
+TEST(MaterialBsdf, SampleAgreesWithEvalAndPdf) {
+  uint32_t seed = 201;
+  for (const Subject& s : rough_subjects())
+    for (vec3f wo : incident(true)) sample_matches_eval(s, normalize(wo), ++seed);
+}
+
+// Fresnel: the dielectric form against the textbook one in double, the swap of indices from
+// below, total internal reflection, and the conductor form against complex arithmetic.
+TEST(MaterialBsdf, FresnelMatchesTextbook) {
+  auto fr = [](double c, double eta) {
+    if (c < 0) { eta = 1 / eta; c = -c; }
+    const double s2 = (1 - c * c) / (eta * eta);
+    if (s2 >= 1) return 1.0;
+    const double ct = std::sqrt(1 - s2);
+    const double rp = (eta * c - ct) / (eta * c + ct), rs = (c - eta * ct) / (c + eta * ct);
+    return 0.5 * (rp * rp + rs * rs);
+  };
+  auto fc = [](double c, double eta, double k) {
+    using C = std::complex<double>;
+    const C n(eta, k);
+    const double s2 = 1 - c * c;
+    const C ct = std::sqrt(C(1) - C(s2) / (n * n));
+    const C rp = (n * c - ct) / (n * c + ct), rs = (c - n * ct) / (c + n * ct);
+    return 0.5 * (std::norm(rp) + std::norm(rs));
+  };
+  for (double eta : {1.0, 1.33, 1.5, 2.4, 1 / 1.5})
+    for (int k = 0; k <= 200; ++k) {
+      const float c = float(-1 + k / 100.0);
+      const double ef = float(eta);
+      // a few roundings of O(1) terms through the squared ratios: 1e-6; near the critical
+      // angle cos_t = sqrt(1 - s2) amplifies the rounding of 1 - s2 (2^-24) by 1 / (2 cos_t)
+      const double ce = std::abs(double(c)), ee = c < 0 ? 1 / ef : ef;
+      const double ct = std::sqrt(std::max(1e-12, 1 - (1 - ce * ce) / (ee * ee)));
+      EXPECT_NEAR(fresnel_dielectric(c, float(eta)), fr(c, ef), 1e-6 + 4e-7 / ct) << c << " " << eta;
+    }
+  for (double eta : {0.2, 1.1, 2.0})
+    for (double kk : {0.0, 1.0, 3.9, 1e3})
+      for (int k = 0; k <= 100; ++k) {
+        const float c = float(k / 100.0);
+        EXPECT_NEAR(fresnel_complex(c, float(eta), float(kk)), fc(c, eta, kk), 2e-6) << c << " " << eta << " " << kk;
+      }
+}
+
+// (d) White furnace. Directional albedo = E[weight] by MC over sample() (M samples, the
+// weights are in [0, 1.x]: the standard error is below 1/sqrt(M) and the 5-sigma bounds
+// below have false-alarm < 1e-6).
+//  - a conductor with k = 1e4 (F = 1 - O(1e-8)): <= 1, exactly F when smooth; rough: the
+//    MC albedo equals the quadrature of f cos (the single-scattering loss of GGX is large
+//    at alpha = 1: half the normals seen from the zenith reflect below the horizon).
+//  - a dielectric: the energy (radiance weight times eta'^2 where refracted, the 1/eta'^2
+//    of radiance mode undone) sums to 1 exactly when smooth, <= 1 rough.
+TEST(MaterialBsdf, WhiteFurnace) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  const int M = 40000;
+  for (float a : kAlphas)
+    for (double th : {0.0, 45.0, 80.0}) {
+      const vec3f wo = normalize(dir_from(th));
+      const ConductorBsdf<float> c{a, a, {1.f, 1.f, 1.f}, {1e4f, 1e4f, 1e4f}};
+      const DielectricBsdf<float> d{1.5f, a, a};
+      const DielectricBsdf<float> din{1.5f, a, a};
+      double ec = 0, ed = 0, edi = 0;
+      for (int k = 0; k < M; ++k) {
+        const float uc = U(rng), u1 = U(rng), u2 = U(rng);
+        ec += c.sample(wo, uc, u1, u2).weight.g;
+        const BsdfSample<float> s = d.sample(wo, uc, u1, u2);
+        ed += s.weight.g * (s.wi.z < 0 ? 1.5 * 1.5 : 1.0);
+        const BsdfSample<float> si = din.sample(-wo, uc, u1, u2);
+        edi += si.weight.g * (si.wi.z > 0 ? 1 / (1.5 * 1.5) : 1.0);
+      }
+      ec /= M, ed /= M, edi /= M;
+      const double tol = 5 / std::sqrt(double(M));
+      EXPECT_LE(ec, 1 + 1e-6 + tol) << "conductor alpha " << a << " theta " << th;
+      EXPECT_LE(ed, 1 + 1e-5 + tol) << "dielectric alpha " << a << " theta " << th;
+      EXPECT_LE(edi, 1 + 1e-5 + tol) << "dielectric inside alpha " << a << " theta " << th;
+      if (a >= 0.01f) {
+        // the same albedo by quadrature of f cos over the sphere (independent of sample()):
+        // 5 sigma plus the quadrature's 1e-3
+        const Subject sc = subject("c", c), sd = subject("d", d);
+        double qc = 0, qd = 0;
+        for (int it = 0; it < 8; ++it)
+          for (int ip = 0; ip < 8; ++ip) {
+            auto fcos = [&](const Subject& s, bool energy) {
+              return adaptive([&](double t) {
+                const double st = std::sin(t), ct = std::cos(t);
+                return st * adaptive([&](double p) {
+                  const vec3f wi{float(st * std::cos(p)), float(st * std::sin(p)), float(ct)};
+                  return double(s.eval(wo, wi).f.g) * std::abs(ct) * (energy && ct < 0 ? 2.25 : 1.0);
+                }, 2 * kPi * ip / 8, 2 * kPi * (ip + 1) / 8, 1e-7, 6);
+              }, kPi * it / 8, kPi * (it + 1) / 8, 1e-7, 6);
+            };
+            qc += fcos(sc, false);
+            qd += fcos(sd, true);
+          }
+        EXPECT_NEAR(ec, qc, tol + 1e-3) << "conductor alpha " << a << " theta " << th;
+        EXPECT_NEAR(ed, qd, tol + 1e-3) << "dielectric alpha " << a << " theta " << th;
+      }
+      // GGX single-scattering loss is below 1% at alpha 0.05 away from grazing (Heitz et al. 2016)
+      if (a == 0.05f && th <= 45) {
+        EXPECT_GE(ec, 0.99 - tol);
+        EXPECT_GE(ed, 0.99 - tol);
+      }
+      if (a < smooth_alpha) {  // smooth: every sample's energy is R + T = 1 up to rounding
+        EXPECT_NEAR(ec, 1.0, 1e-6) << th;
+        EXPECT_NEAR(ed, 1.0, 1e-5);
+        EXPECT_NEAR(edi, 1.0, 1e-5);
+      }
+    }
+}
+
+// Delta lobes: the smooth dielectric picks reflection with probability R (binomial, 5
+// sigma: false alarm < 1e-6), reports pdf R or T, weights 1 and 1/eta'^2, directions the
+// mirror and Snell's; eta == 1 passes straight through; the thin dielectric's R', T'.
+TEST(MaterialBsdf, DeltaLobes) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  for (double th : {10.0, 60.0, 85.0})
+    for (float eta : {1.5f, 1.f / 1.5f}) {
+      const vec3f wo = normalize(dir_from(th));
+      const DielectricBsdf<float> d{eta, 0.f, 0.f};
+      const float R = fresnel_dielectric(wo.z, eta);
+      int nr = 0;
+      const int M = 20000;
+      for (int k = 0; k < M; ++k) {
+        const BsdfSample<float> s = d.sample(wo, U(rng), U(rng), U(rng));
+        ASSERT_TRUE(s.valid && s.delta);
+        if (s.wi.z > 0) {
+          ++nr;
+          EXPECT_FLOAT_EQ(s.pdf, R);
+          EXPECT_NEAR(s.weight.r, 1.f, 1e-6f);
+          EXPECT_EQ(s.wi.x, -wo.x);
+          EXPECT_EQ(s.wi.z, wo.z);
+        } else {
+          EXPECT_NEAR(s.pdf, 1 - R, 1e-6f);
+          EXPECT_NEAR(s.weight.r, 1 / (eta * eta), 1e-6f);
+          // Snell: sin_t = sin_o / eta, same plane, opposite tangential direction
+          EXPECT_NEAR(std::hypot(s.wi.x, s.wi.y), std::hypot(wo.x, wo.y) / eta, 1e-6f);
+          EXPECT_NEAR(length(s.wi), 1.f, 1e-6f);
+        }
+        EXPECT_EQ(d.eval(wo, s.wi).f.r, 0.f);
+        EXPECT_EQ(d.pdf(wo, s.wi), 0.f);
+      }
+      EXPECT_NEAR(double(nr) / M, R, 5 * std::sqrt(R * (1 - R) / M) + 1e-6) << th << " " << eta;
+    }
+  // eta == 1, rough or smooth: a pass-through
+  for (float a : {0.f, 0.3f}) {
+    const DielectricBsdf<float> d{1.f, a, a};
+    const vec3f wo = normalize(dir_from(40));
+    const BsdfSample<float> s = d.sample(wo, 0.3f, 0.2f, 0.7f);
+    EXPECT_TRUE(s.valid && s.delta);
+    EXPECT_EQ(s.wi.x, -wo.x);
+    EXPECT_EQ(s.wi.z, -wo.z);
+    EXPECT_EQ(s.weight.g, 1.f);
+    EXPECT_EQ(s.pdf, 1.f);
+    EXPECT_EQ(d.eval(wo, -wo).f.g, 0.f);
+  }
+  // thin dielectric
+  for (double th : {0.0, 50.0, 88.0}) {
+    const vec3f wo = normalize(dir_from(th));
+    const ThinDielectricBsdf<float> t{1.5f};
+    const double R = fresnel_dielectric(wo.z, 1.5f), T = 1 - R;
+    const double Rp = R + T * T * R / (1 - R * R);
+    const BsdfSample<float> r = t.sample(wo, 0.f, 0.5f, 0.5f), tr = t.sample(wo, 0.9999f, 0.5f, 0.5f);
+    EXPECT_NEAR(r.pdf, Rp, 1e-6);
+    EXPECT_NEAR(tr.pdf, 1 - Rp, 1e-6);
+    EXPECT_EQ(tr.wi.x, -wo.x);
+    EXPECT_EQ(tr.wi.z, -wo.z);
+    EXPECT_EQ(r.wi.z, wo.z);
+    EXPECT_NEAR(r.weight.r, 1.f, 1e-6f);
+    EXPECT_NEAR(tr.weight.r, 1.f, 1e-6f);
+    const BsdfSample<float> below = t.sample(-wo, 0.f, 0.5f, 0.5f);
+    EXPECT_NEAR(below.pdf, Rp, 1e-6);
+  }
+}
+
+// (e) The rough dielectric's refraction Jacobian |dwm/dwi| = |wi.wm| / (wi.wm + wo.wm/eta')^2,
+// against the solid angle of the image of a small cone of directions around wi under the
+// map wi -> wm = normalize(wo + eta' wi), in double (the ratio of the two spherical
+// triangles' areas; the finite-difference error is O(h) = 1e-4 relative for h = 1e-5).
+TEST(MaterialBsdf, RefractionJacobian) {
+  auto unit = [](double x, double y, double z, double* o) {
+    const double l = std::sqrt(x * x + y * y + z * z);
+    o[0] = x / l, o[1] = y / l, o[2] = z / l;
+  };
+  auto tri_area = [](const double* a, const double* b, const double* c) {  // Van Oosterom-Strackee
+    const double cr[3] = {b[1] * c[2] - b[2] * c[1], b[2] * c[0] - b[0] * c[2], b[0] * c[1] - b[1] * c[0]};
+    const double num = a[0] * cr[0] + a[1] * cr[1] + a[2] * cr[2];
+    const double den = 1 + (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) + (b[0] * c[0] + b[1] * c[1] + b[2] * c[2]) +
+                       (a[0] * c[0] + a[1] * c[1] + a[2] * c[2]);
+    return std::abs(2 * std::atan2(num, den));
+  };
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> U(0, 1);
+  for (int k = 0; k < 200; ++k) {
+    const double e = k % 2 ? 1.5 : 1 / 1.33;
+    double wo[3], wi[3];
+    unit(U(rng) - 0.5, U(rng) - 0.5, 0.2 + U(rng), wo);
+    unit(U(rng) - 0.5, U(rng) - 0.5, -0.2 - U(rng), wi);
+    auto half = [&](const double* i, double* m) {
+      double h[3] = {wo[0] + e * i[0], wo[1] + e * i[1], wo[2] + e * i[2]};
+      if (h[2] < 0) h[0] = -h[0], h[1] = -h[1], h[2] = -h[2];
+      unit(h[0], h[1], h[2], m);
+    };
+    double wm[3];
+    half(wi, wm);
+    const double di = wi[0] * wm[0] + wi[1] * wm[1] + wi[2] * wm[2], dov = wo[0] * wm[0] + wo[1] * wm[1] + wo[2] * wm[2];
+    if (!(dov > 0.05 && di < -0.05)) continue;
+    const double s = di + dov / e;
+    const double expect = std::abs(di) / (s * s);
+    const double hstep = 1e-5;
+    double a[3], b[3], c[3], ma[3], mb[3], mc[3];
+    unit(wi[0] + hstep, wi[1], wi[2], a);
+    unit(wi[0], wi[1] + hstep, wi[2], b);
+    unit(wi[0] - hstep, wi[1] - hstep, wi[2] + hstep, c);
+    half(a, ma), half(b, mb), half(c, mc);
+    const double ratio = tri_area(ma, mb, mc) / tri_area(a, b, c);
+    EXPECT_NEAR(ratio, expect, 1e-3 * expect) << k;
+  }
+}
+
+// (f) Reciprocity: rough reflection f(wo, wi) = f(wi, wo) (conductor, dielectric, the
+// coated model); transmission in radiance mode f(wo, wi) eta_i^2 = f(wi, wo) eta_o^2 (the
+// generalized reciprocity of Veach 1997, 5.2; eta_x the index on x's side). Relative
+// tolerance 1e-4: the two evaluations round the half vector differently, and D varies on
+// the scale alpha (1e-7 / 0.05 times the O(10) log-derivative).
+TEST(MaterialBsdf, Reciprocity) {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  for (float a : {0.05f, 0.3f, 1.f})
+    for (int k = 0; k < 500; ++k) {
+      const vec3f wo = normalize(sph(2 * U(rng) - 1, 2 * kPi * U(rng))), wi = normalize(sph(2 * U(rng) - 1, 2 * kPi * U(rng)));
+      const ConductorBsdf<float> c{a, 0.8f * a, {0.2f, 0.9f, 1.5f}, {3.9f, 2.4f, 1.9f}};
+      const float f1 = c.eval(wo, wi).f.r, f2 = c.eval(wi, wo).f.r;
+      EXPECT_NEAR(f1, f2, 1e-4f * std::max(f1, f2) + 1e-30f) << a << " " << k;
+      const DielectricBsdf<float> d{1.5f, a, 0.8f * a};
+      const float g1 = d.eval(wo, wi).f.r, g2 = d.eval(wi, wo).f.r;
+      const double eo = wo.z > 0 ? 1.0 : 1.5, ei = wi.z > 0 ? 1.0 : 1.5;
+      // conditioning: the half vector h = eta_o wo + eta_i wi (in double here); its
+      // direction's rounding (1e-7 |eta_o| + |eta_i| over |h|) moves D by 4 / alpha per
+      // radian at most, and the microfacet cosines wo.wm, wi.wm carry absolute errors of
+      // 1e-7, relative 1e-7 / |cos| (they enter f linearly and through Fresnel). Pairs
+      // whose h is within 1e-5 of the horizon are skipped: the face-forward orientation
+      // of h is decided by the sign of its rounded z.
+      const double h[3] = {eo * wo.x + ei * wi.x, eo * wo.y + ei * wi.y, eo * wo.z + ei * wi.z};
+      const double hl = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+      if (hl < 1e-3 || std::abs(h[2]) < 1e-5 * hl) continue;
+      const double dov = std::abs(wo.x * h[0] + wo.y * h[1] + wo.z * h[2]) / hl,
+                   div = std::abs(wi.x * h[0] + wi.y * h[1] + wi.z * h[2]) / hl;
+      const double rel = 1e-5 + 1e-7 * (eo + ei) / hl * 4 / (0.8 * a) + 4e-7 * (1 / std::max(dov, 1e-9) + 1 / std::max(div, 1e-9));
+      EXPECT_NEAR(g1 * ei * ei, g2 * eo * eo, rel * std::max(g1 * ei * ei, g2 * eo * eo) + 1e-30) << a << " " << k;
+      const CoatedDiffuseBsdf<float> cd{1.5f, a, a, {0.7f, 0.4f, 0.1f}, 0.01f, {0.f, 0.f, 0.f}};
+      const float h1 = cd.eval(wo, wi).f.g, h2 = cd.eval(wi, wo).f.g;
+      EXPECT_NEAR(h1, h2, 1e-4f * std::max(h1, h2) + 1e-30f);
+    }
+}
+
+// (h) Stiff inputs: alpha 1e-4 along one axis (a rough lane by max(alpha) with a needle
+// lobe), alpha = 1e-3 exactly, grazing and horizon directions, eta = 1, total internal
+// reflection: every output finite, pdfs >= 0, weights >= 0; eval, pdf and sample agree on
+// validity.
+TEST(MaterialBsdf, StiffCasesStayFinite) {
+  std::vector<Subject> subs;
+  for (float ax : {1e-4f, 1e-3f, 1e-2f})
+    for (float eta : {1.f, 1.5f, 1 / 1.5f, 1.0001f}) {
+      subs.push_back(subject("dielectric", DielectricBsdf<float>{eta, ax, 1.2e-3f}));
+      subs.push_back(subject("coated", CoatedDiffuseBsdf<float>{eta, ax, 1.2e-3f, {1.f, 1.f, 1.f}, 100.f, {0.5f, 0.f, 1.f}}));
+    }
+  subs.push_back(subject("conductor", ConductorBsdf<float>{1e-4f, 1.1e-3f, {0.2f, 0.2f, 0.2f}, {3.f, 3.f, 3.f}}));
+  subs.push_back(subject("conductor0", ConductorBsdf<float>{0.f, 0.f, {0.f, 0.f, 0.f}, {0.f, 0.f, 0.f}}));
+  subs.push_back(subject("thin", ThinDielectricBsdf<float>{1.f}));
+  subs.push_back(subject("difftrans0", DiffuseTransmissionBsdf<float>{{0.f, 0.f, 0.f}, {0.f, 0.f, 0.f}}));
+  const vec3f dirs[] = {{1.f, 0.f, 0.f}, {0.f, 1.f, 0.f}, {0.f, 0.f, 1.f}, {0.f, 0.f, -1.f}, normalize(dir_from(89.99)),
+                        normalize(-dir_from(89.99)), normalize(dir_from(60)), normalize(-dir_from(60)),
+                        normalize(vec3f{1.f, 0.f, 1e-7f}), normalize(vec3f{0.6f, -0.8f, -1e-6f})};
+  std::mt19937 rng(19);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  for (const Subject& s : subs)
+    for (vec3f wo : dirs) {
+      for (vec3f wi : dirs) {
+        const BsdfEval<float> e = s.eval(wo, wi);
+        ASSERT_TRUE(std::isfinite(e.f.r) && std::isfinite(e.f.g) && std::isfinite(e.f.b) && std::isfinite(e.pdf)) << s.name;
+        ASSERT_GE(e.pdf, 0.f);
+        ASSERT_GE(e.f.r, 0.f);
+        ASSERT_EQ(e.pdf, s.pdf(wo, wi));
+      }
+      for (int k = 0; k < 200; ++k) {
+        const float uc = k == 0 ? 0.f : U(rng), u1 = k == 1 ? 0.f : U(rng), u2 = k == 2 ? 0.9999999f : U(rng);
+        const BsdfSample<float> b = s.sample(wo, uc, u1, u2);
+        ASSERT_TRUE(std::isfinite(b.pdf) && std::isfinite(b.weight.r) && std::isfinite(b.weight.g) && std::isfinite(b.weight.b))
+            << s.name;
+        ASSERT_TRUE(std::isfinite(b.wi.x) && std::isfinite(b.wi.y) && std::isfinite(b.wi.z)) << s.name;
+        ASSERT_GE(b.weight.r, 0.f);
+        ASSERT_GE(b.pdf, 0.f);
+        if (b.valid && !b.delta) {
+          ASSERT_EQ(b.pdf, s.pdf(wo, b.wi)) << s.name;
+        }
+      }
+    }
+}
+
+// (g) Every lane of vfloat and vfloat2 equals the scalar reference bit for bit, with
+// different parameters in every lane: smooth and rough lanes, eta = 1, anisotropy, wo on
+// both sides and at grazing angles, in one batch.
+namespace {
+template <class T> T lanes_of(const float* p) { return load<T>(p); }
+
+template <class T, class Make> void lanes_equal_scalar(Make make, uint32_t seed) {
+  constexpr int W = lane_traits<T>::width;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  alignas(64) float P[8][W], wo3[3][W], wi3[3][W], u[3][W], out[16][W];
+  for (int it = 0; it < 300; ++it) {
+    for (int l = 0; l < W; ++l) {
+      for (int q = 0; q < 8; ++q) P[q][l] = U(rng);
+      const int kind = int(U(rng) * 4);
+      if (kind == 0) P[0][l] = 0.f, P[1][l] = 5e-4f;  // smooth
+      if (kind == 1) P[0][l] = 1e-4f;                 // needle
+      if (U(rng) < 0.15f) P[2][l] = 0.f;              // eta == 1 (see make)
+      const vec3f o = normalize(sph(U(rng) < 0.1f ? 0.0005f : 2 * U(rng) - 1, 2 * kPi * U(rng)));
+      const vec3f i = normalize(sph(2 * U(rng) - 1, 2 * kPi * U(rng)));
+      wo3[0][l] = o.x, wo3[1][l] = o.y, wo3[2][l] = o.z;
+      wi3[0][l] = i.x, wi3[1][l] = i.y, wi3[2][l] = i.z;
+      for (int q = 0; q < 3; ++q) u[q][l] = U(rng);
+    }
+    T p[8];
+    for (int q = 0; q < 8; ++q) p[q] = load<T>(P[q]);
+    const auto b = make(p);
+    const Vec3<T> wo{load<T>(wo3[0]), load<T>(wo3[1]), load<T>(wo3[2])}, wi{load<T>(wi3[0]), load<T>(wi3[1]), load<T>(wi3[2])};
+    const BsdfEval<T> e = b.eval(wo, wi);
+    const T pd = b.pdf(wo, wi);
+    const BsdfSample<T> s = b.sample(wo, load<T>(u[0]), load<T>(u[1]), load<T>(u[2]));
+    const T outs[14] = {e.f.r, e.f.g, e.f.b, e.pdf, pd, s.wi.x, s.wi.y, s.wi.z, s.weight.r, s.weight.g, s.weight.b, s.pdf,
+                        sel(s.valid, T(1.f), T(0.f)), sel(s.delta, T(1.f), T(0.f))};
+    for (int q = 0; q < 14; ++q) store(out[q], outs[q]);
+    for (int l = 0; l < W; ++l) {
+      float ps[8];
+      for (int q = 0; q < 8; ++q) ps[q] = P[q][l];
+      const auto bs = make(ps);
+      const vec3f o{wo3[0][l], wo3[1][l], wo3[2][l]}, i{wi3[0][l], wi3[1][l], wi3[2][l]};
+      const BsdfEval<float> es = bs.eval(o, i);
+      const float pds = bs.pdf(o, i);
+      const BsdfSample<float> ss = bs.sample(o, u[0][l], u[1][l], u[2][l]);
+      const float ref[14] = {es.f.r, es.f.g, es.f.b, es.pdf, pds, ss.wi.x, ss.wi.y, ss.wi.z, ss.weight.r, ss.weight.g,
+                             ss.weight.b, ss.pdf, ss.valid ? 1.f : 0.f, ss.delta ? 1.f : 0.f};
+      for (int q = 0; q < 14; ++q)
+        ASSERT_EQ(std::memcmp(&ref[q], &out[q][l], 4), 0) << "output " << q << " lane " << l << " " << ref[q] << " vs " << out[q][l];
+    }
+  }
+}
+
+// parameters from 8 uniform numbers per lane
+struct MakeConductor {
+  template <class T> ConductorBsdf<T> operator()(const T* p) const {
+    return {p[0], p[1], {T(0.1f) + p[2] * T(2.f), p[3], T(1.5f)}, {p[4] * T(5.f), p[5] * T(3.f), T(1.f)}};
+  }
+};
+struct MakeDielectric {
+  template <class T> DielectricBsdf<T> operator()(const T* p) const {
+    const T eta = sel(p[2] == T(0.f), T(1.f), sel(p[3] < T(0.5f), T(1.f) + p[2], T(1.f) / (T(1.f) + p[2])));
+    return {eta, p[0], p[1]};
+  }
+};
+struct MakeThin {
+  template <class T> ThinDielectricBsdf<T> operator()(const T* p) const { return {T(1.f) + p[2]}; }
+};
+struct MakeDiffTrans {
+  template <class T> DiffuseTransmissionBsdf<T> operator()(const T* p) const {
+    return {{p[2], p[3], p[4]}, {p[5], p[6], p[7] * sel(p[0] < T(0.3f), T(0.f), T(1.f))}};
+  }
+};
+struct MakeCoated {
+  template <class T> CoatedDiffuseBsdf<T> operator()(const T* p) const {
+    const T eta = sel(p[2] == T(0.f), T(1.f), T(1.f) + p[2]);
+    return {eta, p[0], p[1], {p[3], p[4], p[5]}, p[6] * T(0.1f), {T(0.f), p[7], T(0.f)}};
+  }
+};
+struct MakeCoatedClear {  // albedo 0 everywhere: the shared-R_i path
+  template <class T> CoatedDiffuseBsdf<T> operator()(const T* p) const {
+    return {T(1.f) + p[2], p[0], p[1], {p[3], p[4], p[5]}, p[6] * T(0.1f), {T(0.f), T(0.f), T(0.f)}};
+  }
+};
+}  // namespace
+
+TEST(MaterialBsdf, EveryLaneEqualsScalar) {
+  lanes_equal_scalar<vfloat>(MakeConductor{}, 1);
+  lanes_equal_scalar<vfloat2>(MakeConductor{}, 2);
+  lanes_equal_scalar<vfloat>(MakeDielectric{}, 3);
+  lanes_equal_scalar<vfloat2>(MakeDielectric{}, 4);
+  lanes_equal_scalar<vfloat>(MakeThin{}, 5);
+  lanes_equal_scalar<vfloat2>(MakeThin{}, 6);
+  lanes_equal_scalar<vfloat>(MakeDiffTrans{}, 7);
+  lanes_equal_scalar<vfloat2>(MakeDiffTrans{}, 8);
+  lanes_equal_scalar<vfloat>(MakeCoated{}, 9);
+  lanes_equal_scalar<vfloat2>(MakeCoated{}, 10);
+  lanes_equal_scalar<vfloat>(MakeCoatedClear{}, 11);
+  lanes_equal_scalar<vfloat2>(MakeCoatedClear{}, 12);
+}
+
+// (i) The coated-diffuse model against a random walk through the layers, written after
+// pbrt-v4's LayeredBxDF::Sample_f (twoSided; albedo 0): the coat sampled by the dielectric
+// kernel (itself checked above), the base a Lambertian (cosine sampling, weight rho), the
+// slab's transmittance exp(-thickness / |cos|) on each crossing, Russian roulette after
+// depth 3 when the throughput is below 0.25. The directional albedo E[weight] of both, for
+// eta 1.5, thickness 0.01, rho 0.8, alpha 0 / 0.05 / 0.3 / 1 and several angles.
+// The walk runs with maxDepth 100 (the sum the model represents) and, reported only, with
+// pbrt-v4's default 10. Tolerance: smooth coat: the model is exact, so statistics (5 sigma
+// of the two means; false alarm < 1e-6) plus the R_i quadrature's 1e-4; rough coat: the
+// model keeps the smooth interface's Fresnel transmittance and refraction for the base
+// part and no microfacet energy loss inside the layer, while the walk through the rough
+// interface loses energy at every internal bounce (single-scattering GGX) and transmits
+// more at grazing incidence. Checked only for alpha = 0.05 below 60 degrees (bound 0.02:
+// the deterministic model difference there is about 0.009); the other rows are reported
+// (about +0.11 at alpha 0.3 and +0.3 at alpha 1 near the normal, -0.18 .. -0.29 at 89
+// degrees for alpha >= 0.05): a known limitation of the model.
+namespace {
+double walk_albedo(float alpha, float rho, vec3f wo, int max_depth, int M, uint32_t seed, double& se) {
+  const float eta = 1.5f, thick = 0.01f;
+  const DielectricBsdf<float> top{eta, alpha, alpha};
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  double sum = 0, sum2 = 0;
+  for (int m = 0; m < M; ++m) {
+    double w = 0;
+    const BsdfSample<float> e = top.sample(wo, U(rng), U(rng), U(rng));
+    if (e.valid && e.wi.z > 0) {
+      w = e.weight.g;
+    } else if (e.valid) {
+      double beta = e.weight.g;
+      vec3f d = e.wi;
+      bool at_top = true;
+      for (int depth = 0; depth < max_depth; ++depth) {
+        if (depth > 3 && beta < 0.25) {
+          const double q = std::max(0.0, 1 - beta);
+          if (U(rng) < q) break;
+          beta /= 1 - q;
+        }
+        if (d.z == 0) break;
+        beta *= std::exp(-double(thick) / std::abs(double(d.z)));
+        at_top = !at_top;
+        if (!at_top) {  // the Lambertian base: a cosine direction upwards, weight rho
+          const vec3f l = sample_cosine_hemisphere(U(rng), U(rng));
+          if (!(l.z > 0)) break;
+          beta *= rho;
+          d = l;
+        } else {
+          const BsdfSample<float> s = top.sample(-d, U(rng), U(rng), U(rng));
+          if (!s.valid || s.wi.z == 0) break;
+          beta *= s.weight.g;
+          d = s.wi;
+          if (s.wi.z > 0) {  // transmitted out of the coat
+            w = beta;
+            break;
+          }
+        }
+      }
+    }
+    sum += w;
+    sum2 += w * w;
+  }
+  const double mean = sum / M;
+  se = std::sqrt(std::max(0.0, sum2 / M - mean * mean) / M);
+  return mean;
+}
+double model_albedo(float alpha, float rho, vec3f wo, int M, uint32_t seed, double& se) {
+  const CoatedDiffuseBsdf<float> b{1.5f, alpha, alpha, {rho, rho, rho}, 0.01f, {0.f, 0.f, 0.f}};
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  double sum = 0, sum2 = 0;
+  for (int m = 0; m < M; ++m) {
+    const double w = b.sample(wo, U(rng), U(rng), U(rng)).weight.g;
+    sum += w;
+    sum2 += w * w;
+  }
+  const double mean = sum / M;
+  se = std::sqrt(std::max(0.0, sum2 / M - mean * mean) / M);
+  return mean;
+}
+}  // namespace
+
+TEST(MaterialBsdf, CoatedDiffuseMatchesLayeredRandomWalk) {
+  std::printf("coated diffuse (eta 1.5, thickness 0.01, albedo 0, rho 0.8): directional albedo\n");
+  std::printf("  alpha  theta    model     walk(100)  walk(10, pbrt)  model-walk(100)\n");
+  uint32_t seed = 31;
+  for (float a : {0.f, 0.05f, 0.3f, 1.f})
+    for (double th : {0.0, 30.0, 60.0, 80.0, 89.0}) {
+      const vec3f wo = normalize(dir_from(th));
+      double se_m, se_w, se_p;
+      const int M = 30000;
+      const double m = model_albedo(a, 0.8f, wo, M, ++seed, se_m);
+      const double w = walk_albedo(a, 0.8f, wo, 100, M, ++seed, se_w);
+      const double p = walk_albedo(a, 0.8f, wo, 10, M / 2, ++seed, se_p);
+      std::printf("  %5.2f  %5.1f   %.4f    %.4f     %.4f          %+.4f\n", a, th, m, w, p, m - w);
+      const double stat = 5 * std::hypot(se_m, se_w);
+      if (a < smooth_alpha) {
+        EXPECT_NEAR(m, w, stat + 1e-4) << "alpha " << a << " theta " << th;
+      }
+      if (a == 0.05f && th <= 60) {
+        EXPECT_NEAR(m, w, stat + 0.02) << "alpha " << a << " theta " << th;
+      }
+    }
+}
+
+// R_i's 16-node quadrature against a fine integration in double, eta in [1.05, 3] and 1/1.5,
+// attenuations 0 .. 2: within 2e-4 absolute (it enters the base term as 1 / (1 - rho R_i),
+// so the base albedo's relative error is at most 2e-4 rho / (1 - rho R_i) < 1e-3).
+TEST(MaterialBsdf, CoatInternalReflectanceQuadrature) {
+  for (double eta : {1.05, 1.33, 1.5, 2.0, 3.0, 1 / 1.5})
+    for (double a : {0.0, 0.02, 0.2, 2.0}) {
+      const int n = 200000;
+      double ref = 0;
+      for (int k = 0; k < n; ++k) {
+        const double mu = (k + 0.5) / n;
+        ref += fresnel_dielectric(float(-mu), float(eta)) * std::exp(-a / mu) * 2 * mu / n;
+      }
+      const auto nodes = bsdf_detail::coat_internal_nodes(float(eta));
+      const float ri = bsdf_detail::coat_internal_reflectance(nodes, float(a));
+      EXPECT_NEAR(ri, ref, 2e-4) << eta << " " << a;
+    }
+}
