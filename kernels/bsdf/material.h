@@ -89,6 +89,13 @@ template <class T, unsigned Bsdfs> struct SurfaceBsdf {
       if (any(m))
         f(CoatedDiffuseBsdf<T>{param(mp_eta), param(mp_ax), param(mp_ay), rho, param(mp_thickness), param3(mp_alb_r)}, m);
     }
+    if constexpr ((Bsdfs & bsdf_coated_conductor) != 0) {
+      const auto m = is(MaterialKind::coated_conductor);
+      if (any(m))
+        f(CoatedConductorBsdf<T>{param(mp_eta), param(mp_ax), param(mp_ay), param3(mp_eta_r), param3(mp_k_r), param(mp_bax),
+                                 param(mp_bay), param(mp_thickness), param3(mp_alb_r)},
+          m);
+    }
   }
 
   // f (1/sr) and the pdf sample() draws wi with; 0 for delta lobes.

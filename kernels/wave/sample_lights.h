@@ -70,10 +70,13 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
       sample_light_point<Kinds>(est.point, g, x, load<T>(tb.tech.u2 + k), load<T>(tb.tech.u3 + k));
 
   constexpr bool rects = (Kinds & kind_rects) != 0;
-  const BsdfEval<T> fe = load_surface_bsdf<T, Bsdfs>(G, tb.points, k, n).eval(s.wi);
+  // the shading normal where the mesh has them (the BSDF's frame and the cosine), the
+  // geometric one n for offsets and which side wi leaves by
+  const Vec3<T> ns = G.has_normals ? load3<T>(tb.points.snx + k, tb.points.sny + k, tb.points.snz + k) : n;
+  const BsdfEval<T> fe = load_surface_bsdf<T, Bsdfs>(G, tb.points, k, ns).eval(s.wi);
   constexpr bool transmits = (Bsdfs & bsdf_transmits) != 0;
-  const T cos_n = dot(n, s.wi);
-  const T cos_x = transmits ? abs(cos_n) : cos_n;
+  const T cos_s = dot(ns, s.wi);
+  const T cos_x = transmits ? abs(cos_s) : cos_s;
   const auto planar = rects ? mask_t<T>(true) : type_is<T>(g.type, lt_triangle) || type_is<T>(g.type, lt_parallelogram);
   const auto front = !planar || g.two_sided > T(0.f) || dot(x - g.p0, g.n) > T(0.f);
   const T pdf_l = pick * s.pdf_sa;
@@ -105,7 +108,11 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
   // towards x (pbrt's "spawn ray to"): at grazing angles the ray along wi from a lifted
   // origin would meet the source's plane early. Embree's packet t is good to ~1e-5
   // relative (measured), so the ray stops 2^-12 of its length short.
-  const Vec3<T> org = transmits ? x + sel(cos_n < T(0.f), Vec3<T>(T(0.f), T(0.f), T(0.f)) - n, n) * eps : x + n * eps;
+  // (the offset goes to the side wi leaves by: below the surface for transmission, or
+  // where a shading normal lets wi dip under the geometric plane, as pbrt-v4 offsets)
+  const Vec3<T> org = transmits || G.has_normals
+                          ? x + sel(dot(n, s.wi) < T(0.f), Vec3<T>(T(0.f), T(0.f), T(0.f)) - n, n) * eps
+                          : x + n * eps;
   const auto is_dist = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_distant);
   const auto is_sph = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_sphere);
   const Vec3<T> y = x + s.wi * sel(is_dist, T(0.f), s.dist);

@@ -82,6 +82,47 @@ inline void resolve_mixes(const GeomView& G, ShadingPoints& P) {
   }
 }
 
+// Shading normals (pbrt-v4's triangle meshes with "N"): the vertex normals interpolated
+// by the hit's barycentrics, normalised, on the geometric normal's side (the viewer's);
+// where the mesh has none, or they cancel, the geometric normal. With Materials the
+// normal also decides which side is the outside (pbrt-v4 turns the geometric normal
+// towards it): side = +1 where the viewer is on the interpolated normal's side.
+template <bool Materials> inline void apply_shading_normals(const GeomView& G, ShadingPoints& P) {
+  for (int k = 0; k < P.count; ++k) {
+    const float gx = P.nx[k], gy = P.ny[k], gz = P.nz[k];
+    float sx = gx, sy = gy, sz = gz;
+    const int32_t g = P.geom[k];
+    const float* N = g < G.mesh_count ? G.normals[g] : nullptr;
+    if (N) {
+      const uint32_t* idx = G.indices[g] + 3 * static_cast<size_t>(P.prim[k]);
+      const float b1 = P.bu[k], b2 = P.bv[k], b0 = 1.f - b1 - b2;
+      const float* n0 = N + 3 * idx[0];
+      const float* n1 = N + 3 * idx[1];
+      const float* n2 = N + 3 * idx[2];
+      const float x = b0 * n0[0] + b1 * n1[0] + b2 * n2[0];
+      const float y = b0 * n0[1] + b1 * n1[1] + b2 * n2[1];
+      const float z = b0 * n0[2] + b1 * n1[2] + b2 * n2[2];
+      const float l2 = x * x + y * y + z * z;
+      if (l2 > 1e-20f && std::isfinite(l2)) {
+        const float il = 1.f / std::sqrt(l2);
+        sx = x * il;
+        sy = y * il;
+        sz = z * il;
+        const float facing = sx * gx + sy * gy + sz * gz;
+        if constexpr (Materials) P.side[k] = facing >= 0.f ? 1.f : -1.f;
+        if (facing < 0.f) {
+          sx = -sx;
+          sy = -sy;
+          sz = -sz;
+        }
+      }
+    }
+    P.snx[k] = sx;
+    P.sny[k] = sy;
+    P.snz[k] = sz;
+  }
+}
+
 // The light a ray hit, or -1.
 inline int32_t light_of_hit(const GeomView& G, uint32_t geom, uint32_t prim) {
   if (geom == invalid_id) return -1;
@@ -236,6 +277,12 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     ag = gather(G.mat_g, mat);
     ab = gather(G.mat_b, mat);
   }
+  if (G.has_normals) {  // for the shading-normal pass (apply_shading_normals)
+    compress_store(tb.points.geom + n, geom, keep);
+    compress_store(tb.points.prim + n, prim, keep);
+    compress_store(tb.points.bu + n, b1, keep);
+    compress_store(tb.points.bv + n, b2, keep);
+  }
   // Textured points are only listed here (their vertex indices prefetched); camera_hits
   // applies the texels once every batch of the tile is done (apply_texels).
   if (G.has_textures) {
@@ -304,6 +351,7 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
   tb.keys.points_are_lanes = true;
   for (int i = 0; i < padded_lanes; i += lane_traits<T>::width) camera_hit_lanes<T, Emitters, Materials>(G, L, tb, i, lanes, n);
   tb.points.count = n;
+  if (G.has_normals) apply_shading_normals<Materials>(G, tb.points);
   if constexpr (Materials)
     if (G.has_mix) resolve_mixes(G, tb.points);
   if (G.has_textures) apply_texels(G, tb);
@@ -315,6 +363,8 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
     tb.points.nz[k] = 1.f;
     tb.points.eps[k] = 1e-6f;
     tb.points.ar[k] = tb.points.ag[k] = tb.points.ab[k] = 0.f;
+    tb.points.snx[k] = tb.points.sny[k] = 0.f;
+    tb.points.snz[k] = 1.f;
     if constexpr (Materials) {
       tb.points.mat[k] = n > 0 ? tb.points.mat[0] : G.geom_material[0];
       tb.points.wox[k] = tb.points.woy[k] = 0.f;

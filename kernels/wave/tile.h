@@ -65,6 +65,12 @@ struct ShadingPoints {
   alignas(64) int32_t mat[lane_array];
   alignas(64) float wox[lane_array], woy[lane_array], woz[lane_array];
   alignas(64) float side[lane_array];
+  // scenes with shading normals only (GeomView::has_normals): the hit's geometry,
+  // triangle and barycentrics, and the shading normal on the viewer's side (nx, ny, nz
+  // stay the geometric normal, for ray offsets and which side a direction is on)
+  alignas(64) int32_t geom[lane_array], prim[lane_array];
+  alignas(64) float bu[lane_array], bv[lane_array];
+  alignas(64) float snx[lane_array], sny[lane_array], snz[lane_array];
   alignas(64) uint32_t pixel[lane_array];                     // global pixel id
   alignas(64) int32_t lane[lane_array];                       // tile lane
   alignas(64) float choose_light[lane_array];                 // one-sample MIS: 1 = light technique

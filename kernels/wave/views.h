@@ -48,6 +48,8 @@ struct GeomView {
   const uint32_t* const* indices = nullptr;    // per mesh
   const float* const* positions = nullptr;     // per mesh, xyz per vertex
   const float* const* uvs = nullptr;           // per mesh, nullptr without uv
+  const float* const* normals = nullptr;       // per mesh, shading normals per vertex, nullptr without
+  bool has_normals = false;                    // some mesh has shading normals
   const float* const* tex_rgb = nullptr;       // per texture
   const int32_t *tex_w = nullptr, *tex_h = nullptr;
 };

@@ -156,6 +156,8 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     v.indices.push_back(m.indices.data());
     v.positions.push_back(m.positions.data());
     v.uvs.push_back(m.uvs.empty() ? nullptr : m.uvs.data());
+    v.normals.push_back(m.normals.empty() ? nullptr : m.normals.data());
+    v.geom.has_normals |= !m.normals.empty();
   }
   for (const Sphere& s : scene.spheres) {
     v.geom_material.push_back(s.material >= 0 ? s.material : default_material);
@@ -227,6 +229,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   G.indices = v.indices.data();
   G.positions = v.positions.data();
   G.uvs = v.uvs.data();
+  G.normals = v.normals.data();
   G.tex_rgb = v.tex_rgb.data();
   G.tex_w = v.tex_w.data();
   G.tex_h = v.tex_h.data();

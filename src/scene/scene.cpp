@@ -146,6 +146,10 @@ void finalize_scene(Scene& scene) {
         throw SceneError(m.name + ": error: index " + std::to_string(m.indices[i]) + " out of range (" +
                          std::to_string(nv) + " vertices)");
     if (!m.uvs.empty() && m.uvs.size() != 2 * nv) throw SceneError(m.name + ": error: uv count does not match vertices");
+    if (!m.normals.empty() && m.normals.size() != 3 * nv)
+      throw SceneError(m.name + ": error: normal count does not match vertices");
+    for (float v : m.normals)
+      if (!std::isfinite(v)) throw SceneError(m.name + ": error: a shading normal has a NaN or infinite component");
     if (m.material >= static_cast<int>(scene.materials.size()))
       throw SceneError(m.name + ": error: material index out of range");
     for (float c : {m.emission.r, m.emission.g, m.emission.b})

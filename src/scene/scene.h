@@ -87,6 +87,9 @@ struct Mesh {
   std::vector<float> positions;    // x y z per vertex, world space
   std::vector<uint32_t> indices;   // 3 per triangle
   std::vector<float> uvs;          // u v per vertex, optional (empty)
+  // shading normals, x y z per vertex, world space, unit, optional (empty): pbrt's "N"
+  // (turned by ReverseOrientation); they also decide which side is the outside
+  std::vector<float> normals;
   int material = -1;
   Rgb emission;                    // radiance L when emissive (all zero otherwise)
   bool two_sided = false;          // emits on both sides

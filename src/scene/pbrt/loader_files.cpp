@@ -92,7 +92,7 @@ void Loader::load_files() {
               j.expected = "an existing, readable PLY file";
               continue;
             }
-            PlyMesh ply = parse_ply(data, m.emissive());
+            PlyMesh ply = parse_ply(data, true);
             std::string().swap(data);
             m.positions = std::move(ply.positions);
             m.indices = std::move(ply.indices);
@@ -101,6 +101,7 @@ void Loader::load_files() {
             j.polygons = ply.polygons;
             transform_positions(j.ctm, m.positions.data(), m.positions.size() / 3);
             orient_by_normals(m, ply.normals, j.ctm, j.ro);
+            set_shading_normals(m, ply.normals, j.ctm, j.ro);
           } catch (const PlyError& e) {
             j.error = "in mesh file '" + j.path + "': " + e.what();
             j.expected = e.expected;

@@ -46,6 +46,21 @@ void Loader::set_emission(OwnedMesh& om, Lexer& lx, const Token& t) {
   om.power_where = loc_str(lx, t);
 }
 
+void Loader::set_shading_normals(Mesh& m, const std::vector<float>& n_obj, const Mat4& ctm, bool ro) {
+  if (n_obj.empty() || n_obj.size() != m.positions.size() - m.positions.size() % 3) return;
+  Mat4 inv;
+  if (!invert(ctm, inv)) return;
+  m.normals.resize(n_obj.size());
+  for (size_t i = 0; i + 2 < n_obj.size(); i += 3) {
+    const Vec3d nw = apply_normal_inv(inv, {n_obj[i], n_obj[i + 1], n_obj[i + 2]});
+    const double l = std::sqrt(nw.x * nw.x + nw.y * nw.y + nw.z * nw.z);
+    const double s = l > 0 && std::isfinite(l) ? (ro ? -1 : 1) / l : 0;
+    m.normals[i] = static_cast<float>(nw.x * s);
+    m.normals[i + 1] = static_cast<float>(nw.y * s);
+    m.normals[i + 2] = static_cast<float>(nw.z * s);
+  }
+}
+
 // pbrt-v4 turns a triangle's geometric normal towards its shading normal when the mesh
 // has normals (N, flipped by ReverseOrientation): emission follows N, not the winding.
 void Loader::orient_by_normals(Mesh& m, const std::vector<float>& n_obj, const Mat4& ctm, bool ro) {
@@ -133,7 +148,11 @@ void Loader::shape(Lexer& lx, const Token& t, const std::string& type, Params& p
     } else {
       m.indices = std::move(idx);
     }
-    if (N) orient_by_normals(m, std::vector<float>(N->nums.begin(), N->nums.end()), gs_.ctm, gs_.reverse);
+    if (N) {
+      const std::vector<float> n_obj(N->nums.begin(), N->nums.end());
+      orient_by_normals(m, n_obj, gs_.ctm, gs_.reverse);
+      set_shading_normals(m, n_obj, gs_.ctm, gs_.reverse);
+    }
   } else if (type == "plymesh") {
     const Param* fp = ps.get("filename", "string");
     if (!fp || fp->strs.size() != 1) lx.fail(t, "plymesh without a filename", "a \"string filename\" parameter");

@@ -182,6 +182,10 @@ class Loader {
   size_t new_mesh(Lexer& lx, const Token& t);
   void set_emission(OwnedMesh& om, Lexer& lx, const Token& t);
   void orient_by_normals(Mesh& m, const std::vector<float>& n_obj, const Mat4& ctm, bool ro);
+  // The mesh's shading normals: "N" in world space (inverse transpose), unit, turned by
+  // ReverseOrientation (pbrt-v4's TriangleMesh); zero-length ones stay zero (the stage
+  // then falls back to the geometric normal).
+  static void set_shading_normals(Mesh& m, const std::vector<float>& n_obj, const Mat4& ctm, bool ro);
 
   void finish();
   void load_files();
