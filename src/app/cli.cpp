@@ -26,7 +26,7 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
       ->capture_default_str();
   app.add_option("--light-samples", f.light_samples, "light samples per pixel sample (per source with --light-pick all)")
       ->capture_default_str();
-  app.add_option("--bsdf-samples", f.bsdf_samples, "cosine samples per pixel sample")->capture_default_str();
+  app.add_option("--bsdf-samples", f.bsdf_samples, "BSDF samples per pixel sample")->capture_default_str();
   app.add_option("--spp", f.spp, "samples per pixel (default: the scene file's, else 16)")
       ->each([&f](const std::string&) { f.spp_given = true; });
   app.add_option("--seed", f.seed, "random seed")->capture_default_str();
