@@ -2,7 +2,8 @@
 // the light-sampling and BSDF-sampling stages equals the scalar reference with a surface of
 // every kind in one batch; a light seen in a smooth mirror has exactly the radiance Fresnel
 // says (a delta lobe, weight 1, whatever the strategy); and on a glossy scene every
-// strategy converges to the same image (unbiased, stated confidence).
+// strategy converges to the same image (unbiased, stated confidence), with several
+// light and BSDF samples too.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -306,11 +307,11 @@ TEST(Materials, LightSeenInSmoothMirrorHasFresnelRadiance) {
 }
 
 // MIS with glossy BSDFs: light sampling alone, BSDF sampling alone, MIS (balance and power,
-// multi- and one-sample) estimate the same image. A rough conductor and a rough coated
-// floor under a rectangle and a small sphere; independent random numbers, so that each
+// multi- and one-sample, 2 light and 3 BSDF samples) estimate the same image. A rough
+// conductor and a rough coated floor under a rectangle and a sphere; independent random numbers, so that each
 // pixel's variance estimate is honest. Compared per 8x8 block of pixels against the
-// balance-heuristic render: z = difference / combined standard error; with 16 blocks x 4
-// strategies and |z| < 5, a correct renderer fails with probability ~4e-5 (normal tails;
+// balance-heuristic render: z = difference / combined standard error; with (16 blocks + 3
+// channels) x 5 renders and |z| < 5, a correct renderer fails with probability ~6e-5 (normal tails;
 // 1024 samples per pixel x 64 pixels per block make the block means close to normal).
 // A 5% bias of the BSDF technique's weight in one channel fails it (checked by hand).
 TEST(Materials, EveryStrategyConvergesToTheSameGlossyImage) {
@@ -346,8 +347,10 @@ TEST(Materials, EveryStrategyConvergesToTheSameGlossyImage) {
     std::string name;
     std::vector<float> mean, var;
   };
-  auto render = [&](Strategy st, Heuristic h, MisMode mode) {
+  auto render = [&](Strategy st, Heuristic h, MisMode mode, int light_samples = 1, int bsdf_samples = 1) {
     RenderOptions o;
+    o.est.light_samples = light_samples;
+    o.est.bsdf_samples = bsdf_samples;
     o.est.strategy = st;
     o.est.heuristic = h;
     o.est.mode = mode;
@@ -363,7 +366,8 @@ TEST(Materials, EveryStrategyConvergesToTheSameGlossyImage) {
   const Result others[] = {render(Strategy::light, Heuristic::balance, MisMode::multi),
                            render(Strategy::bsdf, Heuristic::balance, MisMode::multi),
                            render(Strategy::mis, Heuristic::power, MisMode::multi),
-                           render(Strategy::mis, Heuristic::balance, MisMode::one)};
+                           render(Strategy::mis, Heuristic::balance, MisMode::one),
+                           render(Strategy::mis, Heuristic::power, MisMode::multi, 2, 3)};
   // per 8x8 block (all channels), and per channel over the whole image (a bias in one
   // channel or a small one everywhere): 16 x 4 + 3 x 4 comparisons at |z| < 5
   const int W = s.camera.width, B = 8;
