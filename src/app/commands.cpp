@@ -69,6 +69,30 @@ int run_info(const RenderFlags& f) {
   std::printf("features:");
   for (size_t i = 0; i < std::size(scene_feature_names); ++i)
     if (scene.features & (1u << i)) std::printf(" %s", scene_feature_names[i]);
+  // the kinds of surface the geometry has (through mixes too), and how many shapes use each
+  {
+    size_t per_kind[material_kind_count] = {};
+    size_t mixes = 0;
+    auto count = [&](int m) {
+      if (m < 0 || static_cast<size_t>(m) >= scene.materials.size()) {
+        ++per_kind[0];  // the default grey
+        return;
+      }
+      const Material& mt = scene.materials[static_cast<size_t>(m)];
+      if (mt.mix[0] >= 0) {
+        ++mixes;
+        for (int i : mt.mix) ++per_kind[static_cast<int>(scene.materials[static_cast<size_t>(i)].kind)];
+      } else {
+        ++per_kind[static_cast<int>(mt.kind)];
+      }
+    };
+    for (const Mesh& m : scene.meshes) count(m.material);
+    for (const Sphere& sp : scene.spheres) count(sp.material);
+    std::printf("\nsurfaces:");
+    for (int k = 0; k < material_kind_count; ++k)
+      if (per_kind[k]) std::printf(" %s (%zu)", material_kind_names[k], per_kind[k]);
+    if (mixes) std::printf(", %zu through mix", mixes);
+  }
   std::printf("\nestimator: %s\n", describe(opt.est).c_str());
   std::printf("pixel filter: %s\n", describe(opt.filter).c_str());
   {
