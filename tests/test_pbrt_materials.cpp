@@ -4,7 +4,6 @@
 // and bad input is an error naming the file and line.
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -12,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "output_files.h"
 #include "scene/pbrt.h"
 
 namespace fs = std::filesystem;
@@ -19,20 +19,10 @@ using namespace tuile;
 
 namespace {
 
+// A scratch directory per test binary run, removed at exit.
 const fs::path& tmp_dir() {
-  static const fs::path dir = [] {
-    fs::path d = fs::temp_directory_path() /
-                 ("tuile_test_pbrt_materials_" + std::to_string(std::chrono::steady_clock::now().time_since_epoch().count()));
-    fs::create_directories(d);
-    return d;
-  }();
-  static const struct Cleanup {
-    ~Cleanup() {
-      std::error_code ec;
-      fs::remove_all(dir, ec);
-    }
-  } cleanup;
-  return dir;
+  static const tuile::testing::TempDir dir;
+  return dir.path;
 }
 
 // An uncompressed 24-bit TGA, top row first.
