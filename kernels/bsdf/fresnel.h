@@ -55,7 +55,11 @@ template <class T> inline T fresnel_dielectric_transmittance(const T& cos_i, con
 // the medium the light comes from), |cos_i| used (pbrt-v4 FrComplex). With
 // a^2 + b^2 = sqrt((eta^2 - k^2 - sin^2)^2 + 4 eta^2 k^2) and a^2 = (a^2 + b^2 + t0) / 2,
 // written as 2 eta^2 k^2 / (a^2 + b^2 - t0) where t0 < 0 so that no digits cancel.
-template <class T> inline T fresnel_complex(const T& cos_i, const T& eta, const T& k) noexcept {
+// eta and k are clamped to 1e5: their squares' products stay far inside float's range
+// (beyond ~1e9, (eta^2 - k^2)^2 overflows and the formula gives NaN), and at 1e5 the
+// reflectance already differs from 1 by less than 1e-4 (1 - F ~ 4 eta / (eta^2 + k^2)).
+template <class T> inline T fresnel_complex(const T& cos_i, const T& eta_in, const T& k_in) noexcept {
+  const T eta = min(eta_in, T(1e5f)), k = min(k_in, T(1e5f));
   const T c = min(abs(cos_i), T(1.f));
   const T cos2 = c * c;
   const T sin2 = (T(1.f) - c) * (T(1.f) + c);
