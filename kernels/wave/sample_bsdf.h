@@ -23,12 +23,12 @@ TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& 
   const Vec3<T> x = load3<T>(tb.points.px + k, tb.points.py + k, tb.points.pz + k);
   const Vec3<T> n = load3<T>(tb.points.nx + k, tb.points.ny + k, tb.points.nz + k);
   const T eps = load<T>(tb.points.eps + k);
-  const Vec3<T> ns = G.has_normals ? load3<T>(tb.points.snx + k, tb.points.sny + k, tb.points.snz + k) : n;
+  const Vec3<T> ns = G.shading_normals ? load3<T>(tb.points.snx + k, tb.points.sny + k, tb.points.snz + k) : n;
   const SurfaceBsdf<T, Bsdfs> bsdf = load_surface_bsdf<T, Bsdfs>(G, tb.points, k, ns);
   constexpr bool several_lobes = (Bsdfs & ~bsdf_diffuse) != 0;
   const BsdfSample<T> bs =
       bsdf.sample(several_lobes ? load<T>(tb.tech.u2 + k) : T(0.f), load<T>(tb.tech.u0 + k), load<T>(tb.tech.u1 + k));
-  if ((Bsdfs & bsdf_transmits) != 0 || G.has_normals) {  // leave by the side wi points to
+  if ((Bsdfs & bsdf_transmits) != 0 || G.shading_normals) {  // leave by the side wi points to
     const auto below = dot(n, bs.wi) < T(0.f);
     store_rays(tb.bounce, k, x + sel(below, Vec3<T>(T(0.f), T(0.f), T(0.f)) - n, n) * eps, bs.wi, T(3.0e38f));
   } else {

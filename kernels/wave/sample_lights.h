@@ -70,9 +70,9 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
       sample_light_point<Kinds>(est.point, g, x, load<T>(tb.tech.u2 + k), load<T>(tb.tech.u3 + k));
 
   constexpr bool rects = (Kinds & kind_rects) != 0;
-  // the shading normal where the mesh has them (the BSDF's frame and the cosine), the
-  // geometric one n for offsets and which side wi leaves by
-  const Vec3<T> ns = G.has_normals ? load3<T>(tb.points.snx + k, tb.points.sny + k, tb.points.snz + k) : n;
+  // the shading normal where the scene has them (vertex normals, bump maps: the BSDF's
+  // frame and the cosine), the geometric one n for offsets and which side wi leaves by
+  const Vec3<T> ns = G.shading_normals ? load3<T>(tb.points.snx + k, tb.points.sny + k, tb.points.snz + k) : n;
   const BsdfEval<T> fe = load_surface_bsdf<T, Bsdfs>(G, tb.points, k, ns).eval(s.wi);
   constexpr bool transmits = (Bsdfs & bsdf_transmits) != 0;
   const T cos_s = dot(ns, s.wi);
@@ -110,7 +110,7 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
   // relative (measured), so the ray stops 2^-12 of its length short.
   // (the offset goes to the side wi leaves by: below the surface for transmission, or
   // where a shading normal lets wi dip under the geometric plane, as pbrt-v4 offsets)
-  const Vec3<T> org = transmits || G.has_normals
+  const Vec3<T> org = transmits || G.shading_normals
                           ? x + sel(dot(n, s.wi) < T(0.f), Vec3<T>(T(0.f), T(0.f), T(0.f)) - n, n) * eps
                           : x + n * eps;
   const auto is_dist = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_distant);

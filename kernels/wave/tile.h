@@ -65,7 +65,7 @@ struct ShadingPoints {
   alignas(64) int32_t mat[lane_array];
   alignas(64) float wox[lane_array], woy[lane_array], woz[lane_array];
   alignas(64) float side[lane_array];
-  // scenes with shading normals only (GeomView::has_normals): the hit's geometry,
+  // scenes with shading normals only (GeomView::shading_normals: vertex normals or bump mapping): the hit's geometry,
   // triangle and barycentrics, and the shading normal on the viewer's side (nx, ny, nz
   // stay the geometric normal, for ray offsets and which side a direction is on)
   alignas(64) int32_t geom[lane_array], prim[lane_array];

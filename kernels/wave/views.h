@@ -50,6 +50,21 @@ struct GeomView {
   const float* const* uvs = nullptr;           // per mesh, nullptr without uv
   const float* const* normals = nullptr;       // per mesh, shading normals per vertex, nullptr without
   bool has_normals = false;                    // some mesh has shading normals
+  // Bump mapping (pbrt-v4's "displacement"): per material, the float texture whose
+  // gradient tilts the shading normal, or -1 (none, or a constant: build_views drops
+  // those, they tilt nothing); the float textures (one value per texel, top row first)
+  bool has_bump = false;                       // some geometry's material (or a mix's) bumps
+  const int32_t* mat_bump = nullptr;           // per material: float texture or -1
+  const float* const* ftex_value = nullptr;    // per float texture
+  const int32_t *ftex_w = nullptr, *ftex_h = nullptr;
+  // The pixel footprint the bump's finite differences are scaled to (surface_hits.h
+  // bump_normal): the camera's centre, the world-space change of the camera ray's
+  // direction (camera z = 1) per pixel along x and along y, times footprint_scale, and
+  // the camera's z row (dot(zrow, p - o) is the camera depth of p).
+  float cam_o[3] = {0, 0, 0}, cam_dx[3] = {0, 0, 0}, cam_dy[3] = {0, 0, 0}, cam_zrow[3] = {0, 0, 1};
+  // The stages read the shading normal (ShadingPoints::snx..) instead of the geometric
+  // one: some mesh has vertex normals or some material bumps (has_normals || has_bump)
+  bool shading_normals = false;
   const float* const* tex_rgb = nullptr;       // per texture
   const int32_t *tex_w = nullptr, *tex_h = nullptr;
 };

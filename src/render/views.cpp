@@ -169,7 +169,18 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   v.sphere_light.push_back(-1);  // never empty
   v.tri_pos.insert(v.tri_pos.end(), 9, 0.f);  // a spare triangle: never empty
   v.tri_light.push_back(-1);
+  // A displacement texture whose texels are all equal moves the surface along its normal
+  // without turning it (the offset surface's normal field is the surface's): no bump
+  // (pbrt-v4's d dn/du term, from the interpolated vertex normals, is left out with it).
+  const auto bump_texture = [&](const Material& m) -> int32_t {
+    if (m.displacement < 0) return -1;
+    const FloatTexture& t = scene.float_textures[static_cast<size_t>(m.displacement)];
+    if (t.value.empty() || std::all_of(t.value.begin(), t.value.end(), [&](float x) { return x == t.value[0]; }))
+      return -1;
+    return m.displacement;
+  };
   auto add_material = [&](const Material& m) {
+    v.mat_bump.push_back(bump_texture(m));
     v.mat_r.push_back(m.reflectance.r);
     v.mat_g.push_back(m.reflectance.g);
     v.mat_b.push_back(m.reflectance.b);
@@ -202,6 +213,19 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
       v.bsdf_kinds |= 1u << v.mat_kind[static_cast<size_t>(v.mat_mix1[k])];
     }
   }
+  // bump mapping: where a mesh's material, or one a mix of it chooses, has a bump texture
+  for (size_t g = 0; g < scene.meshes.size(); ++g) {
+    const auto k = static_cast<size_t>(v.geom_material[g]);
+    v.geom.has_bump |= v.mat_bump[k] >= 0;
+    for (const int32_t c : {v.mat_mix0[k], v.mat_mix1[k]})
+      if (c >= 0) v.geom.has_bump |= v.mat_bump[static_cast<size_t>(c)] >= 0;
+  }
+  v.geom.shading_normals = v.geom.has_normals || v.geom.has_bump;
+  for (const FloatTexture& t : scene.float_textures) {
+    v.ftex_value.push_back(t.value.data());
+    v.ftex_w.push_back(t.width);
+    v.ftex_h.push_back(t.height);
+  }
   for (const Texture& t : scene.textures) {
     v.tex_rgb.push_back(t.rgb.data());
     v.tex_w.push_back(t.width);
@@ -233,6 +257,10 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   G.tex_rgb = v.tex_rgb.data();
   G.tex_w = v.tex_w.data();
   G.tex_h = v.tex_h.data();
+  G.mat_bump = v.mat_bump.data();
+  G.ftex_value = v.ftex_value.data();
+  G.ftex_w = v.ftex_w.data();
+  G.ftex_h = v.ftex_h.data();
 
   const Camera& c = scene.camera;
   CameraView& cv = v.camera;
@@ -249,6 +277,27 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   cv.tan_half = std::tan(0.5f * c.fov_deg * 3.14159265f / 180.f);
   cv.inv_w = 1.f / static_cast<float>(c.width);
   cv.inv_h = 1.f / static_cast<float>(c.height);
+  // The pixel footprint of bump mapping (surface_hits.h bump_normal): the camera ray's
+  // direction with camera z = 1 is M (sx tan, sy tan, 1), which moves by M's first column
+  // times (sx1 - sx0) tan / width per pixel along x (likewise y). pbrt-v4 scales its camera
+  // differentials by max(1/8, 1/sqrt(spp)); tuile takes 1/8 at every spp, pbrt's value
+  // from 64 spp on, so that the bump (and the image's expectation) does not depend on
+  // the spp of a render.
+  constexpr float footprint_scale = 0.125f;
+  const vec3f col0{cv.m[0][0], cv.m[1][0], cv.m[2][0]}, col1{cv.m[0][1], cv.m[1][1], cv.m[2][1]};
+  const vec3f col2{cv.m[0][2], cv.m[1][2], cv.m[2][2]};
+  const vec3f dx = col0 * ((cv.sx1 - cv.sx0) * cv.tan_half * cv.inv_w * footprint_scale);
+  const vec3f dy = col1 * ((cv.sy1 - cv.sy0) * cv.tan_half * cv.inv_h * footprint_scale);
+  const vec3f c01 = cross(col0, col1);
+  const float det = dot(c01, col2);
+  const vec3f zrow = det != 0.f ? c01 * (1.f / det) : vec3f{0, 0, 0};
+  const float dxa[3] = {dx.x, dx.y, dx.z}, dya[3] = {dy.x, dy.y, dy.z}, za[3] = {zrow.x, zrow.y, zrow.z};
+  for (int i = 0; i < 3; ++i) {
+    G.cam_o[i] = cv.m[i][3];
+    G.cam_dx[i] = dxa[i];
+    G.cam_dy[i] = dya[i];
+    G.cam_zrow[i] = za[i];
+  }
   return out;
 }
 

@@ -37,6 +37,8 @@ struct SceneViews {
   std::vector<float> mat_mix_amount;
   std::vector<float> mat_param[mp_count];
   std::vector<float> geom_side;
+  std::vector<int32_t> mat_bump, ftex_w, ftex_h;  // bump mapping (GeomView::mat_bump, ftex_*)
+  std::vector<const float*> ftex_value;
   GeomView geom;
   CameraView camera;
   std::vector<float> filter_table;  // camera.filter's tables (render/filter_table.h), set by the renderer

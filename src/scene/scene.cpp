@@ -88,17 +88,32 @@ static bool match_parallelogram(const Mesh& m, size_t t, vec3f& p0, vec3f& e1, v
 
 namespace {
 
+// Whether material m bumps (a displacement texture whose texels are not all equal: a
+// constant moves a surface without turning it, render/views.cpp drops it).
+bool bumps(const Scene& scene, const Material& m) {
+  if (m.displacement < 0) return false;
+  const FloatTexture& t = scene.float_textures[static_cast<size_t>(m.displacement)];
+  return std::any_of(t.value.begin(), t.value.end(), [&](float x) { return x != t.value[0]; });
+}
+
 // Checks every material's numbers and indices, and applies what tuile approximates, once,
 // with one warning per kind: a float texture for roughness becomes its mean (remapped as
-// pbrt would at each hit), a displacement texture is ignored, a mix's own textures are not
-// looked up by the materials it chooses between.
+// pbrt would at each hit), a mix's own textures are not looked up by the materials it
+// chooses between, spheres are not bump mapped (displacement textures are, on triangles:
+// surface_hits.h bump_normal).
 void resolve_material_params(Scene& scene) {
   const int nm = static_cast<int>(scene.materials.size());
   const int nt = static_cast<int>(scene.textures.size()), nf = static_cast<int>(scene.float_textures.size());
-  bool averaged = false, bump = false;
+  bool averaged = false;
   for (Material& m : scene.materials) {
     if (m.texture >= nt || m.transmittance_texture >= nt) throw SceneError("material: error: texture index out of range");
     if (m.displacement >= nf) throw SceneError("material: error: displacement texture index out of range");
+    if (m.displacement >= 0) {  // the bump map reads its texels (surface_hits.h float_texture_bilinear)
+      const FloatTexture& t = scene.float_textures[static_cast<size_t>(m.displacement)];
+      if (t.width < 1 || t.height < 1 || t.value.size() != static_cast<size_t>(t.width) * static_cast<size_t>(t.height))
+        throw SceneError("material: error: displacement texture \"" + t.name + "\" has " + std::to_string(t.value.size()) +
+                         " values for " + std::to_string(t.width) + "x" + std::to_string(t.height) + " texels");
+    }
     for (FloatParam* f : {&m.alpha_u, &m.alpha_v, &m.base_alpha_u, &m.base_alpha_v, &m.mix_amount}) {
       if (f->texture >= nf) throw SceneError("material: error: float texture index out of range");
       if (f->texture < 0) continue;
@@ -119,14 +134,19 @@ void resolve_material_params(Scene& scene) {
         if (i < 0 || i >= nm || scene.materials[static_cast<size_t>(i)].mix[0] >= 0)
           throw SceneError("material: error: mix of a material index out of range, or of a mix");
     }
-    if (m.displacement >= 0) {
-      const FloatTexture& t = scene.float_textures[static_cast<size_t>(m.displacement)];
-      bump = bump || t.width * t.height > 1;
-    }
   }
   if (averaged)
     scene.warnings.push_back("textured roughness or mix amount: approximated by the texture's mean (one value per material)");
-  if (bump) scene.warnings.push_back("displacement (bump mapping): not supported, the surfaces are shaded flat");
+  // pbrt-v4 bumps a sphere in its (phi, theta) parameterisation, which tuile does not keep
+  bool sphere_bump = false;
+  for (const Sphere& s : scene.spheres) {
+    if (s.material < 0 || s.material >= nm) continue;
+    const Material& m = scene.materials[static_cast<size_t>(s.material)];
+    if (m.mix[0] < 0) sphere_bump = sphere_bump || bumps(scene, m);
+    else  // (a mix's own displacement is not used: pbrt-v4 bumps with the material it chose)
+      for (int i : m.mix) sphere_bump = sphere_bump || bumps(scene, scene.materials[static_cast<size_t>(i)]);
+  }
+  if (sphere_bump) scene.warnings.push_back("displacement (bump mapping) on spheres: not supported, they are shaded smooth");
 }
 
 }  // namespace
