@@ -49,6 +49,7 @@ template <class T, unsigned Bsdfs> struct SurfaceBsdf {
   Vec3<T> n;      // unit normal on the viewer's side
   Vec3<T> wo;     // unit, towards the viewer
   T side;         // +1: the viewer is outside; -1: inside
+  T ax, ay;       // Trowbridge-Reitz alphas (conductor, dielectric, the coats): textured or the material's
 
   T param(int p) const noexcept { return gather(G->mat_param[p], mat); }
   Rgb3<T> param3(int p) const noexcept { return {param(p), param(p + 1), param(p + 2)}; }
@@ -70,11 +71,11 @@ template <class T, unsigned Bsdfs> struct SurfaceBsdf {
   template <class F> void for_each_local(F&& f) const noexcept {
     if constexpr ((Bsdfs & bsdf_conductor) != 0) {
       const auto m = is(MaterialKind::conductor);
-      if (any(m)) f(ConductorBsdf<T>{param(mp_ax), param(mp_ay), param3(mp_eta_r), param3(mp_k_r)}, m);
+      if (any(m)) f(ConductorBsdf<T>{ax, ay, param3(mp_eta_r), param3(mp_k_r)}, m);
     }
     if constexpr ((Bsdfs & bsdf_dielectric) != 0) {
       const auto m = is(MaterialKind::dielectric);
-      if (any(m)) f(DielectricBsdf<T>{relative_eta(), param(mp_ax), param(mp_ay)}, m);
+      if (any(m)) f(DielectricBsdf<T>{relative_eta(), ax, ay}, m);
     }
     if constexpr ((Bsdfs & bsdf_thin_dielectric) != 0) {
       const auto m = is(MaterialKind::thin_dielectric);
@@ -87,12 +88,12 @@ template <class T, unsigned Bsdfs> struct SurfaceBsdf {
     if constexpr ((Bsdfs & bsdf_coated_diffuse) != 0) {
       const auto m = is(MaterialKind::coated_diffuse);
       if (any(m))
-        f(CoatedDiffuseBsdf<T>{param(mp_eta), param(mp_ax), param(mp_ay), rho, param(mp_thickness), param3(mp_alb_r)}, m);
+        f(CoatedDiffuseBsdf<T>{param(mp_eta), ax, ay, rho, param(mp_thickness), param3(mp_alb_r)}, m);
     }
     if constexpr ((Bsdfs & bsdf_coated_conductor) != 0) {
       const auto m = is(MaterialKind::coated_conductor);
       if (any(m))
-        f(CoatedConductorBsdf<T>{param(mp_eta), param(mp_ax), param(mp_ay), param3(mp_eta_r), param3(mp_k_r), param(mp_bax),
+        f(CoatedConductorBsdf<T>{param(mp_eta), ax, ay, param3(mp_eta_r), param3(mp_k_r), param(mp_bax),
                                  param(mp_bay), param(mp_thickness), param3(mp_alb_r)},
           m);
     }

@@ -18,11 +18,19 @@ inline SurfaceBsdf<T, Bsdfs> load_surface_bsdf(const GeomView& G, const ShadingP
     b.kind = i32_t<T>(0);
     b.wo = Vec3<T>(T(0.f), T(0.f), T(0.f));
     b.side = T(1.f);
+    b.ax = b.ay = T(0.f);
   } else {
     b.mat = load_i32<T>(P.mat + k);
     b.kind = gather(G.mat_kind, b.mat);
     b.wo = load3<T>(P.wox + k, P.woy + k, P.woz + k);
     b.side = load<T>(P.side + k);
+    if (G.has_rough_tex) {
+      b.ax = load<T>(P.ax + k);
+      b.ay = load<T>(P.ay + k);
+    } else {
+      b.ax = gather(G.mat_param[mp_ax], b.mat);
+      b.ay = gather(G.mat_param[mp_ay], b.mat);
+    }
   }
   return b;
 }

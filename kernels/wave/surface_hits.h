@@ -290,6 +290,38 @@ template <bool Materials> inline void apply_shading_normals(const GeomView& G, S
   }
 }
 
+// Textured roughness: each point's Trowbridge-Reitz alphas, from its material's float
+// textures at the hit's uv (bilinear, wrap; pbrt's default (0,0), (1,0), (1,1) without uv;
+// through RoughnessToAlpha = sqrt where the material remaps), or the material's constants.
+// Spheres have no uv here: they take the constants.
+inline void apply_roughness_textures(const GeomView& G, ShadingPoints& P) {
+  const float* cu = G.mat_param[mp_ax];
+  const float* cv = G.mat_param[mp_ay];
+  for (int k = 0; k < P.count; ++k) {
+    const int32_t m = P.mat[k];
+    float a[2] = {cu[m], cv[m]};
+    const int32_t g = P.geom[k];
+    for (int i = 0; i < 2; ++i) {
+      const int32_t t = G.mat_alpha_tex[2 * m + i];
+      if (t < 0 || g >= G.mesh_count) continue;
+      const uint32_t* idx = G.indices[g] + 3 * static_cast<size_t>(P.prim[k]);
+      float uv[3][2] = {{0, 0}, {1, 0}, {1, 1}};
+      if (const float* UV = G.uvs[g])
+        for (int j = 0; j < 3; ++j) {
+          uv[j][0] = UV[2 * static_cast<size_t>(idx[j])];
+          uv[j][1] = UV[2 * static_cast<size_t>(idx[j]) + 1];
+        }
+      const float b1 = P.bu[k], b2 = P.bv[k], b0 = 1.f - b1 - b2;
+      const float u = b0 * uv[0][0] + b1 * uv[1][0] + b2 * uv[2][0];
+      const float v = b0 * uv[0][1] + b1 * uv[1][1] + b2 * uv[2][1];
+      const float r = std::max(float_texture_bilinear(G, t, u, v), 0.f);
+      a[i] = G.mat_remap[m] ? std::sqrt(r) : r;
+    }
+    P.ax[k] = a[0];
+    P.ay[k] = a[1];
+  }
+}
+
 // The light a ray hit, or -1.
 inline int32_t light_of_hit(const GeomView& G, uint32_t geom, uint32_t prim) {
   if (geom == invalid_id) return -1;
@@ -444,7 +476,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     ag = gather(G.mat_g, mat);
     ab = gather(G.mat_b, mat);
   }
-  if (G.shading_normals) {  // for the shading-normal pass (apply_shading_normals)
+  if (G.shading_normals || G.has_rough_tex) {  // for the scalar passes (apply_shading_normals, roughness)
     compress_store(tb.points.geom + n, geom, keep);
     compress_store(tb.points.prim + n, prim, keep);
     compress_store(tb.points.bu + n, b1, keep);
@@ -521,6 +553,8 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
   if constexpr (Materials)  // first: the bump map is the chosen material's
     if (G.has_mix) resolve_mixes(G, tb.points);
   if (G.shading_normals) apply_shading_normals<Materials>(G, tb.points);
+  if constexpr (Materials)
+    if (G.has_rough_tex) apply_roughness_textures(G, tb.points);
   if (G.has_textures) apply_texels(G, tb);
   // pad to whole packets with copies of a real point; padding lanes are never active
   const int padded = packet_padded(n);
@@ -532,6 +566,7 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
     tb.points.ar[k] = tb.points.ag[k] = tb.points.ab[k] = 0.f;
     tb.points.snx[k] = tb.points.sny[k] = 0.f;
     tb.points.snz[k] = 1.f;
+    tb.points.ax[k] = tb.points.ay[k] = 0.f;
     if constexpr (Materials) {
       tb.points.mat[k] = n > 0 ? tb.points.mat[0] : G.geom_material[0];
       tb.points.wox[k] = tb.points.woy[k] = 0.f;

@@ -71,6 +71,9 @@ struct ShadingPoints {
   alignas(64) int32_t geom[lane_array], prim[lane_array];
   alignas(64) float bu[lane_array], bv[lane_array];
   alignas(64) float snx[lane_array], sny[lane_array], snz[lane_array];
+  // scenes with textured roughness only (GeomView::has_rough_tex): the Trowbridge-Reitz
+  // alphas at the point
+  alignas(64) float ax[lane_array], ay[lane_array];
   alignas(64) uint32_t pixel[lane_array];                     // global pixel id
   alignas(64) int32_t lane[lane_array];                       // tile lane
   alignas(64) float choose_light[lane_array];                 // one-sample MIS: 1 = light technique

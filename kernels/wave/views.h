@@ -65,6 +65,13 @@ struct GeomView {
   // The stages read the shading normal (ShadingPoints::snx..) instead of the geometric
   // one: some mesh has vertex normals or some material bumps (has_normals || has_bump)
   bool shading_normals = false;
+  // Textured roughness (pbrt's "texture roughness" / uroughness / vroughness): per
+  // material, the float textures of alpha_u and alpha_v (2 entries, -1: the constant in
+  // mat_param) and whether their values go through RoughnessToAlpha (sqrt); looked up per
+  // shading point (surface_hits.h apply_roughness_textures)
+  bool has_rough_tex = false;
+  const int32_t* mat_alpha_tex = nullptr;
+  const int32_t* mat_remap = nullptr;
   const float* const* tex_rgb = nullptr;       // per texture
   const int32_t *tex_w = nullptr, *tex_h = nullptr;
 };

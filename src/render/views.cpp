@@ -191,6 +191,9 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
                                m.alpha_u.value,   m.alpha_v.value,   m.base_alpha_u.value, m.base_alpha_v.value,
                                m.thickness,       m.albedo.r,        m.albedo.g,        m.albedo.b};
     for (int i = 0; i < mp_count; ++i) v.mat_param[i].push_back(p[i]);
+    v.mat_alpha_tex.push_back(m.alpha_u.texture);
+    v.mat_alpha_tex.push_back(m.alpha_v.texture);
+    v.mat_remap.push_back(m.remap_roughness ? 1 : 0);
     v.mat_mix0.push_back(m.mix[0]);
     v.mat_mix1.push_back(m.mix[1]);
     v.mat_mix_amount.push_back(m.mix_amount.value);
@@ -244,6 +247,14 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   G.mat_b = v.mat_b.data();
   G.mat_texture = v.mat_texture.data();
   G.mat_kind = v.mat_kind.data();
+  G.mat_alpha_tex = v.mat_alpha_tex.data();
+  G.mat_remap = v.mat_remap.data();
+  for (const int32_t m : v.geom_material) {  // (a mix's materials: their own textures)
+    const auto k = static_cast<size_t>(m);
+    for (const int32_t e : {m, v.mat_mix0[k], v.mat_mix1[k]})
+      if (e >= 0 && (v.mat_alpha_tex[2 * static_cast<size_t>(e)] >= 0 || v.mat_alpha_tex[2 * static_cast<size_t>(e) + 1] >= 0))
+        G.has_rough_tex = true;
+  }
   G.mat_mix0 = v.mat_mix0.data();
   G.mat_mix1 = v.mat_mix1.data();
   G.mat_mix_amount = v.mat_mix_amount.data();

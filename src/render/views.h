@@ -33,7 +33,7 @@ struct SceneViews {
   std::vector<const float*> positions;
   std::vector<const float*> uvs, tex_rgb, normals;
   std::vector<float> mat_r, mat_g, mat_b;
-  std::vector<int32_t> mat_kind, mat_mix0, mat_mix1;
+  std::vector<int32_t> mat_kind, mat_mix0, mat_mix1, mat_alpha_tex, mat_remap;
   std::vector<float> mat_mix_amount;
   std::vector<float> mat_param[mp_count];
   std::vector<float> geom_side;

@@ -114,14 +114,16 @@ void resolve_material_params(Scene& scene) {
         throw SceneError("material: error: displacement texture \"" + t.name + "\" has " + std::to_string(t.value.size()) +
                          " values for " + std::to_string(t.width) + "x" + std::to_string(t.height) + " texels");
     }
-    for (FloatParam* f : {&m.alpha_u, &m.alpha_v, &m.base_alpha_u, &m.base_alpha_v, &m.mix_amount}) {
+    for (FloatParam* f : {&m.alpha_u, &m.alpha_v})  // looked up per hit (surface_hits.h)
+      if (f->texture >= nf) throw SceneError("material: error: float texture index out of range");
+    for (FloatParam* f : {&m.base_alpha_u, &m.base_alpha_v, &m.mix_amount}) {
       if (f->texture >= nf) throw SceneError("material: error: float texture index out of range");
       if (f->texture < 0) continue;
       const FloatTexture& t = scene.float_textures[static_cast<size_t>(f->texture)];
       double sum = 0;
       for (float v : t.value) sum += v;
       const float mean = t.value.empty() ? 0.f : static_cast<float>(sum / static_cast<double>(t.value.size()));
-      const bool alpha = f != &m.mix_amount;
+      const bool alpha = f != &m.mix_amount;  // a coated conductor's base
       f->value = alpha && m.remap_roughness ? std::sqrt(std::max(mean, 0.f)) : mean;
       f->texture = -1;
       averaged = averaged || t.width * t.height > 1;
@@ -136,7 +138,8 @@ void resolve_material_params(Scene& scene) {
     }
   }
   if (averaged)
-    scene.warnings.push_back("textured roughness or mix amount: approximated by the texture's mean (one value per material)");
+    scene.warnings.push_back(
+        "textured mix amount or coated conductor base roughness: approximated by the texture's mean (one value per material)");
   // pbrt-v4 bumps a sphere in its (phi, theta) parameterisation, which tuile does not keep
   bool sphere_bump = false;
   for (const Sphere& s : scene.spheres) {
