@@ -8,10 +8,13 @@
 
 #include <cmath>
 #include <complex>
+#include <functional>
 #include <cstring>
 #include <memory>
 #include <random>
 
+#include "render/checkpoint.h"
+#include "render/passes.h"
 #include "render/views.h"
 #include "render_util.h"
 #include "wave/generate.h"
@@ -489,4 +492,27 @@ TEST(Materials, TexturedRoughnessIsLookedUpPerHit) {
     sum += b[i];
   }
   EXPECT_GT(sum, 0.0);
+}
+
+// A checkpoint refuses another scene's render: the fingerprint follows every parameter a
+// surface renders with (roughness, indices, normals, float textures), while a plain diffuse
+// scene keeps the fingerprint of earlier releases (no new fields enter it).
+TEST(Materials, CheckpointFingerprintFollowsTheSurfaces) {
+  Scene s = every_surface();
+  finalize_scene(s);
+  RenderOptions o;
+  const PassPlan plan = fixed_passes(16 * 16);
+  const std::string base = render_fingerprint(s, o, plan);
+  std::vector<std::function<void(Scene&)>> changes = {
+      [](Scene& c) { c.materials[1].alpha_u.value += 0.01f; },
+      [](Scene& c) { c.materials[3].eta = 1.33f; },
+      [](Scene& c) { c.materials[1].k_rgb.g = 1.f; },
+      [](Scene& c) { c.materials[6].transmittance.b = 0.1f; },
+      [](Scene& c) { c.materials[2].kind = MaterialKind::dielectric; },
+      [](Scene& c) { c.meshes.back().normals.assign(c.meshes.back().positions.size() - 1, 0.5f); }};
+  for (size_t i = 0; i < changes.size(); ++i) {
+    Scene c = s;
+    changes[i](c);
+    EXPECT_NE(render_fingerprint(c, o, plan), base) << "change " << i;
+  }
 }

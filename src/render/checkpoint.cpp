@@ -85,6 +85,7 @@ std::string render_fingerprint(const Scene& scene, const RenderOptions& options,
     c.add(&m.emission, sizeof(m.emission));
     const uint8_t flags[2] = {m.two_sided, m.reverse_orientation};
     c.add(flags, sizeof(flags));
+    if (!m.normals.empty()) c.add_vector(m.normals);  // (absent: the fingerprint of earlier releases)
   }
   for (const Sphere& s : scene.spheres) {
     c.add(&s.center, sizeof(s.center));
@@ -97,8 +98,22 @@ std::string render_fingerprint(const Scene& scene, const RenderOptions& options,
   for (const Material& m : scene.materials) {
     c.add(&m.reflectance, sizeof(m.reflectance));
     c.add(&m.texture, sizeof(m.texture));
+    // the other surfaces' parameters; a plain diffuse material adds nothing more, so that
+    // diffuse scenes keep the fingerprint of earlier releases
+    if (m.kind != MaterialKind::diffuse || m.mix[0] >= 0 || m.displacement >= 0) {
+      const float f[] = {m.transmittance.r, m.transmittance.g, m.transmittance.b, m.eta_rgb.r, m.eta_rgb.g, m.eta_rgb.b,
+                         m.k_rgb.r,         m.k_rgb.g,         m.k_rgb.b,         m.eta,       m.alpha_u.value,
+                         m.alpha_v.value,   m.base_alpha_u.value, m.base_alpha_v.value, m.thickness, m.albedo.r,
+                         m.albedo.g,        m.albedo.b,        m.g,               m.mix_amount.value};
+      const int32_t i[] = {static_cast<int32_t>(m.kind), m.transmittance_texture, m.alpha_u.texture, m.alpha_v.texture,
+                           m.base_alpha_u.texture, m.base_alpha_v.texture, m.remap_roughness, m.displacement,
+                           m.mix[0], m.mix[1], m.mix_amount.texture};
+      c.add(f, sizeof(f));
+      c.add(i, sizeof(i));
+    }
   }
   for (const Texture& t : scene.textures) c.add_vector(t.rgb);
+  for (const FloatTexture& t : scene.float_textures) c.add_vector(t.value);
   for (const Light& l : scene.lights) {
     c.add(&l.type, sizeof(l.type));
     c.add(&l.p0, sizeof(l.p0));
