@@ -605,8 +605,9 @@ TEST(MaterialBsdf, Reciprocity) {
       const float g1 = d.eval(wo, wi).f.r, g2 = d.eval(wi, wo).f.r;
       const double eo = wo.z > 0 ? 1.0 : 1.5, ei = wi.z > 0 ? 1.0 : 1.5;
       // conditioning: the half vector h = eta_o wo + eta_i wi (in double here); its
-      // direction's rounding (1e-7 |eta_o| + |eta_i| over |h|) moves D by 4 / alpha per
-      // radian at most, and the microfacet cosines wo.wm, wi.wm carry absolute errors of
+      // direction's rounding (4e-7 (|eta_o| + |eta_i|) / |h|: wo and wi are rounded unit
+      // vectors, and the sum and its normalisation round four times more, 2^-24 each, with
+      // exact or estimated division alike) moves D by 4 / alpha per radian at most, and the microfacet cosines wo.wm, wi.wm carry absolute errors of
       // 1e-7, relative 1e-7 / |cos| (they enter f linearly and through Fresnel). Pairs
       // whose h is within 1e-5 of the horizon are skipped: the face-forward orientation
       // of h is decided by the sign of its rounded z.
@@ -615,7 +616,7 @@ TEST(MaterialBsdf, Reciprocity) {
       if (hl < 1e-3 || std::abs(h[2]) < 1e-5 * hl) continue;
       const double dov = std::abs(wo.x * h[0] + wo.y * h[1] + wo.z * h[2]) / hl,
                    div = std::abs(wi.x * h[0] + wi.y * h[1] + wi.z * h[2]) / hl;
-      const double rel = 1e-5 + 1e-7 * (eo + ei) / hl * 4 / (0.8 * a) + 4e-7 * (1 / std::max(dov, 1e-9) + 1 / std::max(div, 1e-9));
+      const double rel = 1e-5 + 4e-7 * (eo + ei) / hl * 4 / (0.8 * a) + 4e-7 * (1 / std::max(dov, 1e-9) + 1 / std::max(div, 1e-9));
       EXPECT_NEAR(g1 * ei * ei, g2 * eo * eo, rel * std::max(g1 * ei * ei, g2 * eo * eo) + 1e-30) << a << " " << k;
       const CoatedDiffuseBsdf<float> cd{1.5f, a, a, {0.7f, 0.4f, 0.1f}, 0.01f, {0.f, 0.f, 0.f}};
       const float h1 = cd.eval(wo, wi).f.g, h2 = cd.eval(wi, wo).f.g;
