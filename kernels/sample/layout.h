@@ -10,9 +10,11 @@
 //   light_point(d, j)           light sample j: the point on the source
 //   bsdf_lobe(d, m)             BSDF sample m: which lobe (first dimension; surfaces with
 //                               several lobes only)
+//   russian_roulette(d)         paths: whether the path goes on after vertex d (first
+//                               dimension)
 // with M = bsdf_samples and light samples j < light_passes (every source times N with
 // --light-pick all). Depth 0's pairs are 0, 1, 2 .. M + 1, then two per light sample, then
-// the M lobe choices; each further depth starts after the last pair of the one before.
+// the M lobe choices, then Russian roulette; each further depth starts after the last pair of the one before.
 #pragma once
 #include <cstdint>
 
@@ -23,7 +25,7 @@ struct SampleLayout {
   uint32_t light_passes = 1;  // light samples per depth
 
   static constexpr uint32_t camera = 0;
-  constexpr uint32_t per_depth() const noexcept { return 1 + 2 * bsdf_samples + 2 * light_passes; }
+  constexpr uint32_t per_depth() const noexcept { return 2 + 2 * bsdf_samples + 2 * light_passes; }
   constexpr uint32_t depth_base(uint32_t depth) const noexcept { return 1 + depth * per_depth(); }
   constexpr uint32_t technique_choice(uint32_t depth = 0) const noexcept { return depth_base(depth); }
   constexpr uint32_t bsdf(uint32_t m, uint32_t depth = 0) const noexcept { return depth_base(depth) + 1 + m; }
@@ -34,6 +36,7 @@ struct SampleLayout {
   constexpr uint32_t bsdf_lobe(uint32_t m, uint32_t depth = 0) const noexcept {
     return depth_base(depth) + 1 + bsdf_samples + 2 * light_passes + m;
   }
+  constexpr uint32_t russian_roulette(uint32_t depth) const noexcept { return depth_base(depth) + 1 + 2 * bsdf_samples + 2 * light_passes; }
 };
 
 }  // namespace tuile

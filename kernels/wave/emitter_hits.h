@@ -57,12 +57,16 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
 // join the hit queue at nq, in lane order (compress stores; nq is advanced). vis: whether
 // the queue keeps what the visibility rays need (bounce rays traced against the emitters).
 // Kinds with kind_rects: no source is a sphere. Delta: keep the samples' delta flags.
+// chosen_only: one-sample MIS on paths (sample_bsdf's continuation): only the points that
+// chose the BSDF technique count their hits.
 template <class T, unsigned Kinds = kind_all, bool Delta = false>
-TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int k, int& nq, bool vis) {
+TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int k, int& nq, bool vis,
+                                              bool chosen_only = false) {
   const RayHit16& r = tb.bounce[k / packet_width];
   const int l = k % packet_width;
   const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(r.geomID + l));
-  const auto traced = load_i32<T>(tb.tech.valid + k) != i32_t<T>(0) && geom >= i32_t<T>(0);  // invalid_id reads as -1
+  auto traced = load_i32<T>(tb.tech.valid + k) != i32_t<T>(0) && geom >= i32_t<T>(0);  // invalid_id reads as -1
+  if (chosen_only) traced = traced && i_mask_from_f(load<T>(tb.points.choose_light + k) < T(0.5f));
   if (!any(f_mask_from_i(traced))) return;  // no hit (most rays, against the emitters only)
   const i32_t<T> gi = max(geom, i32_t<T>(0));
   const auto mesh = traced && geom < i32_t<T>(G.mesh_count);
@@ -107,11 +111,11 @@ TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView
 // visible until bounce_visibility says otherwise). T = float: the scalar reference. vis as
 // for queue_emitter_lanes.
 template <class T = vfloat, unsigned Kinds = kind_all, bool Delta = false>
-inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers& tb, bool vis = true) {
+inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers& tb, bool vis = true, bool chosen_only = false) {
   int nq = 0;
   // padding lanes past points.count are never valid (sample_cosine)
   const int padded = packet_padded(tb.points.count);
-  for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T, Kinds, Delta>(G, L, tb, k, nq, vis);
+  for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T, Kinds, Delta>(G, L, tb, k, nq, vis, chosen_only);
   tb.queue.count = nq;
   const int qpadded = packet_padded(nq);
   for (int j = nq; j < qpadded; ++j) {  // padding: a valid light index, no contribution

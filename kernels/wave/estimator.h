@@ -1,6 +1,6 @@
-// Estimator: which Monte Carlo estimator of direct lighting a render runs (technique,
-// light pick and point, MIS heuristic and mode, sample counts, sampler, seed), as the
-// stages read it.
+// Estimator: which Monte Carlo estimator a render runs (technique, light pick and point,
+// MIS heuristic and mode, sample counts, sampler, seed, path depth and Russian roulette),
+// as the stages read it.
 #pragma once
 #include <cstdint>
 
@@ -27,6 +27,11 @@ struct Estimator {
   bool aov_mis_weight = false;  // accumulate the BSDF technique's MIS weight (AOV) at all
   uint32_t seed = 0;
   uint32_t spp = 16;
+  // Paths: vertices that take a light sample and a BSDF sample (pbrt-v4's maxdepth: 1 is
+  // direct lighting), and the vertex after which Russian roulette may end a path (pbrt-v4:
+  // after the BSDF sample of vertex 2 on, i.e. rr_depth 1).
+  int max_depth = 1;
+  int rr_depth = 1;
 
   // probability of choosing the light technique in one-sample MIS
   float one_sample_light_prob() const {

@@ -8,6 +8,11 @@
 // validity, throughput, pdf and delta flag.
 // only_delta: the light technique alone was asked for (--strategy light): only samples of
 // delta lobes, which no light sample can produce, are traced.
+// continuation (paths, a vertex before the last): every point samples its BSDF and traces
+// the ray, whatever the strategy and the one-sample choice, since the path goes on along
+// it; the emitter-hit stage then counts only the hits the technique would have made
+// (weight 0 under --strategy light, except delta lobes; one-sample: the points that chose
+// the BSDF technique).
 #pragma once
 #include <algorithm>
 
@@ -17,9 +22,9 @@ namespace tuile {
 
 template <class T, unsigned Bsdfs = bsdf_diffuse>
 TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& est, TileBuffers& tb, int k,
-                                            bool only_delta = false) {
+                                            bool only_delta = false, bool continuation = false) {
   auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.points.count));
-  if (est.one_sample()) active = active && (load<T>(tb.points.choose_light + k) < T(0.5f));
+  if (est.one_sample() && !continuation) active = active && (load<T>(tb.points.choose_light + k) < T(0.5f));
   const Vec3<T> x = load3<T>(tb.points.px + k, tb.points.py + k, tb.points.pz + k);
   const Vec3<T> n = load3<T>(tb.points.nx + k, tb.points.ny + k, tb.points.nz + k);
   const T eps = load<T>(tb.points.eps + k);
@@ -36,7 +41,7 @@ TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& 
   }
   auto valid = active && bs.valid;
   if constexpr ((Bsdfs & bsdf_delta_capable) != 0) {
-    if (only_delta) valid = valid && bs.delta;
+    if (only_delta && !continuation) valid = valid && bs.delta;
     store_valid(tb.tech.delta + k, bs.delta);
   }
   store_valid(tb.tech.valid + k, valid);
@@ -50,13 +55,13 @@ TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& 
 // only where some surface has several lobes.
 template <unsigned Bsdfs = bsdf_diffuse>
 inline void sample_bsdf(const GeomView& G, const Estimator& est, uint32_t sample, uint32_t pair, uint32_t lobe_pair,
-                        TileBuffers& tb, bool only_delta = false) {
+                        TileBuffers& tb, bool only_delta = false, bool continuation = false) {
   const int padded = packet_padded(tb.points.count);
   point_pairs(est, tb, sample, pair, padded, tb.tech.u0, tb.tech.u1);
   if constexpr ((Bsdfs & ~bsdf_diffuse) != 0) point_pairs(est, tb, sample, lobe_pair, padded, tb.tech.u2, nullptr);
   else (void)lobe_pair;
   for_lane_batches<vfloat2>(0, padded, [&](auto lane, int k) {
-    sample_bsdf_lanes<typename decltype(lane)::type, Bsdfs>(G, est, tb, k, only_delta);
+    sample_bsdf_lanes<typename decltype(lane)::type, Bsdfs>(G, est, tb, k, only_delta, continuation);
   });
   for (int p = 0; p < padded / packet_width; ++p) reset_hit(tb.bounce[p]);
 }

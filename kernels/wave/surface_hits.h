@@ -361,14 +361,30 @@ template <class T> inline T offset_along_normal(const Vec3<T>& err, const Vec3<T
 // Lanes [i, i + width) of the camera packets: the hits among the first `lanes` become
 // shading points n, n + 1, ... in lane order (n is advanced). A hit with a degenerate
 // normal or distance is rejected (counted, no shading point).
-template <class T, bool Emitters, bool Materials = false>
+// Bounce (paths): lanes [i, i + width) of the bounce packets, one per shading point of
+// the vertex before (`lanes` of them), become the next vertex's shading points, compacted
+// in place (n <= i: every point is read before a store can reach it). Only the traced
+// rays (tech.valid: Russian roulette has cleared the paths it ended) that hit something
+// go on; they keep their tile lane, pixel, throughput and eta scale; the emission they
+// reached was counted by the vertex before (emitter hits, with its MIS weight).
+template <class T, bool Emitters, bool Materials = false, bool Bounce = false>
 TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int i, int lanes,
                                            int& n) {
-  const RayHit16& p = tb.cam[i / packet_width];
+  const RayHit16& p = Bounce ? tb.bounce[i / packet_width] : tb.cam[i / packet_width];
   const int l = i % packet_width;
-  const i32_t<T> lane = i32_t<T>(i) + lane_iota_i32<T>();
+  const i32_t<T> index = i32_t<T>(i) + lane_iota_i32<T>();
+  const i32_t<T> lane = Bounce ? load_i32<T>(tb.points.lane + i) : index;
+  const i32_t<T> pixel_id = load_i32<T>(reinterpret_cast<const int32_t*>((Bounce ? tb.points.pixel : tb.lanes.pixel) + i));
   const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(p.geomID + l));
-  const auto hit = f_mask_from_i(geom >= i32_t<T>(0) && lane < i32_t<T>(lanes));  // invalid_id reads as -1
+  auto hit = f_mask_from_i(geom >= i32_t<T>(0) && index < i32_t<T>(lanes));  // invalid_id reads as -1
+  T beta_r(1.f), beta_g(1.f), beta_b(1.f), eta_scale(1.f);
+  if constexpr (Bounce) {
+    hit = hit && f_mask_from_i(load_i32<T>(tb.tech.valid + i) != i32_t<T>(0));
+    beta_r = load<T>(tb.points.tr + i);
+    beta_g = load<T>(tb.points.tg + i);
+    beta_b = load<T>(tb.points.tbl + i);
+    eta_scale = load<T>(tb.points.eta_scale + i);
+  }
   const i32_t<T> gi = max(geom, i32_t<T>(0));
   const T t = load<T>(p.ray.tfar + l);
   const Vec3<T> o = load3<T>(p.ray.org_x + l, p.ray.org_y + l, p.ray.org_z + l);
@@ -376,9 +392,9 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   Vec3<T> ng = load3<T>(p.Ng_x + l, p.Ng_y + l, p.Ng_z + l);
   const T len2 = dot(ng, ng);
   const auto ok = hit && len2 > T(0.f) && is_finite(len2) && is_finite(t);
-  tb.stats.rejected_camera += static_cast<uint64_t>(std::popcount(lane_bits(hit && !ok)));
+  (Bounce ? tb.stats.rejected_bsdf : tb.stats.rejected_camera) += static_cast<uint64_t>(std::popcount(lane_bits(hit && !ok)));
   const uint32_t keep = lane_bits(ok);
-  store(tb.lanes.shade_of + i, expand_index<T>(n, keep));
+  if constexpr (!Bounce) store(tb.lanes.shade_of + i, expand_index<T>(n, keep));
   if (!keep) return;
   ng = ng * rsqrt_nr(sel(ok, len2, T(1.f)));
   // face the viewer: diffuse reflection on both sides. 0 - n, not -n: xsimd 8 negates
@@ -432,7 +448,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     err = sel(sphere, Vec3<T>{g5 * abs(xs.x), g5 * abs(xs.y), g5 * abs(xs.z)}, err);
   }
 
-  if constexpr (Emitters) {
+  if constexpr (Emitters && !Bounce) {
     i32_t<T> light = sel(tri_i, one_tri ? i32_t<T>(G.tri_light[t0]) : gather(G.tri_light, tri), i32_t<T>(-1));
     if (any(sphere)) {
       const i32_t<T> sl = sel(i_mask_from_f(sphere), gi - i32_t<T>(G.mesh_count), i32_t<T>(0));
@@ -513,13 +529,20 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   compress_store(tb.points.ar + n, ar, keep);
   compress_store(tb.points.ag + n, ag, keep);
   compress_store(tb.points.ab + n, ab, keep);
-  compress_store(reinterpret_cast<int32_t*>(tb.points.pixel + n), load_i32<T>(reinterpret_cast<const int32_t*>(tb.lanes.pixel + i)),
-                 keep);
+  compress_store(reinterpret_cast<int32_t*>(tb.points.pixel + n), pixel_id, keep);
   compress_store(tb.points.lane + n, lane, keep);
+  if constexpr (Bounce) {
+    compress_store(tb.points.tr + n, beta_r, keep);
+    compress_store(tb.points.tg + n, beta_g, keep);
+    compress_store(tb.points.tbl + n, beta_b, keep);
+    compress_store(tb.points.eta_scale + n, eta_scale, keep);
+    n += std::popcount(keep);
+    return;
+  }
   // The cached stream keys of the shading pairs: while every lane so far is a shading
   // point (point k is lane k) the points read the lanes' keys; from the first lane that is
   // not, they are copied and then compacted.
-  if (tb.keys.keyed & ~1u) {
+  if (tb.keys.keyed & ~1u) {  // (camera hits only: no later vertex reads a cached key)
     constexpr uint32_t all = lane_traits<T>::width == 32 ? ~0u : (1u << lane_traits<T>::width) - 1u;
     if (tb.keys.points_are_lanes && !(keep == all && n == i)) {
       for (uint32_t bits = tb.keys.keyed & ~1u; bits; bits &= bits - 1)
@@ -538,17 +561,11 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   n += std::popcount(keep);
 }
 
-// The whole stage for lanes [0, lanes) of the tile. Emitters: false when the scene has
-// no area light (no emitter lookups at all). T = float is the scalar reference.
-// choice_pair: the one-sample technique choice's dimension pair (SampleLayout).
-template <bool Emitters = true, class T = vfloat, bool Materials = false>
-inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& est, uint32_t sample,
-                        uint32_t choice_pair, int lanes, TileBuffers& tb) {
-  const int padded_lanes = packet_padded(lanes);
-  int n = 0;
-  tb.textured.count = 0;
-  tb.keys.points_are_lanes = true;
-  for (int i = 0; i < padded_lanes; i += lane_traits<T>::width) camera_hit_lanes<T, Emitters, Materials>(G, L, tb, i, lanes, n);
+// What both kinds of hits end with: the scalar passes (mixes, shading normals, textured
+// roughness, texels), padding to whole packets, zero radiance, the one-sample MIS choice.
+template <bool Materials>
+inline void finish_points(const GeomView& G, const Estimator& est, uint32_t sample, uint32_t choice_pair, int n,
+                          TileBuffers& tb) {
   tb.points.count = n;
   if constexpr (Materials)  // first: the bump map is the chosen material's
     if (G.has_mix) resolve_mixes(G, tb.points);
@@ -575,6 +592,8 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
     }
     tb.points.pixel[k] = n > 0 ? tb.points.pixel[0] : 0u;
     tb.points.lane[k] = -1;
+    tb.points.tr[k] = tb.points.tg[k] = tb.points.tbl[k] = 0.f;
+    tb.points.eta_scale[k] = 1.f;
     if (!tb.keys.points_are_lanes)  // (padded > n means n > 0; as lanes, the padding pixels are pixel 0 already)
       for (uint32_t bits = tb.keys.keyed & ~1u; bits; bits &= bits - 1)
         for (int f = 0; f < 3; ++f) tb.keys.point_key[std::countr_zero(bits)][f][k] = tb.keys.point_key[std::countr_zero(bits)][f][0];
@@ -587,6 +606,36 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
     const float c = est.one_sample_light_prob();
     for (int k = 0; k < padded; ++k) tb.points.choose_light[k] = tb.tech.u0[k] < c ? 1.f : 0.f;
   }
+}
+
+// The whole stage for lanes [0, lanes) of the tile. Emitters: false when the scene has
+// no area light (no emitter lookups at all). T = float is the scalar reference.
+// choice_pair: the one-sample technique choice's dimension pair (SampleLayout).
+template <bool Emitters = true, class T = vfloat, bool Materials = false>
+inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& est, uint32_t sample,
+                        uint32_t choice_pair, int lanes, TileBuffers& tb) {
+  const int padded_lanes = packet_padded(lanes);
+  int n = 0;
+  tb.textured.count = 0;
+  tb.keys.points_are_lanes = true;
+  for (int i = 0; i < padded_lanes; i += lane_traits<T>::width) camera_hit_lanes<T, Emitters, Materials>(G, L, tb, i, lanes, n);
+  finish_points<Materials>(G, est, sample, choice_pair, n, tb);
+}
+
+// Paths: the hits of the bounce rays of the shading points (the vertex before) become
+// the next vertex's shading points, in place (camera_hit_lanes with Bounce). The
+// emission of the hits is not added: the vertex before counted it. Returns the count.
+template <class T = vfloat, bool Materials = false>
+inline int bounce_hits(const GeomView& G, const LightView& L, const Estimator& est, uint32_t sample, uint32_t choice_pair,
+                       TileBuffers& tb) {
+  const int count = tb.points.count;
+  const int padded = packet_padded(count);
+  int n = 0;
+  tb.textured.count = 0;
+  tb.keys.points_are_lanes = false;
+  for (int i = 0; i < padded; i += lane_traits<T>::width) camera_hit_lanes<T, false, Materials, true>(G, L, tb, i, count, n);
+  finish_points<Materials>(G, est, sample, choice_pair, n, tb);
+  return n;
 }
 
 }  // namespace tuile

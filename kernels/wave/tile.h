@@ -80,6 +80,12 @@ struct ShadingPoints {
   // radiance the light and BSDF techniques add to each point in this sample (summed into
   // its pixel by accumulate, through PixelLanes::shade_of)
   alignas(64) float Sr[lane_array], Sg[lane_array], Sb[lane_array];
+  // paths (Estimator::max_depth > 1) past the first vertex: the path's throughput (the
+  // product of f cos / p and 1 / (1 - q) of Russian roulette from the camera to this
+  // point) and pbrt-v4's eta scale (the squared relative indices of the transmissions,
+  // which Russian roulette divides out); compacted with the points
+  alignas(64) float tr[lane_array], tg[lane_array], tbl[lane_array];
+  alignas(64) float eta_scale[lane_array];
 };
 
 // The textured shading points of this sample: point, texture, triangle, barycentrics, texel.
@@ -143,6 +149,7 @@ struct SamplerKeys {
 struct TileCounters {
   uint64_t rejected_light = 0, rejected_bsdf = 0, rejected_camera = 0;
   uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0, rays_bounce_visibility = 0;
+  uint64_t path_vertices = 0;  // shading points past the first vertex of paths (max_depth > 1)
   void reset() noexcept { *this = TileCounters{}; }
 };
 

@@ -1,6 +1,6 @@
 // `tuile diff A.exr B.exr`: whether two renders are bit-identical, and if not by how much
 // they differ (largest absolute and relative difference, how many values differ, where the
-// worst one is). Exit status 0 when identical or within --tolerance, 1 when not, 2 when an
+// worst one is; channel means, relMSE and region ratios). Exit status 0 when identical or within --tolerance, 1 when not, 2 when an
 // image cannot be read or the sizes differ.
 #include <CLI/CLI.hpp>
 
@@ -10,6 +10,7 @@
 #include <iostream>
 
 #include "app/commands.h"
+#include "measure/metrics.h"
 #include "scene/image_io.h"
 
 namespace tuile {
@@ -59,6 +60,31 @@ int run_diff(const DiffFlags& f) {
   std::printf("differ: %zu of %zu values; largest |a - b| %.3g, largest relative %.3g (pixel %zu,%zu channel %c: %.9g vs %.9g)\n",
               differing, a.size(), max_abs, max_rel, px % size_t(wa), px / size_t(wa), "RGB"[worst % 3],
               double(a[worst]), double(b[worst]));
+  // How the images differ as a whole: the channel means (and a / b), relMSE of a against b
+  // as the reference, and a / b of the mean luminance over a 4 x 4 grid of regions.
+  double ma[3] = {}, mb[3] = {};
+  constexpr int grid = 4;
+  double ra[grid][grid] = {}, rb[grid][grid] = {};
+  for (size_t p = 0; p < a.size() / 3; ++p) {
+    const size_t x = p % size_t(wa), y = p / size_t(wa);
+    const int gx = static_cast<int>(x * grid / size_t(wa)), gy = static_cast<int>(y * grid / size_t(ha));
+    for (int c = 0; c < 3; ++c) {
+      ma[c] += a[3 * p + c];
+      mb[c] += b[3 * p + c];
+    }
+    ra[gy][gx] += 0.2126 * a[3 * p] + 0.7152 * a[3 * p + 1] + 0.0722 * a[3 * p + 2];
+    rb[gy][gx] += 0.2126 * b[3 * p] + 0.7152 * b[3 * p + 1] + 0.0722 * b[3 * p + 2];
+  }
+  const double n = static_cast<double>(a.size() / 3);
+  std::printf("means R G B: a %.5g %.5g %.5g, b %.5g %.5g %.5g, a / b %.4f %.4f %.4f\n", ma[0] / n, ma[1] / n, ma[2] / n,
+              mb[0] / n, mb[1] / n, mb[2] / n, ma[0] / mb[0], ma[1] / mb[1], ma[2] / mb[2]);
+  std::printf("relMSE of a against b: %.4g\n", relmse(a, b));
+  std::printf("a / b of the mean luminance, %dx%d regions (top row first):\n", grid, grid);
+  for (int gy = 0; gy < grid; ++gy) {
+    std::printf(" ");
+    for (int gx = 0; gx < grid; ++gx) std::printf(" %7.4f", rb[gy][gx] > 0 ? ra[gy][gx] / rb[gy][gx] : NAN);
+    std::printf("\n");
+  }
   return max_rel <= f.tolerance ? 0 : 1;
 }
 

@@ -21,6 +21,8 @@ void validate(const RenderOptions& o) {
   if (!(e.mis.alpha >= 0 && e.mis.alpha <= 1)) throw std::invalid_argument("--alpha must be in [0, 1]");
   if (e.light_samples < 1 || e.light_samples > 4096) throw std::invalid_argument("--light-samples must be in 1..4096");
   if (e.bsdf_samples < 1 || e.bsdf_samples > 4096) throw std::invalid_argument("--bsdf-samples must be in 1..4096");
+  if (e.max_depth < 1 || e.max_depth > 100000) throw std::invalid_argument("--max-depth must be in 1..100000");
+  if (e.rr_depth < 0 || e.rr_depth > 100000) throw std::invalid_argument("--rr-depth must be in 0..100000");
   if (o.threads < 0 || o.threads > 1024) throw std::invalid_argument("--threads must be in 0..1024");
   if (o.tile < 1 || o.tile > max_tile_side) throw std::invalid_argument("--tile must be in 1..32");
   std::string param;
@@ -86,6 +88,7 @@ std::string describe(const Estimator& e) {
   s += " light-samples=" + std::to_string(e.light_samples) + " bsdf-samples=" + std::to_string(e.bsdf_samples) +
        " sampler=" + samplers[static_cast<int>(e.sampler)] + " spp=" + std::to_string(e.spp) +
        " seed=" + std::to_string(e.seed);
+  if (e.max_depth > 1) s += " max-depth=" + std::to_string(e.max_depth) + " rr-depth=" + std::to_string(e.rr_depth);
   return s;
 }
 

@@ -22,6 +22,9 @@ enum class Stage : int {
   accumulate,
 };
 inline constexpr int stage_count = 9;
+// Rows of the per-vertex profile of paths (vertex 1 .. profile_depths; deeper vertices
+// count in the last row).
+inline constexpr int profile_depths = 32;
 const char* stage_name(Stage s);
 
 struct TraceEvent {
@@ -51,6 +54,12 @@ struct Profile {
   double wall_seconds = 0;
   double stage_seconds[stage_count] = {};
   std::vector<TraceEvent> events;
+  // paths (max_depth > 1), per vertex (index 0: the camera's hits): time per stage, the
+  // shading points (live paths), the packets their rays filled, and the packets the tile's
+  // lanes would have needed without compaction
+  int depths = 0;  // rows used
+  double depth_seconds[profile_depths][stage_count] = {};
+  double depth_points[profile_depths] = {}, depth_packets[profile_depths] = {}, depth_lane_packets[profile_depths] = {};
   bool record_rays = false;  // keep the first pass's packets in `rays`
   RayRecord rays;
 };

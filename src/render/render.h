@@ -22,6 +22,7 @@ struct RenderStats {
   uint64_t rays_camera = 0, rays_shadow = 0, rays_bounce = 0;
   uint64_t rays_bounce_visibility = 0;  // occlusion rays of bounce rays that reached an emitter
   uint64_t rejected_camera = 0, rejected_light = 0, rejected_bsdf = 0;
+  uint64_t path_vertices = 0;  // paths: shading points past the camera's hits
   double worst_ratio = 0;  // largest single-sample luminance relative to its pixel mean
   std::string pipeline;
   bool bounce_against_emitters = false;  // bounce rays were traced against the emitters only
@@ -37,6 +38,7 @@ struct RenderStats {
     rejected_camera += o.rejected_camera;
     rejected_light += o.rejected_light;
     rejected_bsdf += o.rejected_bsdf;
+    path_vertices += o.path_vertices;
   }
 };
 

@@ -151,6 +151,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
     st.rejected_camera += p->stats.rejected_camera;
     st.rejected_light += p->stats.rejected_light;
     st.rejected_bsdf += p->stats.rejected_bsdf;
+    st.path_vertices += p->stats.path_vertices;
   }
   if (profile) {
     profile->threads = threads;
@@ -159,6 +160,15 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
     for (ThreadProfile& tp : profiles) {
       for (int k = 0; k < stage_count; ++k)
         profile->stage_seconds[k] += static_cast<double>(tp.stage_ticks[k]) * sec_per_tick;
+      for (int d = 0; d < profile_depths; ++d) {
+        if (tp.depth_points[d] == 0 && tp.depth_lane_packets[d] == 0) continue;
+        profile->depths = std::max(profile->depths, d + 1);
+        for (int k = 0; k < stage_count; ++k)
+          profile->depth_seconds[d][k] += static_cast<double>(tp.depth_ticks[d][k]) * sec_per_tick;
+        profile->depth_points[d] += static_cast<double>(tp.depth_points[d]);
+        profile->depth_packets[d] += static_cast<double>(tp.depth_packets[d]);
+        profile->depth_lane_packets[d] += static_cast<double>(tp.depth_lane_packets[d]);
+      }
       for (TraceEvent e : tp.events) {
         e.thread = tid;
         e.start_us *= sec_per_tick * 1e6;  // recorded in ticks

@@ -15,6 +15,7 @@
 #include "wave/accumulate.h"
 #include "wave/emitter_hits.h"
 #include "wave/generate.h"
+#include "wave/path.h"
 #include "wave/sample_bsdf.h"
 #include "wave/sample_lights.h"
 #include "wave/surface_hits.h"
@@ -41,6 +42,7 @@ struct StageTimer {
   const TileContext& c;
   int tile;
   uint64_t t0 = 0;
+  int depth = -1;  // paths: the vertex (0-based) whose stages run, for the per-vertex rows; -1 outside paths
   StageTimer(ThreadProfile* p, const TileContext& ctx, int t) : tp(p), c(ctx), tile(t) {}
   void start() {
 #ifndef TUILE_NO_PROFILE_HOOKS
@@ -62,6 +64,7 @@ struct StageTimer {
     if (!tp) return;
     const uint64_t t1 = __rdtsc();
     tp->stage_ticks[static_cast<int>(s)] += t1 - t0;
+    if (depth >= 0) tp->depth_ticks[std::min(depth, profile_depths - 1)][static_cast<int>(s)] += t1 - t0;
     if (c.profile->trace && tp->events.size() < c.profile->max_events)
       tp->events.push_back({s, tile, static_cast<double>(t0 - c.origin_ticks), static_cast<double>(t1 - t0)});
     t0 = t1;
@@ -118,6 +121,8 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   // The sampler's keys of the pairs this pipeline draws (pair numbers as below), hashed
   // once per pixel for all of the tile's samples.
   const SampleLayout& layout = c.layout;
+  Estimator deep = est;  // paths past the first vertex: the MIS-weight AOV is the first vertex's
+  deep.aov_mis_weight = false;
   tb.keys.keyed = 0;
   if (cacheable(est.sampler)) {
     auto bit = [](uint32_t pair) { return pair < SamplerKeys::pairs ? 1u << pair : 0u; };
@@ -156,68 +161,101 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     camera_hits<F.emitter_lookup, vfloat, F.bsdfs != bsdf_diffuse>(v.geom, v.lights, est, s, layout.technique_choice(),
                                                                    lanes, tb);
     timer.lap(Stage::camera_hits);
-    const int packets = packets_for(tb.points.count);
-    if constexpr (F.light) {
-      if (tb.points.count > 0) {
-        for (int j = 0; j < c.light_passes; ++j) {
-          LightPass pass;
-          pass.fixed_light = est.pick == LightPick::all ? j % c.light_count : (F.pick ? -1 : 0);
-          pass.rate_light = c.rate_light;
-          pass.rate_bsdf = c.rate_bsdf;
-          sample_lights<F.kinds, F.pick, F.bsdfs>(v.geom, v.lights, est, pass, s, layout.light_pick(static_cast<uint32_t>(j)),
-                                         layout.light_point(static_cast<uint32_t>(j)), tb);
-          timer.lap(Stage::sample_lights);
-          clear_high_vector_registers();
-          for (int p = 0; p < packets; ++p) {
-            const int32_t* valid = tb.tech.valid + p * packet_width;
-            const int active = active_lanes(valid);
-            if (!active) continue;
-            if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], valid); });
-            c.accel.occluded16(valid, tb.shadow[p], false);
-            tb.stats.rays_shadow += static_cast<uint64_t>(active);
-          }
-          timer.lap(Stage::intersect_shadow);
-          accumulate_shadow(tb);
-          timer.lap(Stage::accumulate);
-        }
+    // Direct lighting is the first vertex; paths (max_depth > 1) go on from the last BSDF
+    // sample of each vertex, compacted (bounce_hits), until no path is left or the depth
+    // is reached.
+    const bool paths = est.max_depth > 1;
+    if (paths) start_paths(tb);
+    for (int vertex = 1;; ++vertex) {
+      const uint32_t d = static_cast<uint32_t>(vertex - 1);
+      const bool last = vertex >= est.max_depth;
+      const Estimator& e = vertex == 1 ? est : deep;
+      if (paths) timer.depth = vertex - 1;
+      const int packets = packets_for(tb.points.count);
+      if (tp && paths) {
+        const int row = std::min(vertex - 1, profile_depths - 1);
+        tp->depth_points[row] += static_cast<uint64_t>(tb.points.count);
+        tp->depth_packets[row] += static_cast<uint64_t>(packets);
+        tp->depth_lane_packets[row] += static_cast<uint64_t>(cam_packets);
       }
-    }
-    if constexpr (F.bsdf) {
-      if (tb.points.count > 0) {
-        for (int m = 0; m < c.bsdf_passes; ++m) {
-          sample_bsdf<F.bsdfs>(v.geom, est, s, layout.bsdf(static_cast<uint32_t>(m)),
-                               layout.bsdf_lobe(static_cast<uint32_t>(m)), tb, est.strategy == Strategy::light);
-          timer.lap(Stage::sample_bsdf);
-          clear_high_vector_registers();
-          const Bvh bvh = c.bounce_against_emitters ? Bvh::emitters : Bvh::scene;
-          for (int p = 0; p < packets; ++p) {
-            const int32_t* valid = tb.tech.valid + p * packet_width;
-            const int active = active_lanes(valid);
-            if (!active) continue;
-            if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
-            c.accel.intersect16(valid, tb.bounce[p], false, bvh);
-            tb.stats.rays_bounce += static_cast<uint64_t>(active);
-          }
-          timer.lap(Stage::intersect_bounce);
-          constexpr bool delta = (F.bsdfs & bsdf_delta_capable) != 0;
-          queue_bounce_hits<vfloat, F.kinds, delta>(v.geom, v.lights, tb, c.bounce_against_emitters);
-          if (c.bounce_against_emitters && tb.queue.count > 0) {
-            const int qpackets = bounce_visibility_rays(tb);
-            timer.lap(Stage::mis_weight);
+      if constexpr (F.light) {
+        if (tb.points.count > 0) {
+          for (int j = 0; j < c.light_passes; ++j) {
+            LightPass pass;
+            pass.fixed_light = e.pick == LightPick::all ? j % c.light_count : (F.pick ? -1 : 0);
+            pass.rate_light = c.rate_light;
+            pass.rate_bsdf = c.rate_bsdf;
+            sample_lights<F.kinds, F.pick, F.bsdfs>(v.geom, v.lights, e, pass, s, layout.light_pick(static_cast<uint32_t>(j), d),
+                                                   layout.light_point(static_cast<uint32_t>(j), d), tb);
+            timer.lap(Stage::sample_lights);
             clear_high_vector_registers();
-            for (int p = 0; p < qpackets; ++p) {
-              if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], tb.queue.valid + p * packet_width); });
-              c.accel.occluded16(tb.queue.valid + p * packet_width, tb.shadow[p], false);
+            for (int p = 0; p < packets; ++p) {
+              const int32_t* valid = tb.tech.valid + p * packet_width;
+              const int active = active_lanes(valid);
+              if (!active) continue;
+              if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], valid); });
+              c.accel.occluded16(valid, tb.shadow[p], false);
+              tb.stats.rays_shadow += static_cast<uint64_t>(active);
             }
-            tb.stats.rays_bounce_visibility += static_cast<uint64_t>(tb.queue.count);
-            timer.lap(Stage::intersect_bounce);
-            read_bounce_visibility(tb);
+            timer.lap(Stage::intersect_shadow);
+            accumulate_shadow(tb);
+            timer.lap(Stage::accumulate);
           }
-          weight_queue<F.kinds, delta>(v.lights, est, c.rate_light, c.rate_bsdf, tb);
-          timer.lap(Stage::mis_weight);
         }
       }
+      if constexpr (F.bsdf) {
+        if (tb.points.count > 0) {
+          // the last vertex's bounce rays may look for the emitters alone (then a visibility
+          // ray); a path's other bounce rays need their nearest hit in the scene
+          const bool against_emitters = last && c.bounce_against_emitters;
+          for (int m = 0; m < c.bsdf_passes; ++m) {
+            const bool continuation = !last && m == c.bsdf_passes - 1;
+            sample_bsdf<F.bsdfs>(v.geom, e, s, layout.bsdf(static_cast<uint32_t>(m), d),
+                                 layout.bsdf_lobe(static_cast<uint32_t>(m), d), tb, e.strategy == Strategy::light, continuation);
+            timer.lap(Stage::sample_bsdf);
+            clear_high_vector_registers();
+            const Bvh bvh = against_emitters ? Bvh::emitters : Bvh::scene;
+            for (int p = 0; p < packets; ++p) {
+              const int32_t* valid = tb.tech.valid + p * packet_width;
+              const int active = active_lanes(valid);
+              if (!active) continue;
+              if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
+              c.accel.intersect16(valid, tb.bounce[p], false, bvh);
+              tb.stats.rays_bounce += static_cast<uint64_t>(active);
+            }
+            timer.lap(Stage::intersect_bounce);
+            constexpr bool delta = (F.bsdfs & bsdf_delta_capable) != 0;
+            queue_bounce_hits<vfloat, F.kinds, delta>(v.geom, v.lights, tb, against_emitters, continuation && e.one_sample());
+            if (against_emitters && tb.queue.count > 0) {
+              const int qpackets = bounce_visibility_rays(tb);
+              timer.lap(Stage::mis_weight);
+              clear_high_vector_registers();
+              for (int p = 0; p < qpackets; ++p) {
+                if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], tb.queue.valid + p * packet_width); });
+                c.accel.occluded16(tb.queue.valid + p * packet_width, tb.shadow[p], false);
+              }
+              tb.stats.rays_bounce_visibility += static_cast<uint64_t>(tb.queue.count);
+              timer.lap(Stage::intersect_bounce);
+              read_bounce_visibility(tb);
+            }
+            weight_queue<F.kinds, delta>(v.lights, e, c.rate_light, c.rate_bsdf, tb);
+            timer.lap(Stage::mis_weight);
+          }
+        }
+      }
+      if (!paths) break;
+      add_vertex_radiance(tb, vertex == 1);
+      timer.lap(Stage::accumulate);
+      if constexpr (!F.bsdf) break;  // (pipeline_features gives paths the BSDF stages)
+      if (last || tb.points.count == 0) break;
+      continue_paths<F.bsdfs != bsdf_diffuse>(v.geom, e, s, layout.russian_roulette(d), vertex, tb);
+      timer.lap(Stage::sample_bsdf);
+      bounce_hits<vfloat, F.bsdfs != bsdf_diffuse>(v.geom, v.lights, e, s, layout.technique_choice(d + 1), tb);
+      tb.stats.path_vertices += static_cast<uint64_t>(tb.points.count);
+      timer.lap(Stage::camera_hits);
     }
+    timer.depth = -1;
+    if (paths) std::fill_n(tb.lanes.shade_of, cam_packets * packet_width, -1);  // every vertex is in the lanes' radiance
     // one sample of every pixel into the tile's double sums
     accumulate_samples(tb, lanes, est.aov_mis_weight);
     timer.lap(Stage::accumulate);
@@ -281,11 +319,19 @@ Features pipeline_features(const SceneViews& v, const Estimator& est, bool gener
   f.kinds = !area && !delta ? kind_all : !area ? kind_delta : delta ? kind_all : v.all_rects() ? kind_area | kind_rects : kind_area;
   f.bsdfs = materials ? bsdf_all : bsdf_diffuse;
   if (materials) f.kinds = kind_all;  // one pipeline per technique for every other surface
+  if (est.max_depth > 1 && (area || delta)) {
+    // paths go on along a BSDF sample at every vertex, and their bounce rays look up
+    // the emitters they reach whatever the sources
+    f.bsdf = true;
+    f.emitter_lookup = true;
+    if (!area) f.kinds = kind_all;
+  }
   if (!f.light && !f.bsdf) f = Features{kind_all, false, false, false, false, bsdf_diffuse};
   why = std::string(area ? "area lights" : "no area light") + ", " + (delta ? "delta lights" : "no delta light") + ", " +
         std::to_string(v.lights.count) + " light(s), pick " + (f.pick ? "per lane" : "none") + ", strategy " +
         (est.strategy == Strategy::mis ? "mis" : est.strategy == Strategy::light ? "light" : "bsdf") +
-        (materials ? ", surfaces other than diffuse" : ", diffuse surfaces");
+        (materials ? ", surfaces other than diffuse" : ", diffuse surfaces") +
+        (est.max_depth > 1 ? ", paths of up to " + std::to_string(est.max_depth) + " vertices" : "");
   return f;
 }
 

@@ -35,6 +35,10 @@ struct TileContext {
 // Per-thread profiling state.
 struct ThreadProfile {
   uint64_t stage_ticks[stage_count] = {};
+  // paths: the same per vertex (the last row gathers the deeper ones), the shading points
+  // each vertex had and the packets of bounce rays it traced for them (first BSDF pass)
+  uint64_t depth_ticks[profile_depths][stage_count] = {};
+  uint64_t depth_points[profile_depths] = {}, depth_packets[profile_depths] = {}, depth_lane_packets[profile_depths] = {};
   std::vector<TraceEvent> events;
   RayRecord rays;
 };

@@ -237,9 +237,15 @@ void Loader::directive(Lexer& lx, const Token& t) {
       warn("lightsampler", where + ": lightsampler \"bvh\" replaced by power-proportional light selection");
     } else if (!pick.empty()) warn("lightsampler", where + ": unknown lightsampler \"" + pick + "\" ignored");
     const int depth = ps.one_int("maxdepth", 5);
-    if (depth != 1 || (type != "path" && type != "volpath" && type != "simplepath"))
-      warn("integrator", where + ": Integrator \"" + type + "\" (maxdepth " + std::to_string(depth) +
-                             "): tuile computes direct lighting only");
+    if (depth < 1 || depth > 100000) {
+      const Param* p = ps.get("maxdepth", "integer");
+      if (p) p->fail("Integrator \"" + type + "\": maxdepth " + std::to_string(depth) + " out of range", "1..100000");
+      lx.fail(t, "Integrator maxdepth out of range", "1..100000");
+    }
+    scene.file_max_depth = depth;
+    if (type != "path" && type != "volpath" && type != "simplepath")
+      warn("integrator", where + ": Integrator \"" + type + "\" rendered by tuile's path tracer (next-event estimation "
+                             "and MIS at every vertex, maxdepth " + std::to_string(depth) + ")");
     ps.mark_all_used();
   } else if (d == "Accelerator" || d == "ColorSpace" || d == "MakeNamedMedium") {
     string_arg(lx, "name");
@@ -345,6 +351,7 @@ namespace {
 Scene load(std::unique_ptr<Lexer> lx, const std::string& source) {
   Loader l;
   l.scene.source = source;
+  l.scene.file_max_depth = 5;  // pbrt-v4's integrator when the file names none: volpath, maxdepth 5
   l.run(std::move(lx));
   return std::move(l.scene);
 }

@@ -1,0 +1,112 @@
+// Paths (Estimator::max_depth > 1): what the wavefront adds to direct lighting between two
+// vertices. After a vertex's light and BSDF samples (whose radiance its shading points
+// hold in S), add_vertex_radiance adds throughput x S into each path's pixel lane; then
+// continue_paths multiplies each path's throughput by its BSDF sample's f cos / p, plays
+// Russian roulette (pbrt-v4's PathIntegrator rule) and clears the bounce rays of the
+// paths that end, so that bounce_hits (wave/surface_hits.h) turns the others' hits into
+// the next vertex's shading points, compacted.
+// Reads and writes the shading points' throughput and eta scale, the BSDF samples'
+// validity; reads the bounce packets (the sampled directions).
+#pragma once
+#include "wave/tile.h"
+
+namespace tuile {
+
+// Starts every path at the camera hits: throughput 1, eta scale 1.
+inline void start_paths(TileBuffers& tb) {
+  const int padded = packet_padded(tb.points.count);
+  std::fill_n(tb.points.tr, padded, 1.f);
+  std::fill_n(tb.points.tg, padded, 1.f);
+  std::fill_n(tb.points.tbl, padded, 1.f);
+  std::fill_n(tb.points.eta_scale, padded, 1.f);
+}
+
+// The radiance the vertex's techniques found (S), times the path's throughput, into its
+// pixel's lane (each lane has at most one shading point per vertex). first: the camera's
+// vertex, whose throughput is 1: L + S exactly.
+inline void add_vertex_radiance(TileBuffers& tb, bool first) {
+  const int n = tb.points.count;
+  ShadingPoints& P = tb.points;
+  PixelLanes& La = tb.lanes;
+  if (first) {
+    for (int k = 0; k < n; ++k) {
+      const int i = P.lane[k];
+      La.Lr[i] += P.Sr[k];
+      La.Lg[i] += P.Sg[k];
+      La.Lb[i] += P.Sb[k];
+    }
+    return;
+  }
+  for (int k = 0; k < n; ++k) {
+    const int i = P.lane[k];
+    La.Lr[i] += P.tr[k] * P.Sr[k];
+    La.Lg[i] += P.tg[k] * P.Sg[k];
+    La.Lb[i] += P.tbl[k] * P.Sb[k];
+  }
+}
+
+// Shading points [k, k + width): the throughput after the BSDF sample, and Russian
+// roulette. pbrt-v4: once the path has `rr_after` vertices or more (its depth > 1 by
+// default), a path whose throughput times eta scale has a largest channel m < 1 ends with
+// probability q = 1 - m and goes on with throughput / (1 - q); u: one uniform number per
+// point. The eta scale gathers etap^2 of every transmission through a dielectric (pbrt-v4:
+// the 1 / etap^2 of radiance's transport must not decide whether a path lives). Paths
+// whose throughput is 0 (a BSDF sample of no weight) or not finite end here (the latter
+// counted as rejected); they would add nothing, or only NaN. Materials: the point's
+// surface may transmit (else every sample reflects, eta scale stays).
+template <class T, bool Materials>
+TUILE_FLATTEN inline void continue_path_lanes(const GeomView& G, TileBuffers& tb, int k, bool roulette) {
+  const auto live = f_mask_from_i(load_i32<T>(tb.tech.valid + k) != i32_t<T>(0));
+  T br = load<T>(tb.points.tr + k) * load<T>(tb.tech.beta_r + k);
+  T bg = load<T>(tb.points.tg + k) * load<T>(tb.tech.beta_g + k);
+  T bb = load<T>(tb.points.tbl + k) * load<T>(tb.tech.beta_b + k);
+  T eta_scale = load<T>(tb.points.eta_scale + k);
+  if constexpr (Materials) {
+    const RayHit16& r = tb.bounce[k / packet_width];
+    const int l = k % packet_width;
+    const Vec3<T> wi = load3<T>(r.ray.dir_x + l, r.ray.dir_y + l, r.ray.dir_z + l);
+    const Vec3<T> n = load3<T>(tb.points.nx + k, tb.points.ny + k, tb.points.nz + k);
+    const i32_t<T> mat = load_i32<T>(tb.points.mat + k);
+    const i32_t<T> kind = gather(G.mat_kind, mat);
+    const auto dielectric = f_mask_from_i(kind == i32_t<T>(static_cast<int32_t>(MaterialKind::dielectric)));
+    const auto through = live && dielectric && dot(wi, n) < T(0.f);  // n faces the viewer
+    if (any(through)) {
+      const T eta = gather(G.mat_param[mp_eta], mat);
+      const T etap = sel(load<T>(tb.points.side + k) > T(0.f), eta, T(1.f) / eta);
+      eta_scale = sel(through, eta_scale * etap * etap, eta_scale);
+    }
+  }
+  const auto finite = is_finite(br) && is_finite(bg) && is_finite(bb);
+  tb.stats.rejected_bsdf += static_cast<uint64_t>(std::popcount(lane_bits(live && !finite)));
+  const T m = max(max(br, bg), bb);
+  auto go = live && finite && m > T(0.f);
+  if (roulette) {
+    const T rr = m * eta_scale;
+    const auto play = rr < T(1.f);
+    const T q = max(T(0.f), T(1.f) - rr);
+    go = go && (!play || load<T>(tb.tech.u3 + k) >= q);
+    const T scale = sel(play, T(1.f) / (T(1.f) - q), T(1.f));
+    br = br * scale;
+    bg = bg * scale;
+    bb = bb * scale;
+  }
+  store(tb.points.tr + k, br);
+  store(tb.points.tg + k, bg);
+  store(tb.points.tbl + k, bb);
+  store(tb.points.eta_scale + k, eta_scale);
+  store_valid(tb.tech.valid + k, go);
+}
+
+// The whole step for the shading points of vertex `vertex` (1: the camera's hits), whose
+// last BSDF sample (tech, bounce packets) continues the path. rr_pair: the Russian
+// roulette's dimension pair of this vertex (SampleLayout::russian_roulette).
+template <bool Materials, class T = vfloat>
+inline void continue_paths(const GeomView& G, const Estimator& est, uint32_t sample, uint32_t rr_pair, int vertex,
+                           TileBuffers& tb) {
+  const int padded = packet_padded(tb.points.count);
+  const bool roulette = vertex > est.rr_depth;
+  if (roulette) point_pairs(est, tb, sample, rr_pair, padded, tb.tech.u3, nullptr);
+  for (int k = 0; k < padded; k += lane_traits<T>::width) continue_path_lanes<T, Materials>(G, tb, k, roulette);
+}
+
+}  // namespace tuile
