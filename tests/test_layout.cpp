@@ -31,6 +31,7 @@ TEST(SampleLayout, PairsAreDistinctAcrossPurposesAndDepths) {
           claim(L.light_pick(j, d), "pick " + std::to_string(j) + at);
           claim(L.light_point(j, d), "point " + std::to_string(j) + at);
         }
+        claim(L.russian_roulette(d), "roulette" + at);
       }
       // dense: the pairs of depths 0..3 are exactly 0 .. their count - 1
       EXPECT_EQ(owner.rbegin()->first + 1, owner.size());
@@ -41,5 +42,6 @@ TEST(SampleLayout, PairsAreDistinctAcrossPurposesAndDepths) {
       EXPECT_EQ(L.light_pick(0), 2 + M);
       EXPECT_EQ(L.light_point(N - 1), 2 + M + 2 * (N - 1) + 1);
       EXPECT_EQ(L.bsdf_lobe(0), 2 + M + 2 * N);  // the lobe choices after the pairs above
+      EXPECT_EQ(L.russian_roulette(0), 2 + 2 * M + 2 * N);  // then Russian roulette
     }
 }

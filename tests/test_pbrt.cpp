@@ -260,7 +260,8 @@ TEST(Pbrt, RenderOptions) {
   EXPECT_EQ(s.file_sampler, "sobol");
   EXPECT_EQ(s.file_light_pick, "power");
   EXPECT_TRUE(has_warning(s, "bvh"));
-  EXPECT_TRUE(has_warning(s, "direct lighting"));
+  EXPECT_FALSE(has_warning(s, "Integrator"));  // a path tracer, as asked
+  EXPECT_EQ(s.file_max_depth, 5);
   EXPECT_FALSE(has_warning(s, "gaussian"));  // honoured (tests/test_filters.cpp)
   EXPECT_EQ(s.file_filter.kind, FilterKind::gaussian);
   EXPECT_EQ(s.file_filter.xradius, 2.f);
@@ -270,8 +271,22 @@ TEST(Pbrt, RenderOptions) {
   EXPECT_EQ(s.file_spp, 16);  // pbrt's default
   EXPECT_EQ(s.file_light_pick, "uniform");
   EXPECT_TRUE(s.warnings.empty()) << s.warnings[0];
+  EXPECT_EQ(s.file_max_depth, 1);
   s = load("Sampler \"independent\" \"integer pixelsamples\" 4\nWorldBegin\n");
   EXPECT_EQ(s.file_sampler, "independent");
+  EXPECT_EQ(s.file_max_depth, 5);  // no Integrator: pbrt-v4's volpath, maxdepth 5
+  s = load("Integrator \"bdpt\" \"integer maxdepth\" 9\nWorldBegin\n");
+  EXPECT_EQ(s.file_max_depth, 9);
+  EXPECT_TRUE(has_warning(s, "bdpt"));  // another integrator: rendered by the path tracer, said so
+  for (const char* bad : {"0", "-3", "1000001"}) {
+    try {
+      load(std::string("Integrator \"path\" \"integer maxdepth\" ") + bad + "\nWorldBegin\n");
+      ADD_FAILURE() << "maxdepth " << bad << " accepted";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("maxdepth"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(":1:"), std::string::npos) << e.what();  // file:line
+    }
+  }
   EXPECT_EQ(s.camera.width, 512);  // no Film: the Camera's defaults stay
 }
 

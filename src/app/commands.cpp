@@ -258,6 +258,29 @@ int run_profile(const ProfileFlags& f) {
               100.0 * *std::max_element(shares.begin(), shares.end()));
   std::printf("profiling cost: %.4g samples/s unprofiled vs %.4g profiled (%+.1f%%)\n",
               samples / plain.seconds, samples / st.seconds, 100.0 * (plain.seconds / st.seconds - 1.0));
+  if (prof.depths > 0) {
+    // paths: where they die and what compaction buys. Live lanes per packet: the vertex's
+    // shading points over the packets their rays filled (compacted), and over the packets
+    // of the tile's lanes (what the same rays would fill without compaction).
+    std::printf("paths (max depth %d, Russian roulette after vertex %d): %.4g paths/s, %.3g vertices per path\n",
+                p.opt.est.max_depth, p.opt.est.rr_depth + 1, samples / st.seconds,
+                1.0 + static_cast<double>(st.path_vertices) / samples);
+    std::printf("%-7s %10s %9s %14s %14s %10s %10s %10s %10s\n", "vertex", "paths", "% alive", "lanes/packet",
+                "uncompacted", "ms", "ns/path", "hits ms", "trace ms");
+    for (int d = 0; d < prof.depths; ++d) {
+      const double* t = prof.depth_seconds[d];
+      double sum = 0;
+      for (int k = 0; k < stage_count; ++k) sum += t[k];
+      const double trace = t[static_cast<int>(Stage::intersect_shadow)] + t[static_cast<int>(Stage::intersect_bounce)];
+      const double pts = prof.depth_points[d];
+      char label[16];
+      std::snprintf(label, sizeof(label), d + 1 == profile_depths ? "%d+" : "%d", d + 1);
+      std::printf("%-7s %10.4g %8.2f%% %14.2f %14.2f %10.2f %10.2f %10.2f %10.2f\n", label, pts, 100.0 * pts / samples,
+                  prof.depth_packets[d] > 0 ? pts / prof.depth_packets[d] : 0.0,
+                  prof.depth_lane_packets[d] > 0 ? pts / prof.depth_lane_packets[d] : 0.0, sum * 1e3,
+                  pts > 0 ? sum * 1e9 / pts : 0.0, t[static_cast<int>(Stage::camera_hits)] * 1e3, trace * 1e3);
+    }
+  }
   if (f.roofline) {
     // median of 3 replays of the first pass's packets through Embree alone
     std::vector<double> t;

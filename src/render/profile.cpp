@@ -4,7 +4,7 @@
 namespace tuile {
 
 const char* stage_name(Stage s) {
-  static const char* names[] = {"generate",       "intersect camera", "camera hits", "sample lights",
+  static const char* names[] = {"generate",       "intersect camera", "surface hits", "sample lights",
                                 "intersect shadow", "sample BSDF",  "intersect bounce", "MIS weight",
                                 "accumulate"};
   return names[static_cast<int>(s)];

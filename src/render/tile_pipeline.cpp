@@ -250,6 +250,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
       if (last || tb.points.count == 0) break;
       continue_paths<F.bsdfs != bsdf_diffuse>(v.geom, e, s, layout.russian_roulette(d), vertex, tb);
       timer.lap(Stage::sample_bsdf);
+      timer.depth = vertex;  // the next vertex's hits
       bounce_hits<vfloat, F.bsdfs != bsdf_diffuse>(v.geom, v.lights, e, s, layout.technique_choice(d + 1), tb);
       tb.stats.path_vertices += static_cast<uint64_t>(tb.points.count);
       timer.lap(Stage::camera_hits);
