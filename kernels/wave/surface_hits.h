@@ -55,9 +55,9 @@ inline void apply_texels(const GeomView& G, TileBuffers& tb) {
   for (int j = 0; j < nt; ++j) {
     const int k = tb.textured.point[j];
     const float* t = tb.textured.texel[j];
-    tb.points.ar[k] *= t[0];
-    tb.points.ag[k] *= t[1];
-    tb.points.ab[k] *= t[2];
+    tb.points.ar[k] = t[0];  // the texel replaces the material's constant
+    tb.points.ag[k] = t[1];
+    tb.points.ab[k] = t[2];
   }
 }
 

@@ -100,7 +100,13 @@ int run_info(const RenderFlags& f) {
     std::string why;
     const std::string name = r.pipeline_name(&why);
     std::printf("pipeline: %s (%s)\n", name.c_str(), why.c_str());
-    std::printf("bounce rays: against the %s\n", r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
+    if (opt.est.max_depth > 1)
+      std::printf("paths: up to %d vertices, Russian roulette after vertex %d (pbrt-v4's rule); bounce rays against the "
+                  "whole scene, the last vertex's against the %s\n",
+                  opt.est.max_depth, opt.est.rr_depth + 1,
+                  r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
+    else
+      std::printf("bounce rays: against the %s\n", r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
   }
   for (const std::string& w : scene.warnings) std::printf("approximation: %s\n", w.c_str());
   std::printf("load: %.3f s\nbvh build: %.3f s\n", load, bvh);

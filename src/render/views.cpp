@@ -181,9 +181,22 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   };
   auto add_material = [&](const Material& m) {
     v.mat_bump.push_back(bump_texture(m));
-    v.mat_r.push_back(m.reflectance.r);
-    v.mat_g.push_back(m.reflectance.g);
-    v.mat_b.push_back(m.reflectance.b);
+    // a textured reflectance replaces the constant (Scene's Material): the points of a
+    // textured material take their texel (apply_texels); those without one (no uv, a
+    // sphere, a mix's choice) take the texture's mean
+    Rgb r = m.reflectance;
+    if (m.texture >= 0) {
+      const Texture& t = scene.textures[static_cast<size_t>(m.texture)];
+      double sum[3] = {0, 0, 0};
+      const size_t n = t.rgb.size() / 3;
+      for (size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c) sum[c] += t.rgb[3 * i + static_cast<size_t>(c)];
+      if (n > 0) r = {static_cast<float>(sum[0] / static_cast<double>(n)), static_cast<float>(sum[1] / static_cast<double>(n)),
+                      static_cast<float>(sum[2] / static_cast<double>(n))};
+    }
+    v.mat_r.push_back(r.r);
+    v.mat_g.push_back(r.g);
+    v.mat_b.push_back(r.b);
     v.mat_texture.push_back(m.texture);
     v.mat_kind.push_back(static_cast<int32_t>(m.kind));
     const float p[mp_count] = {m.transmittance.r, m.transmittance.g, m.transmittance.b, m.eta_rgb.r, m.eta_rgb.g,
