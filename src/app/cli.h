@@ -20,7 +20,7 @@ struct RenderFlags {
   int max_depth = 0;  // 0: the scene file's (else 1)
   int rr_depth = 1;
   uint32_t seed = 0;
-  bool quiet = false, stats = false, spp_given = false;
+  bool quiet = false, stats = false, spp_given = false, tile_given = false;
   // tuile render only (add_render_run_flags)
   double checkpoint_seconds = 0;  // > 0: save a checkpoint that often
   bool resume = false;

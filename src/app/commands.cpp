@@ -148,7 +148,7 @@ int run_bench(const BenchFlags& f) {
   Renderer renderer(p.scene, *p.accel, p.opt);
   const double first_pixel = seconds_since(start);  // load + BVH + light tables
   const uint32_t spp = p.opt.est.spp;
-  std::vector<double> sps, cam, sh, bo;
+  std::vector<double> sps, cam, sh, bo, vps;
   RenderStats last;
   for (int r = 0; r < f.warmup + f.repeat; ++r) {
     Film film;
@@ -159,6 +159,7 @@ int run_bench(const BenchFlags& f) {
     cam.push_back(static_cast<double>(st.rays_camera) / st.seconds);
     sh.push_back(static_cast<double>(st.rays_shadow) / st.seconds);
     bo.push_back(static_cast<double>(st.rays_bounce) / st.seconds);
+    vps.push_back(static_cast<double>(st.samples + st.path_vertices) / st.seconds);
     last = st;
   }
   const double med = median(sps);
@@ -171,6 +172,10 @@ int run_bench(const BenchFlags& f) {
   std::printf("resolution %dx%d, %u spp, %d thread(s), %d runs after %d warm-up\n", p.scene.camera.width,
               p.scene.camera.height, spp, threads, f.repeat, f.warmup);
   std::printf("samples/s: median %.4g  min %.4g  max %.4g\n", med, mn, mx);
+  const double vertices = 1.0 + static_cast<double>(last.path_vertices) / static_cast<double>(std::max<uint64_t>(1, last.samples));
+  if (p.opt.est.max_depth > 1)  // one path per sample
+    std::printf("paths/s: median %.4g (max depth %d); %.3g vertices per path, %.4g vertices/s\n", med, p.opt.est.max_depth,
+                vertices, median(vps));
   std::printf("rays/s (median): camera %.4g  shadow %.4g  bounce %.4g\n", median(cam), median(sh), median(bo));
   std::printf("time to first pixel: %.3f s (load %.3f s, BVH %.3f s)\n", first_pixel, p.load_seconds, p.bvh_seconds);
   std::printf("peak memory: %.1f MiB\n", static_cast<double>(peak_memory_bytes()) / (1024.0 * 1024.0));
@@ -179,6 +184,8 @@ int run_bench(const BenchFlags& f) {
     if (!js) throw std::runtime_error(f.json + ": cannot open for writing");
     js << "{\n";
     js << "  \"samples_per_second\": {\"median\": " << med << ", \"min\": " << mn << ", \"max\": " << mx << "},\n";
+    js << "  \"paths_per_second\": " << med << ", \"max_depth\": " << p.opt.est.max_depth
+       << ", \"vertices_per_path\": " << vertices << ", \"vertices_per_second\": " << median(vps) << ",\n";
     js << "  \"rays_per_second\": {\"camera\": " << median(cam) << ", \"shadow\": " << median(sh)
        << ", \"bounce\": " << median(bo) << "},\n";
     js << "  \"time_to_first_pixel\": " << first_pixel << ",\n";
