@@ -141,3 +141,59 @@ TEST(Cli, ProfileTraceIsChromeTraceJson) {
   EXPECT_NE(s.find("\"ph\":\"X\""), std::string::npos);
   EXPECT_NE(s.find("\"name\":\"intersect shadow\""), std::string::npos);
 }
+
+// Paths: --max-depth and --rr-depth out of range are errors naming the flag (0 is not
+// "the default": a render of no vertex is a mistake, as --spp 0 is; resolve_options reads
+// RenderFlags::max_depth 0 as "not given", so an explicit 0 needs a flag of its own, as
+// spp_given); so is a file's Integrator maxdepth 0, with the file and line. info prints
+// the depth a file asks for in the estimator line, and nothing about depth for a built-in
+// scene (direct lighting).
+TEST(Cli, PathDepthFlagsAndFileMaxDepth) {
+  for (const char* args : {"--max-depth 0", "--max-depth -2", "--rr-depth -1"}) {
+    const CmdResult r = run(std::string("render built-in:cornell --res 8x8 --spp 1 --quiet -o ") + tmp("cli_depth.exr") +
+                            " " + args);
+    EXPECT_NE(r.code, 0) << args << ": accepted (exit 0): " << r.out;
+    const std::string flag = std::string(args).substr(0, std::string(args).find(' '));
+    EXPECT_NE(r.out.find(flag), std::string::npos) << args << ": " << r.out;
+  }
+  const std::string scene_text =
+      "LookAt 0 0 5  0 0 0  0 1 0\n"
+      "Camera \"perspective\" \"float fov\" 45\n"
+      "Film \"rgb\" \"integer xresolution\" 8 \"integer yresolution\" 8\n"
+      "Integrator \"path\" \"integer maxdepth\" [ DEPTH ]\n"
+      "WorldBegin\n"
+      "AttributeBegin\n"
+      "AreaLightSource \"diffuse\" \"rgb L\" [ 1 1 1 ]\n"
+      "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 0  1 -1 0  1 1 0  -1 1 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+      "AttributeEnd\n"
+      "Shape \"sphere\" \"float radius\" 0.3\n";
+  auto write_scene = [&](const std::string& name, const std::string& depth) {
+    const std::string path = tmp(name);
+    std::string text = scene_text;
+    text.replace(text.find("DEPTH"), 5, depth);
+    std::ofstream(path) << text;
+    return path;
+  };
+  const std::string zero = write_scene("cli_maxdepth0.pbrt", "0");
+  CmdResult r = run("render " + zero + " --quiet -o " + tmp("cli_maxdepth0.exr"));
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("cli_maxdepth0.pbrt:4"), std::string::npos) << r.out;  // file:line
+  EXPECT_NE(r.out.find("maxdepth"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(tmp("cli_maxdepth0.exr")));
+  r = run("info " + zero);
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("cli_maxdepth0.pbrt:4"), std::string::npos) << r.out;
+  const std::string seven = write_scene("cli_maxdepth7.pbrt", "7");
+  r = run("info " + seven);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const size_t est = r.out.find("estimator: ");
+  ASSERT_NE(est, std::string::npos) << r.out;
+  const std::string line = r.out.substr(est, r.out.find('\n', est) - est);
+  EXPECT_NE(line.find("max-depth=7"), std::string::npos) << line;
+  r = run("info " + seven + " --max-depth 3");  // the flag overrides the file
+  EXPECT_NE(r.out.find("max-depth=3"), std::string::npos) << r.out;
+  r = run("info built-in:cornell");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("estimator: "), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("max-depth"), std::string::npos) << r.out;
+}

@@ -2,8 +2,9 @@
 // light, tiny and very bright sources, 10 000 sources, grazing and tangent-plane sources,
 // degenerate and non-finite geometry, scenes far from the origin or very small, MIS at
 // extreme pdfs, 10^7 samples in one pixel, solid-angle sampling at its limits, odd cameras
-// and empty scenes; and materials at their limits (roughness 1e-4 .. 1, grazing glossy
-// reflection, index-matched glass, total internal reflection, a tiny source in a mirror).
+// and empty scenes; materials at their limits (roughness 1e-4 .. 1, grazing glossy
+// reflection, index-matched glass, total internal reflection, a tiny source in a mirror);
+// and paths at their limits (depth 100 and 100000, glass in a furnace, underflow).
 // Each test states its tolerance; docs/stress.md says what each shows.
 #include <gtest/gtest.h>
 
@@ -1759,4 +1760,208 @@ TEST(StressMaterials, ShadingNormalFarFromGeometric) {
       }
     }
   }
+}
+
+// =========================================================================================
+// 12. Paths at their limits (Estimator::max_depth > 1): a hundred mirror bounces, Russian
+//     roulette as the only end of a path at a depth limit of 100000, caustics through a
+//     glass sphere in a furnace (and a diffuse sphere, which separates the sphere's
+//     geometry from the glass), and a throughput that underflows to 0.
+namespace {
+
+// A closed cube [-1, 1]^3 whose six faces emit E towards the inside and reflect with
+// `wall`; the camera at the centre (as tests/test_paths.cpp's furnace). Optionally a
+// sphere of radius 0.4 and material `ball` (emitting `ball_E` outwards) 0.55 in front of
+// the camera: it fills the view but for the corners, and stays 0.08 from the walls.
+Scene path_furnace(const Material& wall, float E, const Material* ball = nullptr, float ball_E = 0) {
+  Scene s;
+  s.source = "test:path-furnace";
+  s.materials.push_back(wall);
+  const vec3f faces[6][3] = {{{-1, -1, -1}, {0, 2, 0}, {0, 0, 2}}, {{1, -1, -1}, {0, 0, 2}, {0, 2, 0}},
+                             {{-1, -1, -1}, {0, 0, 2}, {2, 0, 0}}, {{-1, 1, -1}, {2, 0, 0}, {0, 0, 2}},
+                             {{-1, -1, -1}, {2, 0, 0}, {0, 2, 0}}, {{-1, -1, 1}, {0, 2, 0}, {2, 0, 0}}};
+  for (const auto& f : faces) {
+    Mesh m;
+    m.name = "wall";
+    m.material = 0;
+    m.emission = {E, E, E};
+    add_quad(m, f[0], f[1], f[2]);  // cross(e1, e2) points inside: the emitting side
+    s.meshes.push_back(m);
+  }
+  const vec3f look{0.3f, -0.2f, 1};
+  if (ball) {
+    s.materials.push_back(*ball);
+    Sphere g;
+    g.center = look * (0.55f / length(look));
+    g.radius = 0.4f;
+    g.material = 1;
+    g.emission = {ball_E, ball_E, ball_E};
+    s.spheres.push_back(g);
+  }
+  s.camera.width = s.camera.height = 16;
+  s.camera.fov_deg = 70;
+  camera_look_at(s.camera, {0, 0, 0}, look, {0, 1, 0});
+  finalize_scene(s);
+  return s;
+}
+
+RenderOptions path_options(const Est& e, int max_depth, uint32_t spp, uint32_t seed) {
+  RenderOptions o = options(e, spp, seed);
+  o.est.max_depth = max_depth;
+  return o;
+}
+
+// The mean of every value of the image against a uniform exact value, with its standard
+// error from the per-pixel variances of the mean.
+Cmp compare_uniform(const RenderResult& r, double exact) {
+  const std::vector<float> var = r.film.variance_of_mean();
+  Cmp c;
+  double v = 0;
+  for (size_t i = 0; i < r.mean.size(); ++i) {
+    c.mean += r.mean[i];
+    v += var[i];
+  }
+  const double n = static_cast<double>(r.mean.size());
+  c.exact = exact;
+  c.mean /= n;
+  c.se = std::sqrt(v) / n;
+  return c;
+}
+
+double vertices_per_sample(const RenderStats& st) {
+  return static_cast<double>(st.path_vertices) / static_cast<double>(st.samples);
+}
+
+}  // namespace
+
+// A box of smooth mirrors (conductor eta 1, k 1e4: F = 1 - 4e-8) whose walls emit E, at
+// depth 100: every path is a delta chain of weight 1 that meets an emitting wall at each
+// of its 100 vertices, so every pixel is E (1 + 100) = 101 E (the F^100 = 1 - 4e-6 loss
+// is below the tolerance). Russian roulette, by pbrt-v4's rule, plays with q = 1 - F
+// only. It catches a depth loop that stops early (or counts a vertex twice), a
+// throughput that drifts over a long delta chain, and a NaN from a long chain.
+TEST(StressPaths, HundredBouncesInAMirrorBox) {
+  const float E = 0.5f;
+  const Scene s = path_furnace(conductor_material(1, 1e4f, 0), E);
+  for (const Est& e : {mis_sa, light_sa}) {
+    const RenderOptions o = path_options(e, 100, 4, 81);
+    const RenderResult r = render_scene(s, o);
+    const std::string what = name_of(o);
+    expect_clean(r, what);
+    const float want = E * 101;
+    size_t off = 0;
+    for (float v : r.mean) off += !(std::fabs(v - want) <= 1e-3f * want);
+    // a ray may slip through an edge between two walls (Embree's non-robust mode)
+    EXPECT_LE(off, r.mean.size() / 100) << what << ": " << off << " of " << r.mean.size() << " values differ from " << want;
+    // the paths went the whole way: 99 vertices past the camera's hit
+    EXPECT_GE(vertices_per_sample(r.stats), 0.99 * 99) << what;
+    EXPECT_LE(vertices_per_sample(r.stats), 99.0) << what;
+  }
+}
+
+// The same box of a less reflective rough conductor (eta 0.2, k 3, alpha 0.2: F ~ 0.92 at
+// normal incidence), at the largest depth allowed, 100000: only Russian roulette ends the
+// paths (a path survives each vertex with a probability near its throughput, ~0.9), so
+// a sample has a few vertices (5.5 measured), not 100000, and the image stays finite and
+// clean.
+TEST(StressPaths, RussianRouletteEndsPathsAtDepth100000) {
+  const float E = 0.5f;
+  const Scene s = path_furnace(conductor_material(0.2f, 3.f, 0.2f), E);
+  for (const Est& e : {mis_sa, bsdf_only}) {
+    const RenderOptions o = path_options(e, 100000, 16, 82);
+    const RenderResult r = render_scene(s, o);
+    const std::string what = name_of(o);
+    expect_clean(r, what);
+    const double per_sample = vertices_per_sample(r.stats);
+    std::printf("[ roulette ] %s: %.2f vertices per sample past the camera's hit\n", what.c_str(), per_sample);
+    EXPECT_GT(per_sample, 2.0) << what;  // the paths did go on
+    EXPECT_LT(per_sample, 50.0) << what;
+    // F < 1: below the light of an ideal mirror box, above what the camera sees directly
+    double mean = 0;
+    for (float v : r.mean) mean += v;
+    mean /= static_cast<double>(r.mean.size());
+    EXPECT_GT(mean, 2 * E) << what;
+    EXPECT_LT(mean, E / (1 - 0.95)) << what;
+  }
+}
+
+// Caustics through glass: a smooth glass sphere (eta 1.5, not emissive) in front of the
+// camera inside a closed diffuse furnace (albedo a = 0.5, walls emitting E). Lossless glass
+// in a uniform radiance field leaves it uniform, so every pixel, the sphere's included,
+// has the expectation E / (1 - a): the 1 / eta^2 of entering the glass and the eta^2 of
+// leaving it must cancel, and Russian roulette must divide the eta scale out (pbrt-v4)
+// rather than end paths inside the glass, where radiance is eta^2 larger. Depth 1000, so
+// Russian roulette ends the paths; the independent sampler, so the per-pixel variances
+// are honest: the image mean within 5 standard errors. (Fails: rays leaving the sphere
+// meet it again at their origin, docs/stress.md "Paths at their limits".)
+TEST(StressPaths, GlassSphereInAFurnaceChangesNothing) {
+  const float E = 1.f, a = 0.5f;
+  const Material glass = dielectric_material(1.5f, 0.f);
+  const Scene s = path_furnace(diffuse_material(Rgb{a, a, a}), E, &glass);
+  const double want = E / (1 - a);
+  for (const Est& e : {mis_sa, bsdf_only}) {
+    const RenderOptions o = path_options(e, 1000, 512, 83);
+    const RenderResult r = render_scene(s, o);
+    const std::string what = name_of(o);
+    expect_clean(r, what);
+    const Cmp c = compare_uniform(r, want);
+    std::printf("[ glass furnace ] %s: %s\n", what.c_str(), show(c).c_str());
+    EXPECT_LT(std::fabs(c.z()), 5.0) << what << ": " << show(c);
+    EXPECT_LT(c.se, 0.002 * want) << what;  // a bias of 1% is 5 SE
+    EXPECT_LT(vertices_per_sample(r.stats), 50.0) << what;
+  }
+}
+
+// The same furnace with a diffuse sphere instead (albedo a, emitting E outwards like the
+// walls): the field is uniform again, E (1 + a) at depth 1 and E / (1 - a) for long paths.
+// With BSDF sampling alone at depth 1 every sample is exactly E (1 + a) (the BSDF ray
+// meets an emitter of radiance E wherever it goes), so one lost ray shows. It separates
+// the sphere's geometry (a ray leaving the sphere must not meet the sphere again at its
+// origin) from the glass's transport in the test above. (Fails: they do.)
+TEST(StressPaths, DiffuseSphereInAFurnace) {
+  const float E = 1.f, a = 0.5f;
+  const Material white = diffuse_material(Rgb{a, a, a});
+  const Scene s = path_furnace(white, E, &white, E);
+  {
+    const RenderOptions o = path_options(bsdf_only, 1, 16, 85);
+    const RenderResult r = render_scene(s, o);
+    const std::string what = name_of(o);
+    expect_clean(r, what);
+    size_t off = 0;
+    for (float v : r.mean) off += !(std::fabs(v - E * (1 + a)) <= 1e-5f * E);
+    EXPECT_EQ(off, 0u) << what << ": " << off << " of " << r.mean.size() << " values are not " << E * (1 + a) << ", "
+                       << show(compare_uniform(r, E * (1 + a)));
+  }
+  for (int depth : {1, 1000})
+    for (const Est& e : {mis_sa, bsdf_only, light_sa}) {
+      if (depth > 1 && e.strategy == Strategy::light) continue;  // (depth 1: the shadow rays alone)
+      const RenderOptions o = path_options(e, depth, 64, 86);
+      const RenderResult r = render_scene(s, o);
+      const std::string what = name_of(o) + " depth " + std::to_string(depth);
+      expect_clean(r, what);
+      const Cmp c = compare_uniform(r, depth == 1 ? E * (1 + a) : E / (1 - a));
+      EXPECT_LT(std::fabs(c.z()), 5.0) << what << ": " << show(c);
+    }
+}
+
+// Throughput underflow: a furnace of albedo 1e-20 (walls emitting E) at depth 50. The
+// throughput is 1e-20 after one bounce, 1e-40 (subnormal) after two and 0 after three:
+// a path of zero throughput ends (it adds nothing), so a sample has a few vertices
+// whether or not Russian roulette runs, every pixel is E (E + 1e-20 E rounds to E), and
+// nothing turns into a NaN (0 x inf, 0 / 0) or is rejected on the way.
+TEST(StressPaths, ThroughputUnderflowEndsPaths) {
+  const float E = 1.f;
+  const Scene s = path_furnace(diffuse_material(Rgb{1e-20f, 1e-20f, 1e-20f}), E);
+  for (int rr_depth : {1, 100000})
+    for (const Est& e : {mis_sa, bsdf_only}) {
+      RenderOptions o = path_options(e, 50, 16, 84);
+      o.est.rr_depth = rr_depth;
+      const RenderResult r = render_scene(s, o);
+      const std::string what = name_of(o);
+      expect_clean(r, what);
+      for (size_t i = 0; i < r.mean.size(); ++i)
+        ASSERT_NEAR(r.mean[i], E, 1e-6f * E) << what << " value " << i;
+      EXPECT_LT(vertices_per_sample(r.stats), 5.0) << what;
+      EXPECT_GE(vertices_per_sample(r.stats), 0.9) << what;  // the second vertex is there
+    }
 }

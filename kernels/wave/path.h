@@ -90,9 +90,11 @@ TUILE_FLATTEN inline void continue_path_lanes(const GeomView& G, TileBuffers& tb
     bg = bg * scale;
     bb = bb * scale;
   }
-  store(tb.points.tr + k, br);
-  store(tb.points.tg + k, bg);
-  store(tb.points.tbl + k, bb);
+  // an ended path keeps throughput 0 (never read again; and the same bits in every lane
+  // whatever a NaN did to max above)
+  store(tb.points.tr + k, sel(go, br, T(0.f)));
+  store(tb.points.tg + k, sel(go, bg, T(0.f)));
+  store(tb.points.tbl + k, sel(go, bb, T(0.f)));
   store(tb.points.eta_scale + k, eta_scale);
   store_valid(tb.tech.valid + k, go);
 }

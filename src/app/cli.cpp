@@ -29,7 +29,8 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
   app.add_option("--bsdf-samples", f.bsdf_samples, "BSDF samples per pixel sample")->capture_default_str();
   app.add_option("--max-depth", f.max_depth,
                  "path vertices that sample lights and the BSDF (pbrt's maxdepth; 1 = direct lighting); default: the "
-                 "scene file's Integrator (pbrt's 5 when it gives none), 1 for the built-in scenes");
+                 "scene file's Integrator (pbrt's 5 when it gives none), 1 for the built-in scenes")
+      ->each([&f](const std::string&) { f.max_depth_given = true; });
   app.add_option("--rr-depth", f.rr_depth,
                  "Russian roulette may end a path after its vertex rr-depth + 1 (pbrt-v4's rule: 1)")
       ->capture_default_str();
@@ -88,8 +89,7 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   e.mis.alpha = f.alpha;
   e.light_samples = f.light_samples;
   e.bsdf_samples = f.bsdf_samples;
-  e.max_depth = f.max_depth != 0 ? f.max_depth : scene.file_max_depth > 0 ? scene.file_max_depth : 1;
-  if (f.max_depth < 0) throw std::invalid_argument("--max-depth must be in 1..100000");
+  e.max_depth = f.max_depth_given ? f.max_depth : scene.file_max_depth > 0 ? scene.file_max_depth : 1;
   e.rr_depth = f.rr_depth;
   if (f.spp_given && f.spp < 1) throw std::invalid_argument("--spp must be >= 1");
   const int spp = f.spp_given ? f.spp : scene.file_spp > 0 ? scene.file_spp : 16;

@@ -17,10 +17,10 @@ struct RenderFlags {
   std::string filter;  // pixel filter; "": the scene file's PixelFilter, else box
   float beta = 2.f, alpha = 0.1f;
   int light_samples = 1, bsdf_samples = 1, spp = 0, threads = 0, tile = 16;
-  int max_depth = 0;  // 0: the scene file's (else 1)
+  int max_depth = 0;  // when not given: the scene file's (else 1)
   int rr_depth = 1;
   uint32_t seed = 0;
-  bool quiet = false, stats = false, spp_given = false, tile_given = false;
+  bool quiet = false, stats = false, spp_given = false, tile_given = false, max_depth_given = false;
   // tuile render only (add_render_run_flags)
   double checkpoint_seconds = 0;  // > 0: save a checkpoint that often
   bool resume = false;
