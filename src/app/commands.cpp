@@ -278,21 +278,28 @@ int run_profile(const ProfileFlags& f) {
     std::printf("paths (max depth %d, Russian roulette after vertex %d): %.4g paths/s, %.3g vertices per path\n",
                 p.opt.est.max_depth, p.opt.est.rr_depth + 1, samples / st.seconds,
                 1.0 + static_cast<double>(st.path_vertices) / samples);
-    std::printf("%-7s %10s %9s %14s %14s %10s %10s %10s %10s\n", "vertex", "paths", "% alive", "lanes/packet",
-                "uncompacted", "ms", "ns/path", "hits ms", "trace ms");
+    // stage columns: what each vertex spends where (ms over all threads)
+    const Stage cols[] = {Stage::camera_hits,    Stage::sample_lights,    Stage::intersect_shadow, Stage::sample_bsdf,
+                          Stage::intersect_bounce, Stage::mis_weight, Stage::accumulate};
+    const char* col_names[] = {"hits", "lights", "shadow", "BSDF", "bounce", "MIS", "accum"};
+    std::printf("%-6s %10s %8s %7s %7s", "vertex", "paths", "alive", "lanes", "uncomp");
+    for (const char* n : col_names) std::printf(" %8s", n);
+    std::printf(" %9s %8s\n", "total ms", "ns/path");
     for (int d = 0; d < prof.depths; ++d) {
       const double* t = prof.depth_seconds[d];
       double sum = 0;
       for (int k = 0; k < stage_count; ++k) sum += t[k];
-      const double trace = t[static_cast<int>(Stage::intersect_shadow)] + t[static_cast<int>(Stage::intersect_bounce)];
       const double pts = prof.depth_points[d];
       char label[16];
       std::snprintf(label, sizeof(label), d + 1 == profile_depths ? "%d+" : "%d", d + 1);
-      std::printf("%-7s %10.4g %8.2f%% %14.2f %14.2f %10.2f %10.2f %10.2f %10.2f\n", label, pts, 100.0 * pts / samples,
+      std::printf("%-6s %10.4g %7.2f%% %7.2f %7.2f", label, pts, 100.0 * pts / samples,
                   prof.depth_packets[d] > 0 ? pts / prof.depth_packets[d] : 0.0,
-                  prof.depth_lane_packets[d] > 0 ? pts / prof.depth_lane_packets[d] : 0.0, sum * 1e3,
-                  pts > 0 ? sum * 1e9 / pts : 0.0, t[static_cast<int>(Stage::camera_hits)] * 1e3, trace * 1e3);
+                  prof.depth_lane_packets[d] > 0 ? pts / prof.depth_lane_packets[d] : 0.0);
+      for (Stage c : cols) std::printf(" %8.2f", t[static_cast<int>(c)] * 1e3);
+      std::printf(" %9.2f %8.1f\n", sum * 1e3, pts > 0 ? sum * 1e9 / pts : 0.0);
     }
+    std::printf("(lanes: live lanes per packet traced; uncomp: per packet of the tile's lanes, as without compaction; "
+                "vertex 1's hits are the camera's, in the table above)\n");
   }
   if (f.roofline) {
     // median of 3 replays of the first pass's packets through Embree alone
