@@ -132,7 +132,7 @@ TEST(Paths, DiffuseFurnaceIsExactWithBsdfSampling) {
 TEST(Paths, DiffuseFurnaceEveryStrategyWithRussianRoulette) {
   const float a = 0.6f, E = 1.f;
   const Scene s = furnace(diffuse_material(Rgb{a, a, a}), E);
-  for (Strategy st : {Strategy::mis, Strategy::light, Strategy::bsdf})
+  for (Strategy st : {Strategy::mis, Strategy::light, Strategy::bsdf, Strategy::ris})
     for (int N : {3, 1000}) {
       RenderOptions o = path_options(N, st, 64);
       RenderStats stats;
@@ -212,7 +212,7 @@ TEST(Paths, ConductorFurnace) {
     sum2 += L * L;
   }
   const double sim = sum / paths, sim_se = std::sqrt((sum2 / paths - sim * sim) / paths);
-  for (Strategy st : {Strategy::mis, Strategy::light, Strategy::bsdf}) {
+  for (Strategy st : {Strategy::mis, Strategy::light, Strategy::bsdf, Strategy::ris}) {
     const Film f = render_film(s, path_options(N, st, 64));
     const ImageSum is = image_sum(f);
     const double mean = is.sum / static_cast<double>(is.values), se = is.se / static_cast<double>(is.values);
@@ -265,7 +265,7 @@ TEST(Paths, LightThroughGlassSlab) {
     double want;
   } cases[] = {{1, 0.0}, {2, 2 * (1 - R) * (1 - R)}, {40, 2 * (1 - R) / (1 + R)}};
   for (const auto& c : cases)
-    for (Strategy st : {Strategy::mis, Strategy::light, Strategy::bsdf}) {
+    for (Strategy st : {Strategy::mis, Strategy::light, Strategy::bsdf, Strategy::ris}) {
       RenderOptions o = path_options(c.depth, st, 256);
       const Film f = render_film(s, o);
       const ImageSum is = image_sum(f);
@@ -303,7 +303,7 @@ TEST(Paths, FloorLitThroughMirror) {
   p.sources.push_back({{{1.5f, 1, -0.3f}, {1.5f, 1.2f, -0.3f}, {1.5f, 1.2f, 0.3f}, {1.5f, 1, 0.3f}}, 3.f});
   finalize_scene(s);
   const std::vector<double> exact = exact_image(p);
-  for (Strategy st : {Strategy::mis, Strategy::bsdf}) {
+  for (Strategy st : {Strategy::mis, Strategy::bsdf, Strategy::ris}) {
     RenderOptions o = path_options(2, st, 1024);
     const Film f = render_film(s, o);
     const std::vector<float> m = f.mean(), v = f.variance_of_mean();
@@ -415,7 +415,7 @@ void expect_same_image(const Image& ref, const Image& o, int W) {
 }  // namespace
 
 // MIS at every vertex: light sampling alone, BSDF sampling alone, MIS (balance, power,
-// one-sample, 2 light + 2 BSDF samples) and MIS without Russian roulette estimate the same
+// one-sample, 2 light + 2 BSDF samples, the light BVH with MIS and with RIS) and MIS without Russian roulette estimate the same
 // image at depth 4, where most of the light has bounced at least twice. A bias in the
 // emitter-hit weights past the first vertex, a continuation counted twice or a Russian
 // roulette that does not reweight fails it.
@@ -451,6 +451,13 @@ TEST(Paths, EveryStrategyAndRussianRouletteEstimateTheSameImage) {
   o.est.light_samples = 2;
   o.est.bsdf_samples = 2;
   o.est.spp = 256;
+  others.push_back(o);
+  // many lights (#19): the light BVH's picks, with MIS and with resampled importance
+  // sampling (8 light and 1 BSDF candidates) at every vertex
+  o = base;
+  o.est.pick = LightPick::bvh;
+  others.push_back(o);
+  o.est.strategy = Strategy::ris;
   others.push_back(o);
   o = base;
   o.est.rr_depth = 1000;  // no Russian roulette

@@ -258,8 +258,8 @@ TEST(Pbrt, RenderOptions) {
       "\"float cropwindow\" [0 1 0 1]\nWorldBegin\n");
   EXPECT_EQ(s.file_spp, 32);
   EXPECT_EQ(s.file_sampler, "sobol");
-  EXPECT_EQ(s.file_light_pick, "power");
-  EXPECT_TRUE(has_warning(s, "bvh"));
+  EXPECT_EQ(s.file_light_pick, "bvh");  // the light BVH picker (light/bvh.h)
+  EXPECT_FALSE(has_warning(s, "bvh"));
   EXPECT_FALSE(has_warning(s, "Integrator"));  // a path tracer, as asked
   EXPECT_EQ(s.file_max_depth, 5);
   EXPECT_FALSE(has_warning(s, "gaussian"));  // honoured (tests/test_filters.cpp)

@@ -56,7 +56,12 @@ TUILE_TWIN_BINARY(==)
 TUILE_TWIN_BINARY(!=)
 TUILE_TWIN_BINARY(&&)
 TUILE_TWIN_BINARY(||)
+TUILE_TWIN_BINARY(&)
+TUILE_TWIN_BINARY(|)
 #undef TUILE_TWIN_BINARY
+// shifts of integer lanes by one count for every lane
+template <class V> inline Twin<V> operator>>(const Twin<V>& x, int s) noexcept { return {x.a >> s, x.b >> s}; }
+template <class V> inline Twin<V> operator<<(const Twin<V>& x, int s) noexcept { return {x.a << s, x.b << s}; }
 template <class V> inline Twin<V> operator-(const Twin<V>& x) noexcept { return {-x.a, -x.b}; }
 template <class V> inline Twin<V> operator!(const Twin<V>& x) noexcept { return {!x.a, !x.b}; }
 template <class V> inline Twin<V>& operator+=(Twin<V>& x, const Twin<V>& y) noexcept {

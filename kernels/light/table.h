@@ -15,6 +15,8 @@ enum class LightPoint : int { area = 0, solid_angle = 1 };
 inline constexpr int32_t lt_triangle = 0, lt_parallelogram = 1, lt_sphere = 2, lt_point = 3, lt_spot = 4,
                          lt_distant = 5;
 
+struct LightBvhView;
+
 struct LightView {
   int32_t count = 0;
   // how the tables are read per lane (table_tier): arrays padded to small_table_size or
@@ -40,6 +42,9 @@ struct LightView {
   const float* pick_pdf = nullptr;    // probability of picking each source (1 with "all")
   const float* alias_prob = nullptr;  // alias table of pick_pdf
   const int32_t* alias_idx = nullptr;
+  // the light BVH (light/bvh.h) when sources are picked with it (--light-pick bvh); then
+  // pick_pdf and the alias table are not read for picks
+  const LightBvhView* bvh = nullptr;
 };
 
 // How a light table is read per lane: tier_gather (any size), tier_small (tables padded to

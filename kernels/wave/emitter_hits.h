@@ -8,9 +8,55 @@
 // Reads the bounce packets, the shading points, the BSDF samples, the light table; writes
 // the shading points' radiance.
 #pragma once
+#include "light/bvh.h"
 #include "wave/surface_hits.h"
 
 namespace tuile {
+
+// The light technique's density for the direction wi from the shading point `point` (at x)
+// reaching source idx at distance dist: the pick's probability (from the point's position
+// and geometric normal where the picker reads them) times the point's density in solid
+// angle, under the same fallback rule as sampling; and the source's radiance.
+template <class T, unsigned Kinds = kind_all>
+TUILE_FLATTEN inline T light_pdf_of_hit(const LightView& L, const Estimator& est, const TileBuffers& tb, const i32_t<T>& point,
+                                        const i32_t<T>& idx, const Vec3<T>& x, const Vec3<T>& wi, const T& dist, T& Le_r,
+                                        T& Le_g, T& Le_b) {
+  // gathers, or permutes of small and medium tables (the same values)
+  T pdf_point, pick;
+  with_table_tier(L, [&](auto tier) {
+    constexpr int S = decltype(tier)::value;
+    if constexpr ((Kinds & kind_rects) != 0)
+      pdf_point = pdf_rectangle_point_sa(est.point, gather_rect_light<S>(L, idx), x, wi, dist);
+    else pdf_point = pdf_light_point_sa(est.point, gather_light<S>(L, idx), x, wi, dist);
+    if (L.bvh) {  // the pick's context: the shading point's position and geometric normal
+      const Vec3<T> n{gather(tb.points.nx, point), gather(tb.points.ny, point), gather(tb.points.nz, point)};
+      pick = BvhPicker{*L.bvh}.template pmf<S>(PickContext<T>{x, n}, idx);
+    } else {
+      pick = AliasPicker{L}.template pmf<S>(PickContext<T>{x, Vec3<T>(T(0.f), T(0.f), T(0.f))}, idx);
+    }
+    lookup_radiance<S>(L, idx, Le_r, Le_g, Le_b);
+  });
+  return pick * pdf_point;
+}
+
+// The source a traced bounce ray (lanes [k, k + width) of the bounce packets) reached:
+// its light index, or -1 (no hit, not traced, or not an emitter).
+template <class T>
+inline i32_t<T> bounce_hit_light(const GeomView& G, const TileBuffers& tb, int k, const mask_t<T>& traced_in) {
+  const RayHit16& r = tb.bounce[k / packet_width];
+  const int l = k % packet_width;
+  const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(r.geomID + l));
+  const auto traced = i_mask_from_f(traced_in) && geom >= i32_t<T>(0);  // invalid_id reads as -1
+  if (!any(f_mask_from_i(traced))) return i32_t<T>(-1);
+  const i32_t<T> gi = max(geom, i32_t<T>(0));
+  const auto mesh = traced && geom < i32_t<T>(G.mesh_count);
+  const auto sphere = traced && geom >= i32_t<T>(G.mesh_count);
+  const i32_t<T> prim = load_i32<T>(reinterpret_cast<const int32_t*>(r.primID + l));
+  i32_t<T> light = sel(mesh, gather(G.tri_light, sel(mesh, gather(G.tri_offset, gi) + prim, i32_t<T>(0))), i32_t<T>(-1));
+  if (any(f_mask_from_i(sphere)))
+    light = sel(sphere, gather(G.sphere_light, sel(sphere, gi - i32_t<T>(G.mesh_count), i32_t<T>(0))), light);
+  return light;
+}
 
 // Lanes [j, j + width) of the hit queue.
 // Kinds with kind_rects: every source is a rectangle (the same values without dispatch).
@@ -25,25 +71,16 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
   const Vec3<T> x = load3<T>(tb.queue.x + j, tb.queue.y + j, tb.queue.z + j);
   const Vec3<T> wi = load3<T>(tb.queue.dx + j, tb.queue.dy + j, tb.queue.dz + j);
   const T dist = load<T>(tb.queue.dist + j);
-  // gathers, or permutes of small and medium tables (the same values)
-  T pdf_point, pick, Le_r, Le_g, Le_b;
-  with_table_tier(L, [&](auto tier) {
-    constexpr int S = decltype(tier)::value;
-    if constexpr ((Kinds & kind_rects) != 0)
-      pdf_point = pdf_rectangle_point_sa(est.point, gather_rect_light<S>(L, idx), x, wi, dist);
-    else pdf_point = pdf_light_point_sa(est.point, gather_light<S>(L, idx), x, wi, dist);
-    // the queue keeps no normal: the alias picker does not read its context
-    static_assert(!AliasPicker::reads_context, "a picker that reads the shading point needs the queue to keep its normal");
-    pick = AliasPicker{L}.template pmf<S>(PickContext<T>{x, Vec3<T>(T(0.f), T(0.f), T(0.f))}, idx);
-    lookup_radiance<S>(L, idx, Le_r, Le_g, Le_b);
-  });
-  const T pdf_l = pick * pdf_point;
+  T Le_r, Le_g, Le_b;
+  const T pdf_l = light_pdf_of_hit<T, Kinds>(L, est, tb, load_i32<T>(tb.queue.point + j), idx, x, wi, dist, Le_r, Le_g, Le_b);
   T w(1.f);
   if (est.strategy == Strategy::mis) {
     const T q_b = T(rate_bsdf) * load<T>(tb.queue.pdf + j);
     w = mis_weight(est.heuristic, q_b, T(rate_light) * pdf_l, est.mis);
-  } else if (est.strategy == Strategy::light) {
-    w = T(0.f);  // the general pipeline traces BSDF rays even when they must not count
+  } else if (est.strategy == Strategy::light || est.strategy == Strategy::ris) {
+    // the general pipeline traces BSDF rays even when they must not count; resampled
+    // importance sampling (ris.h) covers every direction but the delta lobes'
+    w = T(0.f);
   }
   if constexpr (Delta) w = sel(f_mask_from_i(load_i32<T>(tb.queue.delta + j) != i32_t<T>(0)), T(1.f), w);
   const T factor = sel(live, w / T(rate_bsdf), T(0.f));
@@ -64,17 +101,10 @@ TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView
                                               bool chosen_only = false) {
   const RayHit16& r = tb.bounce[k / packet_width];
   const int l = k % packet_width;
-  const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(r.geomID + l));
-  auto traced = load_i32<T>(tb.tech.valid + k) != i32_t<T>(0) && geom >= i32_t<T>(0);  // invalid_id reads as -1
-  if (chosen_only) traced = traced && i_mask_from_f(load<T>(tb.points.choose_light + k) < T(0.5f));
-  if (!any(f_mask_from_i(traced))) return;  // no hit (most rays, against the emitters only)
-  const i32_t<T> gi = max(geom, i32_t<T>(0));
-  const auto mesh = traced && geom < i32_t<T>(G.mesh_count);
-  const auto sphere = traced && geom >= i32_t<T>(G.mesh_count);
-  const i32_t<T> prim = load_i32<T>(reinterpret_cast<const int32_t*>(r.primID + l));
-  i32_t<T> light = sel(mesh, gather(G.tri_light, sel(mesh, gather(G.tri_offset, gi) + prim, i32_t<T>(0))), i32_t<T>(-1));
-  if (any(f_mask_from_i(sphere)))
-    light = sel(sphere, gather(G.sphere_light, sel(sphere, gi - i32_t<T>(G.mesh_count), i32_t<T>(0))), light);
+  auto traced = f_mask_from_i(load_i32<T>(tb.tech.valid + k) != i32_t<T>(0));
+  if (chosen_only) traced = traced && load<T>(tb.points.choose_light + k) < T(0.5f);
+  // (no hit: most rays, against the emitters only)
+  const i32_t<T> light = bounce_hit_light<T>(G, tb, k, traced);
   const auto lit = f_mask_from_i(light >= i32_t<T>(0));
   if (!any(lit)) return;
   const i32_t<T> li = max(light, i32_t<T>(0));
@@ -171,7 +201,7 @@ inline void weight_queue(const LightView& L, const Estimator& est, float rate_li
   for_lane_batches<vfloat2>(0, qpadded, [&](auto lane, int j) {
     weight_lanes<typename decltype(lane)::type, Kinds, Delta>(L, est, rate_light, rate_bsdf, tb, j);
   });
-  if (!Delta && est.strategy == Strategy::light) return;
+  if (!Delta && (est.strategy == Strategy::light || est.strategy == Strategy::ris)) return;
   for (int j = 0; j < nq; ++j) {
     if (!(tb.queue.vis[j] > 0.f)) continue;
     const float r = tb.tech.cr[j], g = tb.tech.cg[j], b = tb.tech.cb[j];

@@ -10,8 +10,10 @@
 
 namespace tuile {
 
-enum class Strategy : int { light = 0, bsdf = 1, mis = 2 };
-enum class LightPick : int { all = 0, uniform = 1, area = 2, power = 3 };
+// ris: resampled importance sampling of the light and BSDF techniques' candidates (wave/ris.h)
+enum class Strategy : int { light = 0, bsdf = 1, mis = 2, ris = 3 };
+// bvh: the light BVH (light/bvh.h), which depends on the shading point and its normal
+enum class LightPick : int { all = 0, uniform = 1, area = 2, power = 3, bvh = 4 };
 enum class MisMode : int { multi = 0, one = 1 };
 
 struct Estimator {
@@ -23,6 +25,10 @@ struct Estimator {
   MisMode mode = MisMode::multi;
   int light_samples = 1;
   int bsdf_samples = 1;
+  // --strategy ris: candidates per shading point from the light picker (M) and from BSDF
+  // sampling (K)
+  int ris_light = 8;
+  int ris_bsdf = 1;
   SamplerKind sampler = SamplerKind::sobol;
   bool aov_mis_weight = false;  // accumulate the BSDF technique's MIS weight (AOV) at all
   uint32_t seed = 0;

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <type_traits>
 
+#include "light/bvh.h"
 #include "wave/surface_bsdf.h"
 
 namespace tuile {
@@ -23,23 +24,41 @@ struct LightPass {
   float rate_bsdf = 1.f;
 };
 
+// One light sample of lanes [k, k + width) before any weight: the source and point drawn
+// (u0: the pick, u2 u3: the point), the BSDF's value and density for the direction, and
+// the shadow ray to the point. The light technique's estimate is
+// f Le cos_x scale w / (rate_light pdf_l) with pdf_l = pick pdf_sa (a delta source's: pick);
+// resampled importance sampling (ris.h) takes the same samples as candidates.
+template <class T> struct LightCandidate {
+  BsdfEval<T> fe;       // the BSDF's value and density for wi
+  T Le_r, Le_g, Le_b;   // the source's radiance
+  T cos_x, scale;       // |cos| at the shading normal (transmitting surfaces) and the sample's scale
+  T pick, pdf_sa;       // the pick's probability and the point's density in solid angle
+  mask_t<T> is_delta;   // a delta source (no density: pdf_l is the pick's probability)
+  mask_t<T> ok;         // an active lane, a valid point, on the emitting side, cos_x > 0
+  Vec3<T> org, dir;     // the shadow ray, stopping at tfar
+  T tfar;
+  mask_t<T> ray_ok;     // the ray is finite (Embree does not skip non-finite rays)
+};
+
 // Kinds: which kinds of source can occur (kind_area, kind_delta); Pick: whether lanes pick
 // a source (false: every lane samples pass.fixed_light, as with one light or "all");
 // Bsdfs: the kinds of surface (bsdf/material.h). Surfaces that transmit take light from
 // below too (|cos|, and the shadow ray leaves from that side); a delta lobe has f = 0 here.
 template <class T, unsigned Kinds = kind_all, bool Pick = true, unsigned Bsdfs = bsdf_diffuse>
-TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView& L, const Estimator& est, const LightPass& pass,
-                                              TileBuffers& tb, int k) {
-  auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.points.count));
-  if (est.one_sample()) active = active && (load<T>(tb.points.choose_light + k) > T(0.5f));
+TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, const LightView& L, const Estimator& est,
+                                                             const LightPass& pass, TileBuffers& tb, int k,
+                                                             const mask_t<T>& active) {
+  LightCandidate<T> out;
   const Vec3<T> x = load3<T>(tb.points.px + k, tb.points.py + k, tb.points.pz + k);
   const Vec3<T> n = load3<T>(tb.points.nx + k, tb.points.ny + k, tb.points.nz + k);
   const T eps = load<T>(tb.points.eps + k);
 
   LightGeom<T> g;
-  T pick, Le_r, Le_g, Le_b;
+  T pick;
   const AliasPicker picker{L};
-  static_assert(!AliasPicker::reads_context, "a picker that reads the shading point needs its context filled here");
+  // the light BVH's context: the point and its geometric normal (pbrt-v4's), the same bits
+  // the emitter-hit queue gives the pmf (emitter_hits.h)
   const PickContext<T> ctx{x, n};
   if constexpr (Pick) {
     // per-lane sources: gathers, or permutes of small and medium tables (the same values)
@@ -50,21 +69,23 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
         idx = i32_t<T>(pass.fixed_light);
         pick = picker.template pmf<S>(ctx, idx);
       } else {
-        const PickedLight<T> picked = picker.template pick<S>(ctx, load<T>(tb.tech.u0 + k));
+        const T u = load<T>(tb.tech.u0 + k);
+        const PickedLight<T> picked =
+            L.bvh ? BvhPicker{*L.bvh}.template pick<S>(ctx, u) : picker.template pick<S>(ctx, u);
         idx = picked.light;
         pick = picked.pmf;
       }
       if constexpr ((Kinds & kind_rects) != 0) g = gather_rect_light<S>(L, idx);
       else g = gather_light<S>(L, idx);
-      lookup_radiance<S>(L, idx, Le_r, Le_g, Le_b);
+      lookup_radiance<S>(L, idx, out.Le_r, out.Le_g, out.Le_b);
     });
   } else {  // every lane samples the same source: broadcasts, no gathers
     const int32_t li = pass.fixed_light;
     g = broadcast_light<T>(L, li);
     pick = picker.template pmf<tier_gather>(ctx, li);
-    Le_r = T(L.Lr[li]);
-    Le_g = T(L.Lg[li]);
-    Le_b = T(L.Lb[li]);
+    out.Le_r = T(L.Lr[li]);
+    out.Le_g = T(L.Lg[li]);
+    out.Le_b = T(L.Lb[li]);
   }
   const LightPointSample<T> s =
       sample_light_point<Kinds>(est.point, g, x, load<T>(tb.tech.u2 + k), load<T>(tb.tech.u3 + k));
@@ -73,36 +94,17 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
   // the shading normal where the scene has them (vertex normals, bump maps: the BSDF's
   // frame and the cosine), the geometric one n for offsets and which side wi leaves by
   const Vec3<T> ns = G.shading_normals ? load3<T>(tb.points.snx + k, tb.points.sny + k, tb.points.snz + k) : n;
-  const BsdfEval<T> fe = load_surface_bsdf<T, Bsdfs>(G, tb.points, k, ns).eval(s.wi);
+  out.fe = load_surface_bsdf<T, Bsdfs>(G, tb.points, k, ns).eval(s.wi);
   constexpr bool transmits = (Bsdfs & bsdf_transmits) != 0;
   const T cos_s = dot(ns, s.wi);
-  const T cos_x = transmits ? abs(cos_s) : cos_s;
+  out.cos_x = transmits ? abs(cos_s) : cos_s;
   const auto planar = rects ? mask_t<T>(true) : type_is<T>(g.type, lt_triangle) || type_is<T>(g.type, lt_parallelogram);
   const auto front = !planar || g.two_sided > T(0.f) || dot(x - g.p0, g.n) > T(0.f);
-  const T pdf_l = pick * s.pdf_sa;
-  T w(1.f);
-  if (est.strategy == Strategy::mis) {
-    const T q_l = T(pass.rate_light) * pdf_l;
-    const T q_b = T(pass.rate_bsdf) * fe.pdf;
-    w = sel(s.is_delta, T(1.f), mis_weight(est.heuristic, q_l, q_b, est.mis));
-  } else if (est.strategy == Strategy::bsdf) {
-    w = sel(s.is_delta, T(1.f), T(0.f));  // area lights are left to the BSDF technique
-  }
-  const T denom = T(pass.rate_light) * sel(s.is_delta, pick, pdf_l);
-  const auto ok = active && s.valid && front && cos_x > T(0.f) && denom > T(0.f) && w > T(0.f);
-  const T factor = sel(ok, w * cos_x * rcp_nr(sel(ok, denom, T(1.f))) * s.scale, T(0.f));
-  const T c_r = fe.f.r * Le_r * factor;
-  const T c_g = fe.f.g * Le_g * factor;
-  const T c_b = fe.f.b * Le_b * factor;
-  // the channels are >= 0 or NaN: their sum is finite iff each one is
-  const T c_sum = c_r + c_g + c_b;
-  const auto fin = is_finite(c_sum);
-  auto live = ok && fin && (c_sum > T(0.f));
-  store(tb.tech.cr + k, sel(live, c_r, T(0.f)));
-  store(tb.tech.cg + k, sel(live, c_g, T(0.f)));
-  store(tb.tech.cb + k, sel(live, c_b, T(0.f)));
-  // count contributions dropped as non-finite where the sample itself was fine
-  if (any(ok && !fin)) tb.stats.rejected_light += static_cast<uint64_t>(count(ok && !fin));
+  out.pick = pick;
+  out.pdf_sa = s.pdf_sa;
+  out.scale = s.scale;
+  out.is_delta = s.is_delta;
+  out.ok = active && s.valid && front && out.cos_x > T(0.f);
 
   // Shadow ray from the offset origin to the light point, itself offset off the source
   // towards x (pbrt's "spawn ray to"): at grazing angles the ray along wi from a lifted
@@ -110,9 +112,9 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
   // relative (measured), so the ray stops 2^-12 of its length short.
   // (the offset goes to the side wi leaves by: below the surface for transmission, or
   // where a shading normal lets wi dip under the geometric plane, as pbrt-v4 offsets)
-  const Vec3<T> org = transmits || G.shading_normals
-                          ? x + sel(dot(n, s.wi) < T(0.f), Vec3<T>(T(0.f), T(0.f), T(0.f)) - n, n) * eps
-                          : x + n * eps;
+  out.org = transmits || G.shading_normals
+                ? x + sel(dot(n, s.wi) < T(0.f), Vec3<T>(T(0.f), T(0.f), T(0.f)) - n, n) * eps
+                : x + n * eps;
   const auto is_dist = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_distant);
   const auto is_sph = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_sphere);
   const Vec3<T> y = x + s.wi * sel(is_dist, T(0.f), s.dist);
@@ -132,18 +134,50 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
   ny = sel(planar || is_sph, ny, Vec3<T>(T(0.f), T(0.f), T(0.f)));
   const T eps_y = abs(ny.x) * err_y.x + abs(ny.y) * err_y.y + abs(ny.z) * err_y.z;
   const Vec3<T> target = y + ny * eps_y;
-  const Vec3<T> to = target - org;
+  const Vec3<T> to = target - out.org;
   const T len2 = dot(to, to);
   const T ilen = rsqrt_nr(sel(len2 > T(0.f), len2, T(1.f)));
   const T len = len2 * ilen;
-  const Vec3<T> dir = sel(is_dist || !(len > T(0.f)), s.wi, to * ilen);
-  const T tfar = sel(is_dist, T(3.0e38f), len * T(1.f - 1.f / 4096.f));
-  // Embree does not skip non-finite rays: a lane whose ray is not finite is dropped (one
-  // test on the sum: a NaN or infinite term makes it non-finite)
-  const auto ray_ok = is_finite(((dir.x + dir.y) + (dir.z + tfar)) + ((org.x + org.y) + org.z));
-  if (any(live && !ray_ok)) tb.stats.rejected_light += static_cast<uint64_t>(count(live && !ray_ok));
-  live = live && ray_ok;
-  store_rays(tb.shadow, k, org, dir, tfar);
+  out.dir = sel(is_dist || !(len > T(0.f)), s.wi, to * ilen);
+  out.tfar = sel(is_dist, T(3.0e38f), len * T(1.f - 1.f / 4096.f));
+  // one test on the sum: a NaN or infinite term makes it non-finite
+  out.ray_ok = is_finite(((out.dir.x + out.dir.y) + (out.dir.z + out.tfar)) + ((out.org.x + out.org.y) + out.org.z));
+  return out;
+}
+
+template <class T, unsigned Kinds = kind_all, bool Pick = true, unsigned Bsdfs = bsdf_diffuse>
+TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView& L, const Estimator& est, const LightPass& pass,
+                                              TileBuffers& tb, int k) {
+  auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.points.count));
+  if (est.one_sample()) active = active && (load<T>(tb.points.choose_light + k) > T(0.5f));
+  const LightCandidate<T> s = light_candidate_lanes<T, Kinds, Pick, Bsdfs>(G, L, est, pass, tb, k, active);
+  const T pdf_l = s.pick * s.pdf_sa;
+  T w(1.f);
+  if (est.strategy == Strategy::mis) {
+    const T q_l = T(pass.rate_light) * pdf_l;
+    const T q_b = T(pass.rate_bsdf) * s.fe.pdf;
+    w = sel(s.is_delta, T(1.f), mis_weight(est.heuristic, q_l, q_b, est.mis));
+  } else if (est.strategy == Strategy::bsdf) {
+    w = sel(s.is_delta, T(1.f), T(0.f));  // area lights are left to the BSDF technique
+  }
+  const T denom = T(pass.rate_light) * sel(s.is_delta, s.pick, pdf_l);
+  const auto ok = s.ok && denom > T(0.f) && w > T(0.f);
+  const T factor = sel(ok, w * s.cos_x * rcp_nr(sel(ok, denom, T(1.f))) * s.scale, T(0.f));
+  const T c_r = s.fe.f.r * s.Le_r * factor;
+  const T c_g = s.fe.f.g * s.Le_g * factor;
+  const T c_b = s.fe.f.b * s.Le_b * factor;
+  // the channels are >= 0 or NaN: their sum is finite iff each one is
+  const T c_sum = c_r + c_g + c_b;
+  const auto fin = is_finite(c_sum);
+  auto live = ok && fin && (c_sum > T(0.f));
+  store(tb.tech.cr + k, sel(live, c_r, T(0.f)));
+  store(tb.tech.cg + k, sel(live, c_g, T(0.f)));
+  store(tb.tech.cb + k, sel(live, c_b, T(0.f)));
+  // count contributions dropped as non-finite where the sample itself was fine
+  if (any(ok && !fin)) tb.stats.rejected_light += static_cast<uint64_t>(count(ok && !fin));
+  if (any(live && !s.ray_ok)) tb.stats.rejected_light += static_cast<uint64_t>(count(live && !s.ray_ok));
+  live = live && s.ray_ok;
+  store_rays(tb.shadow, k, s.org, s.dir, s.tfar);
   store_valid(tb.tech.valid + k, live);
 }
 

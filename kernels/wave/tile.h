@@ -129,6 +129,16 @@ struct EmitterHitQueue {
   alignas(64) int32_t valid[lane_array];
 };
 
+// Resampled importance sampling (wave/ris.h): each shading point's reservoir over the
+// candidates seen so far: the sum of their resampling weights, and the kept candidate's
+// integrand over its target (f Le cos / p-hat, per channel) and shadow ray.
+struct RisReservoirs {
+  alignas(64) float wsum[lane_array];
+  alignas(64) float cr[lane_array], cg[lane_array], cb[lane_array];
+  alignas(64) float ox[lane_array], oy[lane_array], oz[lane_array];
+  alignas(64) float dx[lane_array], dy[lane_array], dz[lane_array], tfar[lane_array];
+};
+
 // The sampler's stream keys (sample/rng.h PairKeys) of pairs 0 .. pairs - 1, per tile lane
 // (made once per tile by run_tile) and per shading point (compacted by camera_hits).
 // Bit p of keyed: pair p is cached; without it the stages hash the pixel every sample.
@@ -173,6 +183,7 @@ struct alignas(64) TileBuffers {
   TexturedPoints textured;
   TechniqueSample tech;
   EmitterHitQueue queue;
+  RisReservoirs ris;
   SamplerKeys keys;
   TileCounters stats;
 };

@@ -12,10 +12,16 @@ namespace tuile {
 void add_render_flags(CLI::App& app, RenderFlags& f) {
   app.add_option("scene", f.scene, "Scene: a pbrt-v4 file (.pbrt, .pbrt.gz) or built-in:two-panels / built-in:cornell")
       ->capture_default_str();
-  app.add_option("--strategy", f.strategy, "light | bsdf | mis")->capture_default_str();
+  app.add_option("--strategy", f.strategy,
+                 "light | bsdf | mis | ris (resampled importance sampling of --ris-light light and --ris-bsdf BSDF "
+                 "candidates, one shadow ray)")
+      ->capture_default_str();
+  app.add_option("--ris-light", f.ris_light, "ris: candidates from the light picker per shading point")->capture_default_str();
+  app.add_option("--ris-bsdf", f.ris_bsdf, "ris: candidates from BSDF sampling per shading point")->capture_default_str();
   app.add_option("--light-pick", f.light_pick,
-                 "all (every source, N points each) | uniform (p = 1/S) | area (p = A/sum A) | power (p ~ power); "
-                 "default: the scene file's, else power");
+                 "all (every source, N points each) | uniform (p = 1/S) | area (p = A/sum A) | power (p ~ power) | "
+                 "bvh (a light BVH: p ~ each source's importance for the shading point); default: the scene file's "
+                 "lightsampler, else power");
   app.add_option("--light-point", f.light_point, "area (uniform by area, pdf d^2/(cos A)) | solid-angle")
       ->capture_default_str();
   app.add_option("--heuristic", f.heuristic, "balance | power | cutoff | maximum (Veach & Guibas 1995)")
@@ -80,8 +86,14 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   RenderOptions o;
   Estimator& e = o.est;
   e.strategy = parse_strategy(f.strategy);
-  const std::string pick = !f.light_pick.empty() ? f.light_pick : !scene.file_light_pick.empty() ? scene.file_light_pick : "power";
+  // ris takes its light candidates from the light BVH unless told otherwise
+  const std::string pick = !f.light_pick.empty()             ? f.light_pick
+                           : !scene.file_light_pick.empty() ? scene.file_light_pick
+                           : e.strategy == Strategy::ris    ? "bvh"
+                                                            : "power";
   e.pick = parse_light_pick(pick);
+  e.ris_light = f.ris_light;
+  e.ris_bsdf = f.ris_bsdf;
   e.point = parse_light_point(f.light_point);
   e.heuristic = parse_heuristic(f.heuristic);
   e.mode = parse_mis_mode(f.mis_mode);

@@ -12,6 +12,7 @@ namespace tuile {
 
 struct RenderFlags {
   std::string scene = "built-in:two-panels";
+  int ris_light = 8, ris_bsdf = 1;
   std::string strategy = "mis", light_pick, light_point = "solid-angle", heuristic = "power", mis_mode = "multi";
   std::string sampler, res, output, aov, pipeline = "auto", bounce_rays = "auto";
   std::string filter;  // pixel filter; "": the scene file's PixelFilter, else box

@@ -100,6 +100,23 @@ int run_info(const RenderFlags& f) {
     std::string why;
     const std::string name = r.pipeline_name(&why);
     std::printf("pipeline: %s (%s)\n", name.c_str(), why.c_str());
+    // which picker chooses the source of each light sample
+    if (const LightBvh* b = r.light_bvh()) {
+      const LightBvhView bv = b->view();
+      const size_t in_tree = static_cast<size_t>(bv.nodes + 1) / 2, distant = static_cast<size_t>(bv.distant);
+      std::printf("light picker: bvh (a light BVH over %zu sources, depth %d, %.1f bytes per source, built in %.3f s; "
+                  "%zu distant sources picked beside it)\n",
+                  in_tree, b->depth,
+                  static_cast<double>(b->bytes()) / static_cast<double>(std::max<size_t>(1, scene.lights.size())),
+                  r.light_bvh_seconds(), distant);
+    } else if (opt.est.pick == LightPick::all) {
+      std::printf("light picker: all (every source takes the light samples)\n");
+    } else {
+      static const char* names[] = {"all", "uniform", "area", "power", "bvh"};
+      std::printf("light picker: %s (an alias table: the same probabilities at every shading point)%s\n",
+                  names[static_cast<int>(opt.est.pick)],
+                  opt.est.pick == LightPick::bvh ? "; bvh needs two sources or more" : "");
+    }
     if (opt.est.max_depth > 1)
       std::printf("paths: up to %d vertices, Russian roulette after vertex %d (pbrt-v4's rule); bounce rays against the "
                   "whole scene, the last vertex's against the %s\n",

@@ -40,6 +40,8 @@ const StrategyDef strategy_table[] = {
      [](RenderFlags& f) { f.strategy = "light", f.light_pick = "power"; }},
     {"light:all", "--strategy light --light-pick all",
      [](RenderFlags& f) { f.strategy = "light", f.light_pick = "all"; }},
+    {"light:bvh", "--strategy light --light-pick bvh",
+     [](RenderFlags& f) { f.strategy = "light", f.light_pick = "bvh"; }},
     {"bsdf", "--strategy bsdf", [](RenderFlags& f) { f.strategy = "bsdf"; }},
     {"mis:balance", "--strategy mis --mis-mode multi --heuristic balance",
      [](RenderFlags& f) { f.strategy = "mis", f.mis_mode = "multi", f.heuristic = "balance"; }},
@@ -53,6 +55,12 @@ const StrategyDef strategy_table[] = {
      [](RenderFlags& f) { f.strategy = "mis", f.mis_mode = "one", f.heuristic = "balance"; }},
     {"mis-one:power", "--strategy mis --mis-mode one --heuristic power",
      [](RenderFlags& f) { f.strategy = "mis", f.mis_mode = "one", f.heuristic = "power"; }},
+    {"mis:bvh", "--strategy mis --mis-mode multi --heuristic power --light-pick bvh",
+     [](RenderFlags& f) { f.strategy = "mis", f.mis_mode = "multi", f.heuristic = "power", f.light_pick = "bvh"; }},
+    {"ris", "--strategy ris --light-pick bvh (--ris-light, --ris-bsdf as given: 8 and 1 by default)",
+     [](RenderFlags& f) { f.strategy = "ris", f.light_pick = "bvh"; }},
+    {"ris:power", "--strategy ris --light-pick power",
+     [](RenderFlags& f) { f.strategy = "ris", f.light_pick = "power"; }},
 };
 
 const StrategyDef& find_strategy(const std::string& name) {

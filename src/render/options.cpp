@@ -21,6 +21,13 @@ void validate(const RenderOptions& o) {
   if (!(e.mis.alpha >= 0 && e.mis.alpha <= 1)) throw std::invalid_argument("--alpha must be in [0, 1]");
   if (e.light_samples < 1 || e.light_samples > 4096) throw std::invalid_argument("--light-samples must be in 1..4096");
   if (e.bsdf_samples < 1 || e.bsdf_samples > 4096) throw std::invalid_argument("--bsdf-samples must be in 1..4096");
+  if (e.strategy == Strategy::ris) {
+    if (e.ris_light < 0 || e.ris_light > 1024) throw std::invalid_argument("--ris-light must be in 0..1024");
+    if (e.ris_bsdf < 0 || e.ris_bsdf > 1024) throw std::invalid_argument("--ris-bsdf must be in 0..1024");
+    if (e.ris_light + e.ris_bsdf < 1) throw std::invalid_argument("--strategy ris needs --ris-light + --ris-bsdf >= 1");
+    if (e.pick == LightPick::all)
+      throw std::invalid_argument("--strategy ris picks a source per candidate: --light-pick all does not apply");
+  }
   if (e.max_depth < 1 || e.max_depth > 100000) throw std::invalid_argument("--max-depth must be in 1..100000");
   if (e.rr_depth < 0 || e.rr_depth > 100000) throw std::invalid_argument("--rr-depth must be in 0..100000");
   if (o.threads < 0 || o.threads > 1024) throw std::invalid_argument("--threads must be in 0..1024");
@@ -34,14 +41,16 @@ Strategy parse_strategy(const std::string& s) {
   if (s == "light") return Strategy::light;
   if (s == "bsdf") return Strategy::bsdf;
   if (s == "mis") return Strategy::mis;
-  throw std::invalid_argument("unknown strategy '" + s + "' (expected light, bsdf or mis)");
+  if (s == "ris") return Strategy::ris;
+  throw std::invalid_argument("unknown strategy '" + s + "' (expected light, bsdf, mis or ris)");
 }
 LightPick parse_light_pick(const std::string& s) {
   if (s == "all") return LightPick::all;
   if (s == "uniform") return LightPick::uniform;
   if (s == "area") return LightPick::area;
   if (s == "power") return LightPick::power;
-  throw std::invalid_argument("unknown light pick '" + s + "' (expected all, uniform, area or power)");
+  if (s == "bvh") return LightPick::bvh;
+  throw std::invalid_argument("unknown light pick '" + s + "' (expected all, uniform, area, power or bvh)");
 }
 LightPoint parse_light_point(const std::string& s) {
   if (s == "area") return LightPoint::area;
@@ -75,8 +84,8 @@ SamplerKind parse_sampler(const std::string& s) {
 }
 
 std::string describe(const Estimator& e) {
-  static const char* strategies[] = {"light", "bsdf", "mis"};
-  static const char* picks[] = {"all", "uniform", "area", "power"};
+  static const char* strategies[] = {"light", "bsdf", "mis", "ris"};
+  static const char* picks[] = {"all", "uniform", "area", "power", "bvh"};
   static const char* points[] = {"area", "solid-angle"};
   static const char* heuristics[] = {"balance", "power", "cutoff", "maximum"};
   static const char* samplers[] = {"independent", "stratified", "sobol"};
@@ -85,7 +94,11 @@ std::string describe(const Estimator& e) {
   if (e.strategy == Strategy::mis)
     s += std::string(" heuristic=") + heuristics[static_cast<int>(e.heuristic)] +
          (e.mode == MisMode::one ? " mis-mode=one" : " mis-mode=multi");
-  s += " light-samples=" + std::to_string(e.light_samples) + " bsdf-samples=" + std::to_string(e.bsdf_samples) +
+  if (e.strategy == Strategy::ris)
+    s += " ris-light=" + std::to_string(e.ris_light) + " ris-bsdf=" + std::to_string(e.ris_bsdf);
+  else
+    s += " light-samples=" + std::to_string(e.light_samples) + " bsdf-samples=" + std::to_string(e.bsdf_samples);
+  s += std::string("") +
        " sampler=" + samplers[static_cast<int>(e.sampler)] + " spp=" + std::to_string(e.spp) +
        " seed=" + std::to_string(e.seed);
   if (e.max_depth > 1) s += " max-depth=" + std::to_string(e.max_depth) + " rr-depth=" + std::to_string(e.rr_depth);

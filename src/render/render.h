@@ -65,6 +65,9 @@ class Renderer {
   // Whether bounce rays run against the emitters (BounceTrace resolved for this scene).
   bool bounce_against_emitters() const { return bounce_against_emitters_; }
   const RenderOptions& options() const { return opt_; }
+  // The light BVH (--light-pick bvh with two sources or more; else null) and its build time.
+  const LightBvh* light_bvh() const;
+  double light_bvh_seconds() const;
   // A flag (set from anywhere, e.g. a signal handler) that stops a render at the next tile
   // boundary: the tiles not yet started are skipped and RenderStats::cancelled is set.
   void set_cancel_flag(const std::atomic<bool>* flag) { cancel_ = flag; }

@@ -45,10 +45,14 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   } else {
     bounce_against_emitters_ = opt_.bounce == BounceTrace::emitters;
   }
-  if (bounce_against_emitters_) accel_.prepare_emitters();
+  // resampled importance sampling's BSDF candidates look for the nearest emitter alone
+  if (bounce_against_emitters_ || (opt_.est.strategy == Strategy::ris && opt_.est.ris_bsdf > 0)) accel_.prepare_emitters();
 }
 
 Renderer::~Renderer() = default;
+
+const LightBvh* Renderer::light_bvh() const { return views_->light_bvh.get(); }
+double Renderer::light_bvh_seconds() const { return views_->light_bvh_seconds; }
 
 int Renderer::tile_count() const {
   const int ts = opt_.tile;
@@ -78,6 +82,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
   const SceneViews& v = *views_;
   const Estimator& est = opt_.est;
   const bool one = est.one_sample();
+  const bool ris = est.strategy == Strategy::ris;
   const float c_l = one ? est.one_sample_light_prob() : 0.f;
   const int ts = opt_.tile;
   TileContext c{v,
@@ -88,8 +93,10 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
                 div_up(cam.width, ts),
                 cam.width,
                 cam.height,
-                (est.pick == LightPick::all ? v.lights.count : 1) * (one ? 1 : est.light_samples),
-                one ? 1 : est.bsdf_samples,
+                // ris: the light candidates' pairs, and the BSDF candidates' and the last BSDF
+                // sample's (the path's continuation, the delta lobes)
+                ris ? est.ris_light : (est.pick == LightPick::all ? v.lights.count : 1) * (one ? 1 : est.light_samples),
+                ris ? est.ris_bsdf + 1 : one ? 1 : est.bsdf_samples,
                 v.lights.count,
                 SampleLayout{},
                 one ? c_l : static_cast<float>(est.light_samples),
@@ -98,7 +105,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
                 film.samples == 0,
                 profile,
                 __rdtsc()};
-  c.layout = SampleLayout{static_cast<uint32_t>(est.bsdf_samples), static_cast<uint32_t>(c.light_passes)};
+  c.layout = SampleLayout{static_cast<uint32_t>(ris ? c.bsdf_passes : est.bsdf_samples), static_cast<uint32_t>(c.light_passes)};
   std::string why;
   const PipelineEntry pipe = pick_pipeline(v, est, opt_.general_pipeline, why);
   const int all_tiles = c.tiles_x * (div_up(cam.height, ts));

@@ -16,6 +16,7 @@
 #include "wave/emitter_hits.h"
 #include "wave/generate.h"
 #include "wave/path.h"
+#include "wave/ris.h"
 #include "wave/sample_bsdf.h"
 #include "wave/sample_lights.h"
 #include "wave/surface_hits.h"
@@ -81,6 +82,54 @@ inline int active_lanes(const int32_t* valid) {
   int n = 0;
   for (int l = 0; l < packet_width; ++l) n += valid[l] != 0;
   return n;
+}
+
+// Resampled importance sampling of one vertex's direct light (wave/ris.h): the light
+// candidates, the BSDF candidates traced against the emitters, then one shadow ray per
+// shading point for the kept candidate.
+template <Features F>
+void run_ris(const TileContext& c, TileBuffers& tb, StageTimer& timer, const Estimator& e, uint32_t s, uint32_t d,
+             int packets, bool rec, ThreadProfile* tp) {
+  const SceneViews& v = c.v;
+  const SampleLayout& layout = c.layout;
+  ris_clear(tb);
+  LightPass pass;
+  pass.fixed_light = F.pick ? -1 : 0;
+  for (int j = 0; j < e.ris_light; ++j)
+    ris_light_candidates<F.kinds, F.pick, F.bsdfs>(v.geom, v.lights, e, pass, s, layout.light_pick(static_cast<uint32_t>(j), d),
+                                                   layout.light_point(static_cast<uint32_t>(j), d), tb);
+  timer.lap(Stage::sample_lights);
+  for (int m = 0; m < e.ris_bsdf; ++m) {
+    const uint32_t mm = static_cast<uint32_t>(m);
+    sample_bsdf<F.bsdfs>(v.geom, e, s, layout.bsdf(mm, d), layout.bsdf_lobe(mm, d), tb);
+    timer.lap(Stage::sample_bsdf);
+    clear_high_vector_registers();
+    for (int p = 0; p < packets; ++p) {
+      const int32_t* valid = tb.tech.valid + p * packet_width;
+      const int active = active_lanes(valid);
+      if (!active) continue;
+      if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
+      c.accel.intersect16(valid, tb.bounce[p], false, Bvh::emitters);
+      tb.stats.rays_bounce += static_cast<uint64_t>(active);
+    }
+    timer.lap(Stage::intersect_bounce);
+    ris_bsdf_candidates<F.kinds, F.bsdfs>(v.geom, v.lights, e, s, layout.bsdf_lobe(mm, d), tb);
+    timer.lap(Stage::sample_lights);
+  }
+  ris_finish(tb);
+  timer.lap(Stage::sample_lights);
+  clear_high_vector_registers();
+  for (int p = 0; p < packets; ++p) {
+    const int32_t* valid = tb.tech.valid + p * packet_width;
+    const int active = active_lanes(valid);
+    if (!active) continue;
+    if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], valid); });
+    c.accel.occluded16(valid, tb.shadow[p], false);
+    tb.stats.rays_shadow += static_cast<uint64_t>(active);
+  }
+  timer.lap(Stage::intersect_shadow);
+  accumulate_shadow(tb);
+  timer.lap(Stage::accumulate);
 }
 
 // The tile pipeline, instantiated per Features (wave/features.h): it leaves out what its
@@ -179,7 +228,9 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
         tp->depth_lane_packets[row] += static_cast<uint64_t>(cam_packets);
       }
       if constexpr (F.light) {
-        if (tb.points.count > 0) {
+        if (tb.points.count > 0 && e.strategy == Strategy::ris) {
+          if constexpr (F.bsdf) run_ris<F>(c, tb, timer, e, s, d, packets, rec, tp);
+        } else if (tb.points.count > 0) {
           for (int j = 0; j < c.light_passes; ++j) {
             LightPass pass;
             pass.fixed_light = e.pick == LightPick::all ? j % c.light_count : (F.pick ? -1 : 0);
@@ -208,10 +259,15 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
           // the last vertex's bounce rays may look for the emitters alone (then a visibility
           // ray); a path's other bounce rays need their nearest hit in the scene
           const bool against_emitters = last && c.bounce_against_emitters;
-          for (int m = 0; m < c.bsdf_passes; ++m) {
+          // resampled importance sampling took its BSDF candidates (run_ris): what is left is
+          // the last BSDF sample, for the path's continuation and the delta lobes
+          const bool ris = e.strategy == Strategy::ris;
+          for (int m = ris ? c.bsdf_passes - 1 : 0; m < c.bsdf_passes; ++m) {
             const bool continuation = !last && m == c.bsdf_passes - 1;
+            if (ris && !continuation && (F.bsdfs & bsdf_delta_capable) == 0) break;
             sample_bsdf<F.bsdfs>(v.geom, e, s, layout.bsdf(static_cast<uint32_t>(m), d),
-                                 layout.bsdf_lobe(static_cast<uint32_t>(m), d), tb, e.strategy == Strategy::light, continuation);
+                                 layout.bsdf_lobe(static_cast<uint32_t>(m), d), tb,
+                                 e.strategy == Strategy::light || ris, continuation);
             timer.lap(Stage::sample_bsdf);
             clear_high_vector_registers();
             const Bvh bvh = against_emitters ? Bvh::emitters : Bvh::scene;
@@ -312,6 +368,7 @@ Features pipeline_features(const SceneViews& v, const Estimator& est, bool gener
   const bool materials = v.has_materials();
   Features f;
   f.light = v.lights.count > 0 && (est.strategy != Strategy::bsdf || delta);
+  const bool ris = est.strategy == Strategy::ris && v.lights.count > 0;
   // a specular surface needs its BSDF samples whatever the strategy: no light sample finds
   // the light it reflects (sample_bsdf traces only those under --strategy light)
   f.bsdf = area && (est.strategy != Strategy::light || (v.bsdf_kinds & bsdf_delta_capable) != 0);
@@ -327,10 +384,18 @@ Features pipeline_features(const SceneViews& v, const Estimator& est, bool gener
     f.emitter_lookup = true;
     if (!area) f.kinds = kind_all;
   }
+  if (ris) {  // the BSDF candidates and the last BSDF sample run on every scene with lights
+    f.bsdf = true;
+    f.emitter_lookup = true;
+    if (!area) f.kinds = kind_all;
+  }
   if (!f.light && !f.bsdf) f = Features{kind_all, false, false, false, false, bsdf_diffuse};
   why = std::string(area ? "area lights" : "no area light") + ", " + (delta ? "delta lights" : "no delta light") + ", " +
         std::to_string(v.lights.count) + " light(s), pick " + (f.pick ? "per lane" : "none") + ", strategy " +
-        (est.strategy == Strategy::mis ? "mis" : est.strategy == Strategy::light ? "light" : "bsdf") +
+        (est.strategy == Strategy::mis     ? "mis"
+         : est.strategy == Strategy::light ? "light"
+         : est.strategy == Strategy::ris   ? "ris"
+                                           : "bsdf") +
         (materials ? ", surfaces other than diffuse" : ", diffuse surfaces") +
         (est.max_depth > 1 ? ", paths of up to " + std::to_string(est.max_depth) + " vertices" : "");
   return f;

@@ -3,6 +3,7 @@
 #include "render/views.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
@@ -132,6 +133,13 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   L.pick_pdf = v.pick_pdf.data();
   L.alias_prob = v.alias_prob.data();
   L.alias_idx = v.alias_idx.data();
+  if (pick == LightPick::bvh && n > 1) {
+    const auto t0 = std::chrono::steady_clock::now();
+    v.light_bvh = std::make_unique<LightBvh>(build_light_bvh(lights));
+    v.light_bvh_view = std::make_unique<LightBvhView>(v.light_bvh->view());
+    v.light_bvh_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    L.bvh = v.light_bvh_view.get();
+  }
 
   const int32_t default_material = static_cast<int32_t>(scene.materials.size());
   // Flattened triangles, gathered by the camera-hit stage at 9 * triangle in int32 lanes.

@@ -1,8 +1,10 @@
 // SceneViews: the scene as the kernels read it, built once per renderer.
 #pragma once
 #include <cstdint>
+#include <memory>
 #include <vector>
 
+#include "render/light_bvh.h"
 #include "scene/scene.h"
 #include "wave/tile.h"
 
@@ -24,6 +26,11 @@ struct SceneViews {
   std::vector<float> pick_pdf, alias_prob;
   std::vector<int32_t> alias_idx;
   LightView lights;
+  // --light-pick bvh with two sources or more: the light BVH and its view (lights.bvh; on
+  // the heap, so that moving the views keeps the pointer), its build time
+  std::unique_ptr<LightBvh> light_bvh;
+  std::unique_ptr<LightBvhView> light_bvh_view;
+  double light_bvh_seconds = 0;
   // geometry
   std::vector<float> sphere_center;
   std::vector<int32_t> geom_material, sphere_light, mat_texture, tex_w, tex_h;

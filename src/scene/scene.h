@@ -171,7 +171,7 @@ struct Scene {
   // Settings from the file (pbrt Sampler/Film/Integrator); the command line overrides them.
   int file_spp = 0;
   std::string file_sampler;       // "", "independent", "stratified", "sobol"
-  std::string file_light_pick;    // "", "uniform", "power", "area"
+  std::string file_light_pick;    // "", "uniform", "power", "bvh"
   int file_max_depth = 0;         // Integrator's maxdepth (pbrt's 5 when a file gives none); 0 for built-in scenes
   std::string file_output;        // Film "filename"
   FilterParams file_filter;       // PixelFilter (pbrt-v4's defaults per filter; none: the box of radius 1/2)

@@ -231,11 +231,8 @@ void Loader::directive(Lexer& lx, const Token& t) {
     const std::string type = string_arg(lx, "integrator type");
     Params ps = read_params(lx);
     const std::string pick = ps.one_string("lightsampler", "");
-    if (pick == "uniform" || pick == "power") scene.file_light_pick = pick;
-    else if (pick == "bvh") {
-      scene.file_light_pick = "power";
-      warn("lightsampler", where + ": lightsampler \"bvh\" replaced by power-proportional light selection");
-    } else if (!pick.empty()) warn("lightsampler", where + ": unknown lightsampler \"" + pick + "\" ignored");
+    if (pick == "uniform" || pick == "power" || pick == "bvh") scene.file_light_pick = pick;
+    else if (!pick.empty()) warn("lightsampler", where + ": unknown lightsampler \"" + pick + "\" ignored");
     const int depth = ps.one_int("maxdepth", 5);
     if (depth < 1 || depth > 100000) {
       const Param* p = ps.get("maxdepth", "integer");
