@@ -98,6 +98,26 @@ TEST(Cli, InfoNamesThePipeline) {
   EXPECT_NE(f.out.find("bounce rays: against the whole scene"), std::string::npos) << f.out;
 }
 
+// Many lights: info names the light picker (the BVH with its size; the alias table
+// otherwise), ris takes the BVH by default, and its flags out of range are errors naming them.
+TEST(Cli, LightPickerAndRisFlags) {
+  CmdResult r = run("info built-in:two-panels --light-pick bvh");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("light picker: bvh (a light BVH over 101 sources"), std::string::npos) << r.out;
+  r = run("info built-in:two-panels");
+  EXPECT_NE(r.out.find("light picker: power (an alias table"), std::string::npos) << r.out;
+  r = run("info built-in:two-panels --strategy ris");
+  EXPECT_NE(r.out.find("strategy=ris light-pick=bvh"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ris-light=8 ris-bsdf=1"), std::string::npos) << r.out;
+  for (const char* args : {"--ris-light -1", "--ris-bsdf 2000", "--ris-light 0 --ris-bsdf 0", "--light-pick all"}) {
+    r = run(std::string("render built-in:cornell --res 8x8 --spp 1 --quiet --strategy ris -o ") + tmp("cli_ris.exr") + " " + args);
+    EXPECT_NE(r.code, 0) << args << ": accepted (exit 0): " << r.out;
+    EXPECT_NE(r.out.find(std::string(args).substr(0, std::string(args).find(' '))), std::string::npos) << args << ": " << r.out;
+  }
+  r = run(std::string("render built-in:cornell --res 8x8 --spp 1 --quiet --strategy ris -o ") + tmp("cli_ris.exr"));
+  EXPECT_EQ(r.code, 0) << r.out;
+}
+
 TEST(Cli, BenchJsonSchema) {
   const std::string js = tmp("cli_bench.json");
   const CmdResult r = run("bench built-in:cornell --res 16x16 --spp 2 --repeat 3 --warmup 1 --json " + js);

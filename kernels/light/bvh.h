@@ -22,23 +22,71 @@
 
 namespace tuile {
 
+// The nodes are quantized (pbrt-v4's CompactLightBounds), 28 bytes each in seven 32-bit
+// arrays, so that a batch reads a node with seven 32-bit gathers:
+// - box: per axis one word, the low 16 bits the minimum and the high 16 bits the maximum
+//   as steps of the tree's grid (lo + q step, the sources' bounding box cut in 65535
+//   steps), rounded outwards so that the decoded box holds the node's sources;
+// - axis: the cone's axis as an octahedral vector, 16 bits per coordinate;
+// - cone: bits 0-14 cos theta_o, bits 15-29 cos theta_e, both as steps of 2 / 32767 from
+//   -1 and rounded down (the cone only widens; theta_o is also widened by the axis's
+//   encoding error), and bit 30 set where a two-sided emitter is inside;
+// - phi (float) and child (int32): an inner node's second child (the first is the next
+//   node), or -1 - light for a leaf.
+// Per light, its bit trail: bits 0-61 of trail_lo | trail_hi << 32 (the tree is at most 62
+// levels deep); a source outside the tree has bit 63 set, and bit 62 too if it is a
+// distant source (else it is never picked: no power).
 struct LightBvhView {
   int32_t nodes = 0;         // 0: no source in the tree
   int32_t distant = 0;       // distant sources, picked apart from the tree
   const int32_t* distant_light = nullptr;  // their light indices
   float p_distant = 0;       // the probability of picking one of them (then 1 / distant each)
-  // per node: the bounding sphere of its box (centre, radius = half the diagonal), the cone
-  // (axis w, cos theta_o, cos theta_e), power, two-sided emitters inside
-  const float *cx = nullptr, *cy = nullptr, *cz = nullptr, *radius = nullptr;
-  const float *wx = nullptr, *wy = nullptr, *wz = nullptr;
-  const float *phi = nullptr, *cos_o = nullptr, *cos_e = nullptr, *two_sided = nullptr;
-  // per node: an inner node's second child (the first is the next node), or -1 - light
+  float grid_lo[3] = {0, 0, 0}, grid_step[3] = {0, 0, 0};  // the box grid: lo + q step
+  const uint32_t *box_x = nullptr, *box_y = nullptr, *box_z = nullptr;
+  const uint32_t *axis = nullptr, *cone = nullptr;
+  const float* phi = nullptr;
   const int32_t* child = nullptr;
-  // per light: its bit trail (low and high 32 bits) and whether it is in the tree (1), a
-  // distant source (2) or never picked (0: no power)
   const uint32_t *trail_lo = nullptr, *trail_hi = nullptr;
-  const int32_t* where = nullptr;
 };
+
+inline constexpr uint32_t light_bvh_outside = 0x80000000u;  // trail_hi: not in the tree
+inline constexpr uint32_t light_bvh_distant = 0x40000000u;  // with it: a distant source
+inline constexpr int light_bvh_max_depth = 62;
+inline constexpr float light_bvh_oct_step = 2.f / 65535.f, light_bvh_cos_step = 2.f / 32767.f;
+inline constexpr uint32_t light_bvh_two_sided = 1u << 30;
+
+// The decodings: the build calls them (T = float) to check that what it stores decodes to
+// bounds that hold the exact ones.
+// A grid coordinate: lo + q step.
+template <class T, class I> inline T light_bvh_grid(float lo, float step, const I& q) noexcept {
+  return T(lo) + to_f32(q) * T(step);
+}
+// A 15-bit cosine: -1 + q 2 / 32767.
+template <class T, class I> inline T light_bvh_cos(const I& q) noexcept {
+  return to_f32(q) * T(light_bvh_cos_step) - T(1.f);
+}
+// The octahedral vector (u, v 16 bits each: word = u | v << 16) as a unit vector: the
+// point of the octahedron |x| + |y| + |z| = 1 (the lower half folded over the upper one's
+// corners), normalized.
+template <class T, class I> inline Vec3<T> light_bvh_axis(const I& word) noexcept {
+  const T x = to_f32(word & I(0xffff)) * T(light_bvh_oct_step) - T(1.f);
+  const T y = to_f32((word >> 16) & I(0xffff)) * T(light_bvh_oct_step) - T(1.f);
+  const T ax = abs(x), ay = abs(y);
+  const T z = T(1.f) - ax - ay;
+  const auto lower = z < T(0.f);
+  const T xf = sel(lower, (T(1.f) - ay) * sel(x >= T(0.f), T(1.f), T(-1.f)), x);
+  const T yf = sel(lower, (T(1.f) - ax) * sel(y >= T(0.f), T(1.f), T(-1.f)), y);
+  const Vec3<T> v{xf, yf, z};
+  return v / sqrt(dot(v, v));
+}
+// The bounding sphere of a box: its centre, and a radius that holds the box's corners
+// despite the roundings (each of the few operations below errs by at most 2^-24 of its
+// result; 2^-20 covers them all).
+template <class T> inline void light_bvh_sphere(const Vec3<T>& lo, const Vec3<T>& hi, Vec3<T>& c, T& r) noexcept {
+  c = (lo + hi) * T(0.5f);
+  const Vec3<T> e{max(hi.x - c.x, c.x - lo.x), max(hi.y - c.y, c.y - lo.y), max(hi.z - c.z, c.z - lo.z)};
+  r = sqrt(dot(e, e)) * T(1.f + 0x1p-20f);
+}
 
 // pbrt-v4's cos(max(0, a - b)) from the cosines and sines of a and b.
 template <class T> inline T cos_sub_clamped(const T& sin_a, const T& cos_a, const T& sin_b, const T& cos_b) noexcept {
@@ -52,21 +100,34 @@ template <class T> inline T sin_from_cos(const T& c) noexcept { return sqrt(max(
 // The importance of node k for the shading point x with normal n (n = 0: no receiver
 // orientation): phi cos(theta') / max(d^2, r) times cos(theta'_i), where theta' bounds the
 // angle between the cone and the direction to x, and theta'_i the one between n and the
-// node's directions, both widened by the angle the bounding sphere subtends at x (the whole
-// sphere when x is inside it); 0 where theta' passes theta_e.
+// node's directions, both widened by the angle the bounding sphere of the node's decoded
+// box subtends at x (the whole sphere when x is inside it); 0 where theta' passes theta_e.
 template <class T, class I> inline T light_bvh_importance(const LightBvhView& B, const I& k, const Vec3<T>& x,
                                                          const Vec3<T>& n) noexcept {
-  const Vec3<T> c{gather(B.cx, k), gather(B.cy, k), gather(B.cz, k)};
-  const T r = gather(B.radius, k);
-  const Vec3<T> w{gather(B.wx, k), gather(B.wy, k), gather(B.wz, k)};
-  const T phi = gather(B.phi, k), cos_o = gather(B.cos_o, k), cos_e = gather(B.cos_e, k);
-  const T two_sided = gather(B.two_sided, k);
+  const I bx = gather(reinterpret_cast<const int32_t*>(B.box_x), k);
+  const I by = gather(reinterpret_cast<const int32_t*>(B.box_y), k);
+  const I bz = gather(reinterpret_cast<const int32_t*>(B.box_z), k);
+  const I m16(0xffff);
+  const Vec3<T> lo{light_bvh_grid<T>(B.grid_lo[0], B.grid_step[0], bx & m16),
+                   light_bvh_grid<T>(B.grid_lo[1], B.grid_step[1], by & m16),
+                   light_bvh_grid<T>(B.grid_lo[2], B.grid_step[2], bz & m16)};
+  const Vec3<T> hi{light_bvh_grid<T>(B.grid_lo[0], B.grid_step[0], (bx >> 16) & m16),
+                   light_bvh_grid<T>(B.grid_lo[1], B.grid_step[1], (by >> 16) & m16),
+                   light_bvh_grid<T>(B.grid_lo[2], B.grid_step[2], (bz >> 16) & m16)};
+  Vec3<T> c;
+  T r;
+  light_bvh_sphere(lo, hi, c, r);
+  const Vec3<T> w = light_bvh_axis<T>(gather(reinterpret_cast<const int32_t*>(B.axis), k));
+  const I cone = gather(reinterpret_cast<const int32_t*>(B.cone), k);
+  const T cos_o = light_bvh_cos<T>(cone & I(0x7fff)), cos_e = light_bvh_cos<T>((cone >> 15) & I(0x7fff));
+  const auto two_sided = f_mask_from_i((cone & I(static_cast<int32_t>(light_bvh_two_sided))) != I(0));
+  const T phi = gather(B.phi, k);
   const Vec3<T> d = x - c;
   const T d2 = dot(d, d);
   const T inv_d = sel(d2 > T(0.f), T(1.f) / sqrt(sel(d2 > T(0.f), d2, T(1.f))), T(0.f));
   const Vec3<T> wi = d * inv_d;  // from the node towards x (0 at the centre)
   T cos_w = dot(w, wi);
-  cos_w = sel(two_sided > T(0.f), abs(cos_w), cos_w);
+  cos_w = sel(two_sided, abs(cos_w), cos_w);
   const T sin_w = sin_from_cos(cos_w);
   const auto inside = d2 < r * r;
   const T sin2_b = sel(inside, T(1.f), min(T(1.f), (r * r) / sel(d2 > T(0.f), d2, T(1.f))));
@@ -114,7 +175,7 @@ struct BvhPicker {
     I node(0);
     T pmf(1.f);
     auto live = !distant;
-    for (int depth = 0; depth < 64; ++depth) {
+    for (int depth = 0; depth < light_bvh_max_depth; ++depth) {
       const I second = gather(B.child, node);
       const auto inner = live && f_mask_from_i(second >= I(0));
       if (!any(inner)) break;
@@ -144,17 +205,18 @@ struct BvhPicker {
   template <int Tier, class T, class I> T pmf(const PickContext<T>& ctx, const I& idx_in) const noexcept {
     using IT = i32_t<T>;
     const IT idx = IT(idx_in);
-    const IT where = gather(B.where, idx);
-    T out = sel(f_mask_from_i(where == IT(2)), T(B.distant > 0 ? B.p_distant / static_cast<float>(B.distant) : 0.f), T(0.f));
-    if (B.nodes == 0) return out;
-    const auto in_tree = f_mask_from_i(where == IT(1));
-    if (!any(in_tree)) return out;
     const IT lo = gather(reinterpret_cast<const int32_t*>(B.trail_lo), idx);
     const IT hi = gather(reinterpret_cast<const int32_t*>(B.trail_hi), idx);
+    const IT marks = hi & IT(static_cast<int32_t>(light_bvh_outside | light_bvh_distant));
+    const auto distant = f_mask_from_i(marks == IT(static_cast<int32_t>(light_bvh_outside | light_bvh_distant)));
+    T out = sel(distant, T(B.distant > 0 ? B.p_distant / static_cast<float>(B.distant) : 0.f), T(0.f));
+    if (B.nodes == 0) return out;
+    const auto in_tree = f_mask_from_i(marks == IT(0));
+    if (!any(in_tree)) return out;
     IT node(0);
     T pmf(1.f);
     auto live = in_tree;
-    for (int depth = 0; depth < 64; ++depth) {
+    for (int depth = 0; depth < light_bvh_max_depth; ++depth) {
       const IT second = gather(B.child, node);
       const auto inner = live && f_mask_from_i(second >= IT(0));
       if (!any(inner)) break;

@@ -13,7 +13,10 @@
 //   russian_roulette(d)         paths: whether the path goes on after vertex d (first
 //                               dimension)
 // with M = bsdf_samples and light samples j < light_passes (every source times N with
-// --light-pick all). Depth 0's pairs are 0, 1, 2 .. M + 1, then two per light sample, then
+// --light-pick all). Resampled importance sampling (wave/ris.h) uses light samples j < M'
+// for its light candidates and BSDF samples m < K' for its BSDF candidates, with the
+// candidate's resampling number in the second dimension of light_pick(d, j) and
+// bsdf_lobe(d, m), and BSDF sample K' for the path's continuation (M = K' + 1). Depth 0's pairs are 0, 1, 2 .. M + 1, then two per light sample, then
 // the M lobe choices, then Russian roulette; each further depth starts after the last pair of the one before.
 #pragma once
 #include <cstdint>
