@@ -1,7 +1,8 @@
 // Point, spot and distant lights against their exact answers: a diffuse floor lit by a
 // delta light has radiance rho/pi * I falloff cos / d^2 (point, spot) or rho/pi * E cos
 // (distant). Every strategy must get it right: a BSDF ray cannot hit a delta light, so
-// MIS gives them weight one and the BSDF strategy still samples them.
+// MIS gives them weight one and the BSDF strategy still samples them; resampled importance
+// sampling takes them as candidates of density their pick probability.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -70,7 +71,7 @@ TEST(DeltaLights, PointSpotDistantAreExact) {
     p.scene.lights.push_back(l);
     finalize_scene(p.scene);
     const std::vector<double> exact = exact_delta(p.scene, p.scene.lights[0], 0.6);
-    for (Strategy st : {Strategy::light, Strategy::bsdf, Strategy::mis})
+    for (Strategy st : {Strategy::light, Strategy::bsdf, Strategy::mis, Strategy::ris})
       for (MisMode mode : {MisMode::multi, MisMode::one}) {
         RenderOptions o;
         o.est.strategy = st;

@@ -123,7 +123,7 @@ TEST(GenLights, BadInputIsAClearError) {
   for (const char* args : {"--emitters 0", "--emitters -5", "--emitters 10000001", "--emitters abc", "--emitters 12x",
                            "--emitters 1e3", "--emitters", "--emitters 10 --decades nan", "--emitters 10 --decades -1",
                            "--emitters 10 --seed -1", "--emitters 10 --res 256", "--emitters 10 --levels 0",
-                           "--emitters 10 --max-depth 0", "--emitters 10 --frobnicate"}) {
+                           "--emitters 10 --max-depth 0", "--emitters 10 --frobnicate", "--emitters 10 --view up"}) {
     const CmdResult r = gen("--out " + dir + " " + args);
     EXPECT_NE(r.code, 0) << args;
     EXPECT_NE(r.out.find("tuile_gen_lights: "), std::string::npos) << args << ": " << r.out;

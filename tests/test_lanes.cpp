@@ -20,6 +20,7 @@
 #include "wave/sample_bsdf.h"
 #include "wave/sample_lights.h"
 #include "wave/emitter_hits.h"
+#include "wave/ris.h"
 #include "render/render.h"
 #include "render_util.h"
 
@@ -354,8 +355,9 @@ TEST(Lanes, StagesEqualScalar) {
   Scene s = all_lights_scene();
   ASSERT_EQ(s.lights.size(), 7u);
   std::mt19937 rng(3);
-  for (LightPick pick : {LightPick::all, LightPick::uniform, LightPick::area, LightPick::power}) {
+  for (LightPick pick : {LightPick::all, LightPick::uniform, LightPick::area, LightPick::power, LightPick::bvh}) {
     SceneViews views = build_views(s, pick);
+    ASSERT_EQ(views.lights.bvh != nullptr, pick == LightPick::bvh);
     ASSERT_EQ(views.lights.tier, tier_small);
     ASSERT_FALSE(views.lights.one_radiance);
     // the tables (padded for permutes) read with permutes, then with gathers
@@ -458,6 +460,7 @@ TEST(Lanes, StagesEqualScalar) {
           for (int k = 0; k < n; ++k) {
             const int32_t li = static_cast<int32_t>(rng() % 4);
             a->queue.light[k] = b->queue.light[k] = li;
+            a->queue.point[k] = b->queue.point[k] = k;  // the light BVH's pmf reads its normal
             a->queue.x[k] = b->queue.x[k] = a->points.px[k];
             a->queue.y[k] = b->queue.y[k] = a->points.py[k];
             a->queue.z[k] = b->queue.z[k] = a->points.pz[k];
@@ -488,6 +491,100 @@ TEST(Lanes, StagesEqualScalar) {
           }
         }
   }
+}
+
+// Resampled importance sampling's stages (wave/ris.h): light candidates (one batch, two,
+// four at a time, as the stage runs them), BSDF candidates on synthetic emitter hits, and
+// the kept candidates' shadow rays equal the scalar reference in every lane, reservoirs
+// included; with the alias table and the light BVH, M and K of several sizes.
+TEST(Lanes, RisStagesEqualScalar) {
+  Scene s = all_lights_scene();
+  std::mt19937 rng(17);
+  for (LightPick pick : {LightPick::power, LightPick::bvh})
+    for (int mk : {0, 1, 2}) {
+      SceneViews views = build_views(s, pick);
+      Estimator est;
+      est.pick = pick;
+      est.strategy = Strategy::ris;
+      est.ris_light = mk == 0 ? 1 : mk == 1 ? 4 : 32;
+      est.ris_bsdf = mk == 0 ? 0 : mk == 1 ? 1 : 3;
+      const int n = 208;
+      auto name = [&] { return describe(est); };
+      auto a = std::make_unique<TileBuffers>();
+      fill_shading_points(*a, rng, 200);
+      auto b = std::make_unique<TileBuffers>(*a);
+      auto d = std::make_unique<TileBuffers>(*a);
+      std::vector<TileBuffers*> all{a.get(), b.get(), d.get()};
+      for (TileBuffers* t : all) ris_clear(*t);
+      LightPass pass;
+      for (int j = 0; j < 3; ++j) {  // three light candidates
+        for (int k = 0; k < n; k += simd_width) ris_light_lanes<vfloat>(views.geom, views.lights, est, pass, *a, k);
+        for (int k = 0; k < n; ++k) ris_light_lanes<float>(views.geom, views.lights, est, pass, *b, k);
+        int k = 0;
+        for (; k + 4 * simd_width <= n; k += 4 * simd_width) ris_light_lanes<vfloat4>(views.geom, views.lights, est, pass, *d, k);
+        for (; k + 2 * simd_width <= n; k += 2 * simd_width) ris_light_lanes<vfloat2>(views.geom, views.lights, est, pass, *d, k);
+        for (; k < n; k += simd_width) ris_light_lanes<vfloat>(views.geom, views.lights, est, pass, *d, k);
+        for (int i = 0; i < max_tile_lanes; ++i) {  // the next candidate's numbers
+          const float u[4] = {std::generate_canonical<float, 24>(rng), std::generate_canonical<float, 24>(rng),
+                              std::generate_canonical<float, 24>(rng), std::generate_canonical<float, 24>(rng)};
+          for (TileBuffers* t : all) {
+            t->tech.u0[i] = std::min(u[0], 0x1.fffffep-1f);
+            t->tech.u1[i] = std::min(u[1], 0x1.fffffep-1f);
+            t->tech.u2[i] = std::min(u[2], 0x1.fffffep-1f);
+            t->tech.u3[i] = std::min(u[3], 0x1.fffffep-1f);
+          }
+        }
+      }
+      // a BSDF candidate: cosine directions, their hits made up (some on every emitter
+      // triangle and the emitting sphere, some on the floor, some missed)
+      for (int k = 0; k < n; ++k) sample_bsdf_lanes<float>(views.geom, est, *a, k);
+      for (int k = 0; k < n; ++k) {
+        RayHit16& h = a->bounce[k / packet_width];
+        const int l = k % packet_width;
+        const uint32_t r = rng() % 8;
+        h.geomID[l] = r < 5 ? 1u : r == 5 ? static_cast<uint32_t>(views.geom.mesh_count) : r == 6 ? 0u : ~0u;
+        h.primID[l] = r < 5 ? r : 0u;
+        h.ray.tfar[l] = 0.2f + static_cast<float>(rng() % 100) * 0.05f;
+      }
+      for (TileBuffers* t : {b.get(), d.get()}) {
+        std::memcpy(t->bounce, a->bounce, sizeof(a->bounce));
+        std::memcpy(t->tech.valid, a->tech.valid, sizeof(a->tech.valid));
+        std::memcpy(t->tech.pdf, a->tech.pdf, sizeof(a->tech.pdf));
+        std::memcpy(t->tech.beta_r, a->tech.beta_r, sizeof(a->tech.beta_r));
+        std::memcpy(t->tech.beta_g, a->tech.beta_g, sizeof(a->tech.beta_g));
+        std::memcpy(t->tech.beta_b, a->tech.beta_b, sizeof(a->tech.beta_b));
+      }
+      for (int k = 0; k < n; k += simd_width) ris_bsdf_lanes<vfloat>(views.geom, views.lights, est, *a, k);
+      for (int k = 0; k < n; ++k) ris_bsdf_lanes<float>(views.geom, views.lights, est, *b, k);
+      for (int k = 0; k < n; k += simd_width) ris_bsdf_lanes<vfloat>(views.geom, views.lights, est, *d, k);
+      for (TileBuffers* t : all) t->points.count = 200;
+      for (int k = 0; k < n; k += simd_width) ris_finish_lanes<vfloat>(*a, k);
+      for (int k = 0; k < n; ++k) ris_finish_lanes<float>(*b, k);
+      for (int k = 0; k < n; k += simd_width) ris_finish_lanes<vfloat>(*d, k);
+      int kept = 0;
+      for (int k = 0; k < n; ++k) kept += b->tech.valid[k] != 0;
+      EXPECT_GT(kept, 50) << name();
+      for (const TileBuffers* t : {a.get(), d.get()}) {
+        expect_same_floats(t->ris.wsum, b->ris.wsum, n, name);
+        expect_same_floats(t->ris.cr, b->ris.cr, n, name);
+        expect_same_floats(t->ris.cg, b->ris.cg, n, name);
+        expect_same_floats(t->ris.cb, b->ris.cb, n, name);
+        expect_same_floats(t->tech.cr, b->tech.cr, n, name);
+        expect_same_floats(t->tech.cg, b->tech.cg, n, name);
+        expect_same_floats(t->tech.cb, b->tech.cb, n, name);
+        EXPECT_EQ(t->stats.rejected_light, b->stats.rejected_light) << name();
+        EXPECT_EQ(t->stats.rejected_bsdf, b->stats.rejected_bsdf) << name();
+        for (int k = 0; k < n; ++k) {
+          ASSERT_EQ(t->tech.valid[k], b->tech.valid[k]) << name() << " lane " << k;
+          if (!b->tech.valid[k]) continue;
+          const Ray16 &ra = t->shadow[k / packet_width], &rb = b->shadow[k / packet_width];
+          const int l = k % packet_width;
+          for (auto f : {&Ray16::org_x, &Ray16::org_y, &Ray16::org_z, &Ray16::dir_x, &Ray16::dir_y, &Ray16::dir_z,
+                         &Ray16::tfar})
+            ASSERT_TRUE(std::memcmp(&(ra.*f)[l], &(rb.*f)[l], sizeof(float)) == 0) << name() << " lane " << k;
+        }
+      }
+    }
 }
 
 // Table lookups by permutes (small: 32 entries, medium: 128) and by gathers give every

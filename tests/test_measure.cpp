@@ -218,6 +218,37 @@ TEST(Converge, CsvSchemaAndSppDoubling) {
   EXPECT_NE(svg.find("</svg>"), std::string::npos);
 }
 
+// The many-lights strategies (#19) run under converge: each gets its rows, and its error
+// falls with samples (relMSE at the last doubling well under the first's).
+TEST(Converge, ManyLightStrategies) {
+  const fs::path d = scratch_dir("converge-many");
+  ConvergeFlags f;
+  f.render.scene = "built-in:two-panels";
+  f.render.res = "32x24";
+  f.render.quiet = true;
+  f.reference = reference_exr().string();
+  f.strategies = "light:bvh,mis:bvh,ris,ris:power";
+  f.budget = 0.5;
+  f.spp_max = 32;
+  f.csv = (d / "m.csv").string();
+  ASSERT_EQ(run_converge(f), 0);
+  std::map<std::string, std::vector<double>> rel;
+  const std::vector<std::string> lines = split(slurp(f.csv), '\n');
+  for (size_t i = 1; i < lines.size(); ++i) {
+    if (lines[i].empty()) continue;
+    const std::vector<std::string> fields = split(lines[i], ',');
+    ASSERT_EQ(fields.size(), 6u) << lines[i];
+    double v = 0;
+    ASSERT_TRUE(is_number(fields[4], v)) << lines[i];
+    rel[fields[0]].push_back(v);
+  }
+  ASSERT_EQ(rel.size(), 4u);
+  for (const auto& [name, r] : rel) {
+    ASSERT_GE(r.size(), 4u) << name;
+    EXPECT_LT(r.back(), 0.5 * r.front()) << name;
+  }
+}
+
 TEST(Converge, RendersAndSavesAReferenceWhenNoneIsGiven) {
   const fs::path d = scratch_dir("converge-noref");
   ConvergeFlags f;

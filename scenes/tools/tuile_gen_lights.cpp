@@ -69,6 +69,10 @@ void usage() {
                "  --spp S          Sampler pixelsamples (default 16)\n"
                "  --max-depth D    Integrator maxdepth (default 1: direct lighting)\n"
                "  --power W        total emitted power in watts (default 1500)\n"
+               "  --view V         room (default: down the room, many emitters in view) or floor (straight\n"
+               "                   down from under the ceiling: the lit floor and blocks, few emitters in\n"
+               "                   view, so an image's error is the light sampling's, not the pixel\n"
+               "                   antialiasing of bright emitters)\n"
                "  --check          load the scene with tuile and print the light count and load time\n";
 }
 
@@ -224,6 +228,7 @@ struct Options {
   uint64_t seed = 1;
   double decades = 4, power = 1500;
   bool check = false;
+  std::string view = "room";
 };
 
 // The options that decide the output, for the file's header (DIR left out, so that the
@@ -232,7 +237,7 @@ std::string describe(const Options& o) {
   return "--emitters " + std::to_string(o.emitters) + " --seed " + std::to_string(o.seed) + " --decades " +
          fmt(o.decades) + " --levels " + std::to_string(o.levels) + " --res " + std::to_string(o.width) + "x" +
          std::to_string(o.height) + " --spp " + std::to_string(o.spp) + " --max-depth " + std::to_string(o.max_depth) +
-         " --power " + fmt(o.power);
+         " --power " + fmt(o.power) + (o.view == "room" ? "" : " --view " + o.view);
 }
 
 int check_scene(const Options& o) {
@@ -296,6 +301,9 @@ int main(int argc, char** argv) {
       if (x == std::string::npos) fail_usage("--res: expected WxH (e.g. 256x192), got '" + v + "'");
       o.width = parse_long("--res width", v.substr(0, x), 1, 32768);
       o.height = parse_long("--res height", v.substr(x + 1), 1, 32768);
+    } else if (a == "--view") {
+      o.view = value();
+      if (o.view != "room" && o.view != "floor") fail_usage("--view: expected room or floor, got '" + o.view + "'");
     } else if (a == "--check") o.check = true;
     else if (a == "-h" || a == "--help") {
       usage();
@@ -488,7 +496,8 @@ int main(int argc, char** argv) {
         << "Sampler \"independent\" \"integer pixelsamples\" [ " << o.spp << " ]\n"
         << "Integrator \"volpath\" \"integer maxdepth\" [ " << o.max_depth << " ] \"string lightsampler\" \"bvh\"\n"
         << "PixelFilter \"box\"\n"
-        << "Scale -1 1 1\nLookAt 0 1.7 5.6  0 1.1 -6  0 1 0\nCamera \"perspective\" \"float fov\" [ 62 ]\n\n"
+        << (o.view == "floor" ? "Scale -1 1 1\nLookAt 0 2.6 0  0 0 0  0 0 -1\nCamera \"perspective\" \"float fov\" [ 80 ]\n\n"
+                              : "Scale -1 1 1\nLookAt 0 1.7 5.6  0 1.1 -6  0 1 0\nCamera \"perspective\" \"float fov\" [ 62 ]\n\n")
         << "WorldBegin\n"
         << "MakeNamedMaterial \"wall\" \"string type\" \"diffuse\" \"rgb reflectance\" [ 0.6 0.6 0.58 ]\n"
         << "MakeNamedMaterial \"floor\" \"string type\" \"diffuse\" \"rgb reflectance\" [ 0.45 0.4 0.35 ]\n"
