@@ -1,7 +1,11 @@
-// Helpers of the tests that run tuile as a child process and read what it wrote: a
-// temporary directory removed at the end, and a bit-for-bit comparison of two EXRs.
+// Helpers of the tests that run tuile as a child process and read what it wrote: running a
+// command with its output captured, a temporary directory removed at the end, and a
+// bit-for-bit comparison of two EXRs.
 #pragma once
 #include <stdlib.h>
+#include <sys/wait.h>
+
+#include <cstdio>
 
 #include <cstring>
 #include <filesystem>
@@ -11,6 +15,24 @@
 #include "scene/image_io.h"
 
 namespace tuile::testing {
+
+struct CmdResult {
+  int code;         // the exit status (-1: not run, or killed by a signal)
+  std::string out;  // stdout and stderr
+};
+// Runs `binary args` through the shell, stderr into stdout.
+inline CmdResult run_command(const std::string& binary, const std::string& args) {
+  const std::string cmd = binary + " " + args + " 2>&1";
+  FILE* f = popen(cmd.c_str(), "r");
+  CmdResult r{-1, ""};
+  if (!f) return r;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, f)) > 0) r.out.append(buf, n);
+  const int st = pclose(f);
+  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
 
 struct TempDir {
   std::filesystem::path path;

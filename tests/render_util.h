@@ -1,5 +1,6 @@
 // Helpers for tests that render scenes built in code and compare with exact answers.
 #pragma once
+#include <cmath>
 #include <memory>
 #include <vector>
 
@@ -101,6 +102,19 @@ inline RenderResult render_scene(const Scene& s, const RenderOptions& o) {
   out.stats = r.render(out.film, 0, o.est.spp);
   out.mean = out.film.mean();
   return out;
+}
+
+// The z-score of an image's mean (first channel) against the exact image's, from the
+// per-pixel variance of the mean.
+inline double z_of_mean(const RenderResult& r, const std::vector<double>& exact) {
+  const std::vector<float> var = r.film.variance_of_mean();
+  double diff = 0, v = 0;
+  const size_t n = exact.size();
+  for (size_t i = 0; i < n; ++i) {
+    diff += r.mean[3 * i] - exact[i];
+    v += var[3 * i];
+  }
+  return (diff / static_cast<double>(n)) / (std::sqrt(v) / static_cast<double>(n));
 }
 
 }  // namespace tuile::test

@@ -9,27 +9,14 @@
 #include <cstdlib>
 #include <string>
 
+#include "output_files.h"
 #include "scene/image_io.h"
 
 namespace fs = std::filesystem;
 
 namespace {
-struct CmdResult {
-  int code;
-  std::string out;  // stdout and stderr
-};
-CmdResult run(const std::string& args) {
-  const std::string cmd = std::string(TUILE_BINARY) + " " + args + " 2>&1";
-  FILE* f = popen(cmd.c_str(), "r");
-  CmdResult r{-1, ""};
-  if (!f) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, f)) > 0) r.out.append(buf, n);
-  const int st = pclose(f);
-  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
-}
+using tuile::testing::CmdResult;
+CmdResult run(const std::string& args) { return tuile::testing::run_command(TUILE_BINARY, args); }
 std::string tmp(const std::string& name) { return (fs::path(::testing::TempDir()) / name).string(); }
 }  // namespace
 

@@ -14,29 +14,15 @@
 #include <set>
 #include <string>
 
+#include "output_files.h"
 #include "scene/scene.h"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-struct CmdResult {
-  int code;
-  std::string out;  // stdout and stderr
-};
-
-CmdResult gen(const std::string& args) {
-  const std::string cmd = std::string(TUILE_GEN_LIGHTS) + " " + args + " 2>&1";
-  FILE* f = popen(cmd.c_str(), "r");
-  CmdResult r{-1, ""};
-  if (!f) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, f)) > 0) r.out.append(buf, n);
-  const int st = pclose(f);
-  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
-}
+using tuile::testing::CmdResult;
+CmdResult gen(const std::string& args) { return tuile::testing::run_command(TUILE_GEN_LIGHTS, args); }
 
 std::string tmp(const std::string& name) {
   const fs::path p = fs::path(::testing::TempDir()) / name;

@@ -63,17 +63,6 @@ RenderOptions options_for(const Combo& c, uint32_t spp, uint32_t seed) {
   return o;
 }
 
-double z_of_mean(const RenderResult& r, const std::vector<double>& exact) {
-  const std::vector<float> var = r.film.variance_of_mean();
-  double diff = 0, v = 0;
-  const size_t n = exact.size();
-  for (size_t i = 0; i < n; ++i) {
-    diff += r.mean[3 * i] - exact[i];
-    v += var[3 * i];
-  }
-  return (diff / static_cast<double>(n)) / (std::sqrt(v) / static_cast<double>(n));
-}
-
 double mse(const RenderResult& r, const std::vector<double>& exact) {
   double s = 0;
   for (size_t i = 0; i < exact.size(); ++i) s += (r.mean[3 * i] - exact[i]) * (r.mean[3 * i] - exact[i]);

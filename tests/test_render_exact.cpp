@@ -91,18 +91,6 @@ RenderOptions options_for(const Combo& c, uint32_t spp, uint32_t seed) {
   return o;
 }
 
-// z-score of the image mean against the exact mean, from the per-pixel variance of the mean.
-double z_of_mean(const RenderResult& r, const std::vector<double>& exact) {
-  const std::vector<float> var = r.film.variance_of_mean();
-  double diff = 0, v = 0;
-  const size_t n = exact.size();
-  for (size_t i = 0; i < n; ++i) {
-    diff += r.mean[3 * i] - exact[i];
-    v += var[3 * i];
-  }
-  return (diff / n) / (std::sqrt(v) / n);
-}
-
 }  // namespace
 
 class ExactPlane : public ::testing::TestWithParam<int> {};

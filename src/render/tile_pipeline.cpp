@@ -84,6 +84,33 @@ inline int active_lanes(const int32_t* valid) {
   return n;
 }
 
+// The shadow packets' valid lanes (tb.tech.valid): occlusion queries, counted.
+inline void trace_shadow(const TileContext& c, TileBuffers& tb, StageTimer& timer, int packets, bool rec, ThreadProfile* tp) {
+  clear_high_vector_registers();
+  for (int p = 0; p < packets; ++p) {
+    const int32_t* valid = tb.tech.valid + p * packet_width;
+    const int active = active_lanes(valid);
+    if (!active) continue;
+    if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], valid); });
+    c.accel.occluded16(valid, tb.shadow[p], false);
+    tb.stats.rays_shadow += static_cast<uint64_t>(active);
+  }
+}
+
+// The bounce packets' valid lanes: nearest hits in the scene or among the emitters, counted.
+inline void trace_bounce(const TileContext& c, TileBuffers& tb, StageTimer& timer, int packets, bool rec, ThreadProfile* tp,
+                         Bvh bvh) {
+  clear_high_vector_registers();
+  for (int p = 0; p < packets; ++p) {
+    const int32_t* valid = tb.tech.valid + p * packet_width;
+    const int active = active_lanes(valid);
+    if (!active) continue;
+    if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
+    c.accel.intersect16(valid, tb.bounce[p], false, bvh);
+    tb.stats.rays_bounce += static_cast<uint64_t>(active);
+  }
+}
+
 // Resampled importance sampling of one vertex's direct light (wave/ris.h): the light
 // candidates, the BSDF candidates traced against the emitters, then one shadow ray per
 // shading point for the kept candidate.
@@ -103,30 +130,14 @@ void run_ris(const TileContext& c, TileBuffers& tb, StageTimer& timer, const Est
     const uint32_t mm = static_cast<uint32_t>(m);
     sample_bsdf<F.bsdfs>(v.geom, e, s, layout.bsdf(mm, d), layout.bsdf_lobe(mm, d), tb);
     timer.lap(Stage::sample_bsdf);
-    clear_high_vector_registers();
-    for (int p = 0; p < packets; ++p) {
-      const int32_t* valid = tb.tech.valid + p * packet_width;
-      const int active = active_lanes(valid);
-      if (!active) continue;
-      if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
-      c.accel.intersect16(valid, tb.bounce[p], false, Bvh::emitters);
-      tb.stats.rays_bounce += static_cast<uint64_t>(active);
-    }
+    trace_bounce(c, tb, timer, packets, rec, tp, Bvh::emitters);
     timer.lap(Stage::intersect_bounce);
     ris_bsdf_candidates<F.kinds, F.bsdfs>(v.geom, v.lights, e, s, layout.bsdf_lobe(mm, d), tb);
     timer.lap(Stage::sample_lights);
   }
   ris_finish(tb);
   timer.lap(Stage::sample_lights);
-  clear_high_vector_registers();
-  for (int p = 0; p < packets; ++p) {
-    const int32_t* valid = tb.tech.valid + p * packet_width;
-    const int active = active_lanes(valid);
-    if (!active) continue;
-    if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], valid); });
-    c.accel.occluded16(valid, tb.shadow[p], false);
-    tb.stats.rays_shadow += static_cast<uint64_t>(active);
-  }
+  trace_shadow(c, tb, timer, packets, rec, tp);
   timer.lap(Stage::intersect_shadow);
   accumulate_shadow(tb);
   timer.lap(Stage::accumulate);
@@ -239,15 +250,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
             sample_lights<F.kinds, F.pick, F.bsdfs>(v.geom, v.lights, e, pass, s, layout.light_pick(static_cast<uint32_t>(j), d),
                                                    layout.light_point(static_cast<uint32_t>(j), d), tb);
             timer.lap(Stage::sample_lights);
-            clear_high_vector_registers();
-            for (int p = 0; p < packets; ++p) {
-              const int32_t* valid = tb.tech.valid + p * packet_width;
-              const int active = active_lanes(valid);
-              if (!active) continue;
-              if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], valid); });
-              c.accel.occluded16(valid, tb.shadow[p], false);
-              tb.stats.rays_shadow += static_cast<uint64_t>(active);
-            }
+            trace_shadow(c, tb, timer, packets, rec, tp);
             timer.lap(Stage::intersect_shadow);
             accumulate_shadow(tb);
             timer.lap(Stage::accumulate);
@@ -269,16 +272,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
                                  layout.bsdf_lobe(static_cast<uint32_t>(m), d), tb,
                                  e.strategy == Strategy::light || ris, continuation);
             timer.lap(Stage::sample_bsdf);
-            clear_high_vector_registers();
-            const Bvh bvh = against_emitters ? Bvh::emitters : Bvh::scene;
-            for (int p = 0; p < packets; ++p) {
-              const int32_t* valid = tb.tech.valid + p * packet_width;
-              const int active = active_lanes(valid);
-              if (!active) continue;
-              if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
-              c.accel.intersect16(valid, tb.bounce[p], false, bvh);
-              tb.stats.rays_bounce += static_cast<uint64_t>(active);
-            }
+            trace_bounce(c, tb, timer, packets, rec, tp, against_emitters ? Bvh::emitters : Bvh::scene);
             timer.lap(Stage::intersect_bounce);
             constexpr bool delta = (F.bsdfs & bsdf_delta_capable) != 0;
             queue_bounce_hits<vfloat, F.kinds, delta>(v.geom, v.lights, tb, against_emitters, continuation && e.one_sample());
