@@ -77,25 +77,15 @@ template <class T, class I> inline Vec3<T> light_bvh_axis(const I& word) noexcep
   const T xf = sel(lower, (T(1.f) - ay) * sel(x >= T(0.f), T(1.f), T(-1.f)), x);
   const T yf = sel(lower, (T(1.f) - ax) * sel(y >= T(0.f), T(1.f), T(-1.f)), y);
   const Vec3<T> v{xf, yf, z};
-  return v * rsqrt_nr(dot(v, v));  // |v|^2 >= 1/3 (|x| + |y| + |z| = 1)
+  return v / sqrt(dot(v, v));
 }
 // The bounding sphere of a box: its centre, and a radius that holds the box's corners
 // despite the roundings (each of the few operations below errs by at most 2^-24 of its
 // result; 2^-20 covers them all).
-// The square root of x >= 0 from the reciprocal square root estimate with a Newton step
-// (within 4.5 ulps on any processor; lanes/simd.h): the importance is a heuristic, and
-// its square roots and divisions (about ten of each per node, two nodes per level) cost
-// more than the rest of a pick with correctly rounded operations. Below 2^-100 (no
-// estimate of a denormal then) it is 0: an angle of 2^-50 radians less, in a heuristic.
-template <class T> inline T light_bvh_sqrt(const T& x) noexcept {
-  const auto pos = x > T(0x1p-100f);
-  return sel(pos, x * rsqrt_nr(sel(pos, x, T(1.f))), T(0.f));
-}
 template <class T> inline void light_bvh_sphere(const Vec3<T>& lo, const Vec3<T>& hi, Vec3<T>& c, T& r) noexcept {
   c = (lo + hi) * T(0.5f);
   const Vec3<T> e{max(hi.x - c.x, c.x - lo.x), max(hi.y - c.y, c.y - lo.y), max(hi.z - c.z, c.z - lo.z)};
-  // padded by 2^-20 (8 ulps): the sphere holds the box despite the roundings
-  r = light_bvh_sqrt(dot(e, e)) * T(1.f + 0x1p-20f);
+  r = sqrt(dot(e, e)) * T(1.f + 0x1p-20f);
 }
 
 // pbrt-v4's cos(max(0, a - b)) from the cosines and sines of a and b.
@@ -105,7 +95,7 @@ template <class T> inline T cos_sub_clamped(const T& sin_a, const T& cos_a, cons
 template <class T> inline T sin_sub_clamped(const T& sin_a, const T& cos_a, const T& sin_b, const T& cos_b) noexcept {
   return sel(cos_a > cos_b, T(0.f), sin_a * cos_b - cos_a * sin_b);
 }
-template <class T> inline T sin_from_cos(const T& c) noexcept { return light_bvh_sqrt(max(T(0.f), T(1.f) - c * c)); }
+template <class T> inline T sin_from_cos(const T& c) noexcept { return sqrt(max(T(0.f), T(1.f) - c * c)); }
 
 // The importance of node k for the shading point x with normal n (n = 0: no receiver
 // orientation): phi cos(theta') / max(d^2, r) times cos(theta'_i), where theta' bounds the
@@ -134,20 +124,20 @@ template <class T, class I> inline T light_bvh_importance(const LightBvhView& B,
   const T phi = gather(B.phi, k);
   const Vec3<T> d = x - c;
   const T d2 = dot(d, d);
-  const T inv_d = sel(d2 > T(0.f), rsqrt_nr(sel(d2 > T(0.f), d2, T(1.f))), T(0.f));
+  const T inv_d = sel(d2 > T(0.f), T(1.f) / sqrt(sel(d2 > T(0.f), d2, T(1.f))), T(0.f));
   const Vec3<T> wi = d * inv_d;  // from the node towards x (0 at the centre)
   T cos_w = dot(w, wi);
   cos_w = sel(two_sided, abs(cos_w), cos_w);
   const T sin_w = sin_from_cos(cos_w);
   const auto inside = d2 < r * r;
-  const T sin2_b = sel(inside, T(1.f), min(T(1.f), (r * r) * rcp_nr(sel(d2 > T(0.f), d2, T(1.f)))));
-  const T cos_b = sel(inside, T(-1.f), light_bvh_sqrt(T(1.f) - sin2_b));
-  const T sin_b = sel(inside, T(0.f), light_bvh_sqrt(sin2_b));
+  const T sin2_b = sel(inside, T(1.f), min(T(1.f), (r * r) / sel(d2 > T(0.f), d2, T(1.f))));
+  const T cos_b = sel(inside, T(-1.f), sqrt(T(1.f) - sin2_b));
+  const T sin_b = sel(inside, T(0.f), sqrt(sin2_b));
   const T sin_o = sin_from_cos(cos_o);
   const T cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, cos_o);
   const T sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, cos_o);
   const T cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
-  T importance = phi * cos_p * rcp_nr(max(d2, r));
+  T importance = phi * cos_p / max(d2, r);
   const T cos_i = abs(dot(wi, n));
   const T cos_pi = cos_sub_clamped(sin_from_cos(cos_i), cos_i, sin_b, cos_b);
   const auto oriented = dot(n, n) > T(0.f);
