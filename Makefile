@@ -10,8 +10,12 @@ all: build
 deps:
 	@sh scripts/install-deps.sh
 
+# Ninja (Debian's ninja-build, which make deps installs) starts compiling the tests while
+# the library's last translation units still build, so both cores stay busy.
+GENERATOR ?= $(shell command -v ninja >/dev/null 2>&1 && echo Ninja || echo "Unix Makefiles")
+
 $(BUILD)/CMakeCache.txt: | deps
-	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release $(CMAKE_FLAGS)
+	cmake -S . -B $(BUILD) -G "$(GENERATOR)" -DCMAKE_BUILD_TYPE=Release $(CMAKE_FLAGS)
 
 configure: deps $(BUILD)/CMakeCache.txt
 

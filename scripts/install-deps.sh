@@ -1,7 +1,7 @@
 #!/bin/sh
 # Installs the Debian packages tuile needs, only those missing (apt-get update first when needed).
 set -e
-PKGS="cmake make g++ pkg-config libembree-dev libtbb-dev libxsimd-dev libopenexr-dev libcli11-dev \
+PKGS="cmake make ninja-build g++ pkg-config libembree-dev libtbb-dev libxsimd-dev libopenexr-dev libcli11-dev \
 libgtest-dev libbenchmark-dev zlib1g-dev libpng-dev libstb-dev libopenmpi-dev openmpi-bin"
 missing=""
 for p in $PKGS; do

@@ -1,355 +1,31 @@
-// run_tile: one tile's stages back to back (generate, trace camera rays, camera hits,
-// sample lights, trace shadow rays, sample the BSDF, trace bounce rays, MIS weight,
-// accumulate), instantiated per scene shape; and the list of instantiated pipelines.
+// The registry of instantiated pipelines (their code: render/tile_run.h, compiled in
+// render/pipelines/part_<k>.cpp) and the choice of one for a scene and estimator.
 #include "render/tile_pipeline.h"
-
-#include <x86intrin.h>
 
 #include <algorithm>
 #include <array>
-#include <cstring>
 #include <iterator>
 #include <stdexcept>
 #include <utility>
-
-#include "wave/accumulate.h"
-#include "wave/emitter_hits.h"
-#include "wave/generate.h"
-#include "wave/path.h"
-#include "wave/ris.h"
-#include "wave/sample_bsdf.h"
-#include "wave/sample_lights.h"
-#include "wave/surface_hits.h"
 
 namespace tuile {
 
 namespace {
 
-// Keeps a copy of a packet about to be traced, for the roofline replay (first pass only).
-template <class P> inline void record(std::vector<RecordedPacket<P>>& out, const P& p, const int32_t* valid) {
-  RecordedPacket<P> r;
-  r.packet = p;
-  std::memcpy(r.valid, valid, sizeof(r.valid));
-  out.push_back(r);
+template <int... K> std::array<TileFn, pipeline_count> collect_parts(std::integer_sequence<int, K...>) {
+  std::array<TileFn, pipeline_count> table{};
+  (register_pipeline_part<K>(table.data()), ...);
+  for (size_t i = 0; i < pipeline_count; ++i) {
+    if (general_pipeline_only) table[i] = table[0];
+    if (!table[i]) throw std::logic_error("pipeline " + features_name(registered_pipelines[i]) + " is in no part");
+  }
+  return table;
 }
-
-// Times the stages of a tile when profiling; a single well-predicted branch otherwise. Reads
-// the time-stamp counter once per stage boundary (clock_gettime costs several times more),
-// converted to seconds with the ratio of counter ticks to wall
-// time over the whole render. What is left for the "scheduling" row is the time between
-// tiles (task scheduling).
-struct StageTimer {
-  ThreadProfile* tp;
-  const TileContext& c;
-  int tile;
-  uint64_t t0 = 0;
-  int depth = -1;  // paths: the vertex (0-based) whose stages run, for the per-vertex rows; -1 outside paths
-  StageTimer(ThreadProfile* p, const TileContext& ctx, int t) : tp(p), c(ctx), tile(t) {}
-  void start() {
-#ifndef TUILE_NO_PROFILE_HOOKS
-    if (tp) t0 = __rdtsc();
-#endif
-  }
-  // Runs f outside the current stage's time (the roofline's packet copies).
-  template <class F> void untimed(F&& f) {
-    const uint64_t a = __rdtsc();
-    f();
-    t0 += __rdtsc() - a;
-  }
-  // Ends the running stage as s and starts the next one: one counter read per stage
-  // boundary, and no time falls between stages.
-  void lap([[maybe_unused]] Stage s) {
-#ifdef TUILE_NO_PROFILE_HOOKS
-    return;
-#endif
-    if (!tp) return;
-    const uint64_t t1 = __rdtsc();
-    tp->stage_ticks[static_cast<int>(s)] += t1 - t0;
-    if (depth >= 0) tp->depth_ticks[std::min(depth, profile_depths - 1)][static_cast<int>(s)] += t1 - t0;
-    if (c.profile->trace && tp->events.size() < c.profile->max_events)
-      tp->events.push_back({s, tile, static_cast<double>(t0 - c.origin_ticks), static_cast<double>(t1 - t0)});
-    t0 = t1;
-  }
-};
-
-inline int active_lanes(const int32_t* valid) {
-  if constexpr (packet_width % simd_width == 0) {
-    int n = 0;
-    for (int l = 0; l < packet_width; l += simd_width)
-      n += count(f_mask_from_i(load_i32<vfloat>(valid + l) != vint(0)));
-    return n;
-  }
-  int n = 0;
-  for (int l = 0; l < packet_width; ++l) n += valid[l] != 0;
-  return n;
+// Every registered pipeline's function, filled by the parts once.
+const std::array<TileFn, pipeline_count>& registered_functions() {
+  static const std::array<TileFn, pipeline_count> table = collect_parts(std::make_integer_sequence<int, pipeline_parts>());
+  return table;
 }
-
-// The shadow packets' valid lanes (tb.tech.valid): occlusion queries, counted.
-inline void trace_shadow(const TileContext& c, TileBuffers& tb, StageTimer& timer, int packets, bool rec, ThreadProfile* tp) {
-  clear_high_vector_registers();
-  for (int p = 0; p < packets; ++p) {
-    const int32_t* valid = tb.tech.valid + p * packet_width;
-    const int active = active_lanes(valid);
-    if (!active) continue;
-    if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], valid); });
-    c.accel.occluded16(valid, tb.shadow[p], false);
-    tb.stats.rays_shadow += static_cast<uint64_t>(active);
-  }
-}
-
-// The bounce packets' valid lanes: nearest hits in the scene or among the emitters, counted.
-inline void trace_bounce(const TileContext& c, TileBuffers& tb, StageTimer& timer, int packets, bool rec, ThreadProfile* tp,
-                         Bvh bvh) {
-  clear_high_vector_registers();
-  for (int p = 0; p < packets; ++p) {
-    const int32_t* valid = tb.tech.valid + p * packet_width;
-    const int active = active_lanes(valid);
-    if (!active) continue;
-    if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
-    c.accel.intersect16(valid, tb.bounce[p], false, bvh);
-    tb.stats.rays_bounce += static_cast<uint64_t>(active);
-  }
-}
-
-// Resampled importance sampling of one vertex's direct light (wave/ris.h): the light
-// candidates, the BSDF candidates traced against the emitters, then one shadow ray per
-// shading point for the kept candidate.
-template <Features F>
-void run_ris(const TileContext& c, TileBuffers& tb, StageTimer& timer, const Estimator& e, uint32_t s, uint32_t d,
-             int packets, bool rec, ThreadProfile* tp) {
-  const SceneViews& v = c.v;
-  const SampleLayout& layout = c.layout;
-  ris_clear(tb);
-  LightPass pass;
-  pass.fixed_light = F.pick ? -1 : 0;
-  for (int j = 0; j < e.ris_light; ++j)
-    ris_light_candidates<F.kinds, F.pick, F.bsdfs>(v.geom, v.lights, e, pass, s, layout.light_pick(static_cast<uint32_t>(j), d),
-                                                   layout.light_point(static_cast<uint32_t>(j), d), tb);
-  timer.lap(Stage::sample_lights);
-  for (int m = 0; m < e.ris_bsdf; ++m) {
-    const uint32_t mm = static_cast<uint32_t>(m);
-    sample_bsdf<F.bsdfs>(v.geom, e, s, layout.bsdf(mm, d), layout.bsdf_lobe(mm, d), tb);
-    timer.lap(Stage::sample_bsdf);
-    trace_bounce(c, tb, timer, packets, rec, tp, Bvh::emitters);
-    timer.lap(Stage::intersect_bounce);
-    ris_bsdf_candidates<F.kinds, F.bsdfs>(v.geom, v.lights, e, s, layout.bsdf_lobe(mm, d), tb);
-    timer.lap(Stage::sample_lights);
-  }
-  ris_finish(tb);
-  timer.lap(Stage::sample_lights);
-  trace_shadow(c, tb, timer, packets, rec, tp);
-  timer.lap(Stage::intersect_shadow);
-  accumulate_shadow(tb);
-  timer.lap(Stage::accumulate);
-}
-
-// The tile pipeline, instantiated per Features (wave/features.h): it leaves out what its
-// scenes do not need.
-template <Features F>
-void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile, uint32_t begin, uint32_t end) {
-  const SceneViews& v = c.v;
-  const Estimator& est = c.est;
-  Film& film = c.film;
-  const int ts = c.tile_size;
-  const int x0 = (tile % c.tiles_x) * ts, y0 = (tile / c.tiles_x) * ts;
-  const int tw = std::min(ts, c.width - x0), th = std::min(ts, c.height - y0);
-  const int lanes = tw * th;
-  StageTimer timer(tp, c, tile);
-  timer.start();
-  // Lane order: 4x4 pixel blocks, one per packet of 16 (a smaller footprint than a row of
-  // 16, so Embree's packets are more coherent), where the tile divides into them; rows
-  // otherwise. Every lane's numbers depend on its pixel only, so the image does not change.
-  const bool blocks = tw % 4 == 0 && th % 4 == 0 && packet_width == 16;
-  int i = 0;
-  auto set_lane = [&](int x, int y) {
-    tb.lanes.fx[i] = static_cast<float>(x);
-    tb.lanes.fy[i] = static_cast<float>(y);
-    tb.lanes.pixel[i++] = static_cast<uint32_t>(y) * static_cast<uint32_t>(c.width) + static_cast<uint32_t>(x);
-  };
-  if (blocks) {
-    for (int by = y0; by < y0 + th; by += 4)
-      for (int bx = x0; bx < x0 + tw; bx += 4)
-        for (int j = 0; j < 16; ++j) set_lane(bx + j % 4, by + j / 4);
-  } else {
-    for (int y = y0; y < y0 + th; ++y)
-      for (int x = x0; x < x0 + tw; ++x) set_lane(x, y);
-  }
-  const int cam_packets = packets_for(lanes);
-  timer.lap(Stage::generate);
-  clear_tile_sums(tb, lanes);
-  timer.lap(Stage::accumulate);
-  // The sampler's keys of the pairs this pipeline draws (pair numbers as below), hashed
-  // once per pixel for all of the tile's samples.
-  const SampleLayout& layout = c.layout;
-  Estimator deep = est;  // paths past the first vertex: the MIS-weight AOV is the first vertex's
-  deep.aov_mis_weight = false;
-  tb.keys.keyed = 0;
-  if (cacheable(est.sampler)) {
-    auto bit = [](uint32_t pair) { return pair < SamplerKeys::pairs ? 1u << pair : 0u; };
-    uint32_t want = bit(SampleLayout::camera);
-    if (est.one_sample()) want |= bit(layout.technique_choice());
-    if constexpr (F.bsdf)
-      for (int m = 0; m < c.bsdf_passes; ++m) {
-        want |= bit(layout.bsdf(static_cast<uint32_t>(m)));
-        if (F.bsdfs != bsdf_diffuse) want |= bit(layout.bsdf_lobe(static_cast<uint32_t>(m)));
-      }
-    if constexpr (F.light)
-      for (int j = 0; j < c.light_passes; ++j) {
-        if (F.pick && est.pick != LightPick::all) want |= bit(layout.light_pick(static_cast<uint32_t>(j)));
-        want |= bit(layout.light_point(static_cast<uint32_t>(j)));
-      }
-    const int padded = cam_packets * packet_width;
-    for (int i = lanes; i < padded; ++i) tb.lanes.pixel[i] = tb.lanes.pixel[0];  // as generate pads
-    for (uint32_t bits = want; bits; bits &= bits - 1) {
-      const int p = std::countr_zero(bits);
-      make_pair_keys(est.seed, tb.lanes.pixel, static_cast<uint32_t>(p), padded, tb.keys.lane_keys(p));
-    }
-    tb.keys.keyed = want;
-  }
-  timer.lap(Stage::generate);
-  for (uint32_t s = begin; s < end; ++s) {
-    generate(v.camera, est, s, layout.camera, lanes, tb);
-    timer.lap(Stage::generate);
-    const bool rec = tp && c.profile->record_rays && s == begin;
-    clear_high_vector_registers();
-    for (int p = 0; p < cam_packets; ++p) {
-      if (rec) timer.untimed([&] { record(tp->rays.camera, tb.cam[p], tb.lanes.cam_valid + p * packet_width); });
-      c.accel.intersect16(tb.lanes.cam_valid + p * packet_width, tb.cam[p], true);
-    }
-    tb.stats.rays_camera += static_cast<uint64_t>(lanes);
-    timer.lap(Stage::intersect_camera);
-    camera_hits<F.emitter_lookup, vfloat, F.bsdfs != bsdf_diffuse>(v.geom, v.lights, est, s, layout.technique_choice(),
-                                                                   lanes, tb);
-    timer.lap(Stage::camera_hits);
-    // Direct lighting is the first vertex; paths (max_depth > 1) go on from the last BSDF
-    // sample of each vertex, compacted (bounce_hits), until no path is left or the depth
-    // is reached.
-    const bool paths = est.max_depth > 1;
-    if (paths) start_paths(tb);
-    for (int vertex = 1;; ++vertex) {
-      const uint32_t d = static_cast<uint32_t>(vertex - 1);
-      const bool last = vertex >= est.max_depth;
-      const Estimator& e = vertex == 1 ? est : deep;
-      if (paths) timer.depth = vertex - 1;
-      const int packets = packets_for(tb.points.count);
-      if (tp && paths) {
-        const int row = std::min(vertex - 1, profile_depths - 1);
-        tp->depth_points[row] += static_cast<uint64_t>(tb.points.count);
-        tp->depth_packets[row] += static_cast<uint64_t>(packets);
-        tp->depth_lane_packets[row] += static_cast<uint64_t>(cam_packets);
-      }
-      if constexpr (F.light) {
-        if (tb.points.count > 0 && e.strategy == Strategy::ris) {
-          if constexpr (F.bsdf) run_ris<F>(c, tb, timer, e, s, d, packets, rec, tp);
-        } else if (tb.points.count > 0) {
-          for (int j = 0; j < c.light_passes; ++j) {
-            LightPass pass;
-            pass.fixed_light = e.pick == LightPick::all ? j % c.light_count : (F.pick ? -1 : 0);
-            pass.rate_light = c.rate_light;
-            pass.rate_bsdf = c.rate_bsdf;
-            sample_lights<F.kinds, F.pick, F.bsdfs>(v.geom, v.lights, e, pass, s, layout.light_pick(static_cast<uint32_t>(j), d),
-                                                   layout.light_point(static_cast<uint32_t>(j), d), tb);
-            timer.lap(Stage::sample_lights);
-            trace_shadow(c, tb, timer, packets, rec, tp);
-            timer.lap(Stage::intersect_shadow);
-            accumulate_shadow(tb);
-            timer.lap(Stage::accumulate);
-          }
-        }
-      }
-      if constexpr (F.bsdf) {
-        if (tb.points.count > 0) {
-          // the last vertex's bounce rays may look for the emitters alone (then a visibility
-          // ray); a path's other bounce rays need their nearest hit in the scene
-          const bool against_emitters = last && c.bounce_against_emitters;
-          // resampled importance sampling took its BSDF candidates (run_ris): what is left is
-          // the last BSDF sample, for the path's continuation and the delta lobes
-          const bool ris = e.strategy == Strategy::ris;
-          for (int m = ris ? c.bsdf_passes - 1 : 0; m < c.bsdf_passes; ++m) {
-            const bool continuation = !last && m == c.bsdf_passes - 1;
-            if (ris && !continuation && (F.bsdfs & bsdf_delta_capable) == 0) break;
-            sample_bsdf<F.bsdfs>(v.geom, e, s, layout.bsdf(static_cast<uint32_t>(m), d),
-                                 layout.bsdf_lobe(static_cast<uint32_t>(m), d), tb,
-                                 e.strategy == Strategy::light || ris, continuation);
-            timer.lap(Stage::sample_bsdf);
-            trace_bounce(c, tb, timer, packets, rec, tp, against_emitters ? Bvh::emitters : Bvh::scene);
-            timer.lap(Stage::intersect_bounce);
-            constexpr bool delta = (F.bsdfs & bsdf_delta_capable) != 0;
-            queue_bounce_hits<vfloat, F.kinds, delta>(v.geom, v.lights, tb, against_emitters, continuation && e.one_sample());
-            if (against_emitters && tb.queue.count > 0) {
-              const int qpackets = bounce_visibility_rays(tb);
-              timer.lap(Stage::mis_weight);
-              clear_high_vector_registers();
-              for (int p = 0; p < qpackets; ++p) {
-                if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], tb.queue.valid + p * packet_width); });
-                c.accel.occluded16(tb.queue.valid + p * packet_width, tb.shadow[p], false);
-              }
-              tb.stats.rays_bounce_visibility += static_cast<uint64_t>(tb.queue.count);
-              timer.lap(Stage::intersect_bounce);
-              read_bounce_visibility(tb);
-            }
-            weight_queue<F.kinds, delta>(v.lights, e, c.rate_light, c.rate_bsdf, tb);
-            timer.lap(Stage::mis_weight);
-          }
-        }
-      }
-      if (!paths) break;
-      add_vertex_radiance(tb, vertex == 1);
-      timer.lap(Stage::accumulate);
-      if constexpr (!F.bsdf) break;  // (pipeline_features gives paths the BSDF stages)
-      if (last || tb.points.count == 0) break;
-      continue_paths<F.bsdfs != bsdf_diffuse>(v.geom, e, s, layout.russian_roulette(d), vertex, tb);
-      timer.lap(Stage::sample_bsdf);
-      timer.depth = vertex;  // the next vertex's hits
-      bounce_hits<vfloat, F.bsdfs != bsdf_diffuse>(v.geom, v.lights, e, s, layout.technique_choice(d + 1), tb);
-      tb.stats.path_vertices += static_cast<uint64_t>(tb.points.count);
-      timer.lap(Stage::camera_hits);
-    }
-    timer.depth = -1;
-    if (paths) std::fill_n(tb.lanes.shade_of, cam_packets * packet_width, -1);  // every vertex is in the lanes' radiance
-    // one sample of every pixel into the tile's double sums
-    accumulate_samples(tb, lanes, est.aov_mis_weight);
-    timer.lap(Stage::accumulate);
-  }
-  // The tile's sums into the film, once. Each pixel belongs to one tile, so the film
-  // gets the same bits for any thread count and tile order. A fresh film (0) gets the
-  // bits of adding sample by sample; a film that already holds samples (progressive
-  // renders) gets its old sum plus this render's partial sum: other rounding than adding
-  // one sample at a time, equally deterministic.
-  const FilmSums fs{film.sum.data(),    film.sum_sq.data(),           film.w_sum.data(), film.w_cnt.data(),
-                    film.max_sample.data(), static_cast<size_t>(c.width)};
-  if (c.fresh_film && blocks && can_stream_tile(x0, tw, th, fs)) stream_tile_to_film(tb, x0, y0, th, fs, est.aov_mis_weight);
-  else add_tile_to_film(tb, lanes, fs, est.aov_mis_weight);
-  timer.lap(Stage::accumulate);
-}
-
-// The instantiated pipelines, one list. pick_pipeline chooses among them by the features a
-// scene and estimator need; a combination missing here is a bug (it throws).
-constexpr unsigned D = bsdf_diffuse;
-constexpr Features registered_pipelines[] = {
-    general_features,                                                     // also mixed/mis/pick/materials
-    {kind_all, false, false, false, false, D},                            // no-lights
-    {kind_delta, true, false, true, false, D},  {kind_delta, true, false, false, false, D},
-    {kind_area | kind_rects, true, true, true, true, D},  {kind_area | kind_rects, true, true, false, true, D},
-    {kind_area | kind_rects, true, false, true, true, D}, {kind_area | kind_rects, true, false, false, true, D},
-    {kind_area | kind_rects, false, true, false, true, D},
-    {kind_area, true, true, true, true, D},  {kind_area, true, true, false, true, D},
-    {kind_area, true, false, true, true, D}, {kind_area, true, false, false, true, D},
-    {kind_area, false, true, false, true, D},
-    {kind_all, true, true, true, true, D},
-    {kind_all, true, true, false, true, D},  {kind_all, true, false, true, true, D}, {kind_all, true, false, false, true, D},
-    // scenes with other surfaces than diffuse: every kind of source and surface
-    {kind_all, true, true, false, true, bsdf_all},  {kind_all, false, true, false, true, bsdf_all},
-    {kind_all, true, false, true, true, bsdf_all},  {kind_all, true, false, false, true, bsdf_all},
-    {kind_all, true, false, true, false, bsdf_all}, {kind_all, true, false, false, false, bsdf_all},
-};
-constexpr size_t pipeline_count = std::size(registered_pipelines);
-
-template <size_t... I> constexpr std::array<TileFn, sizeof...(I)> pipeline_functions(std::index_sequence<I...>) {
-  return {&run_tile<registered_pipelines[I]>...};
-}
-constexpr std::array<TileFn, pipeline_count> registered_functions =
-    pipeline_functions(std::make_index_sequence<pipeline_count>());
 
 }  // namespace
 
@@ -398,7 +74,11 @@ Features pipeline_features(const SceneViews& v, const Estimator& est, bool gener
 PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool general, std::string& why) {
   const Features f = pipeline_features(v, est, general, why);
   for (size_t i = 0; i < pipeline_count; ++i)
-    if (registered_pipelines[i] == f) return {general ? std::string("general") : features_name(f), registered_functions[i]};
+    if (registered_pipelines[i] == f) {
+      std::string name = general ? std::string("general") : features_name(f);
+      if (general_pipeline_only && i != 0) name += " (run by the general pipeline: TUILE_PIPELINES=general)";
+      return {name, registered_functions()[i]};
+    }
   throw std::logic_error("no registered pipeline for " + features_name(f));
 }
 

@@ -1,0 +1,7 @@
+// Part 2 of the registered tile pipelines (render/tile_pipeline.h: pipeline_part).
+#include "render/tile_run.h"
+
+namespace tuile {
+static_assert(2 < pipeline_parts);
+template void register_pipeline_part<2>(TileFn*);
+}  // namespace tuile
