@@ -8,6 +8,7 @@
 #include "light/polygon_irradiance.h"
 #include "render/render.h"
 #include "scene/scene.h"
+#include "test_scale.h"
 
 namespace tuile::test {
 

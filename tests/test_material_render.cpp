@@ -359,7 +359,7 @@ TEST(Materials, EveryStrategyConvergesToTheSameGlossyImage) {
     o.est.heuristic = h;
     o.est.mode = mode;
     o.est.sampler = SamplerKind::independent;
-    o.est.spp = 1024;
+    o.est.spp = scaled(1024u);  // the z-scores below come from these samples' own variance
     o.est.seed = 7;
     Renderer r(s, accel, o);
     Film f;

@@ -2,6 +2,8 @@
 // into RenderOptions; scene loading and accelerator set-up with clear errors.
 #include "app/cli.h"
 
+#include <CLI/CLI.hpp>
+
 #include <cmath>
 #include <stdexcept>
 

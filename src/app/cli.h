@@ -1,12 +1,16 @@
 // Shared command-line handling: the render flags every subcommand takes, and scene +
 // accelerator set-up with clear errors.
 #pragma once
-#include <CLI/CLI.hpp>
-
 #include <string>
 
 #include "render/render.h"
 #include "scene/scene.h"
+
+// CLI11's header costs every translation unit that includes it seconds of compile time (its
+// validators are objects built in each one): only the files that define flags include it.
+namespace CLI {
+class App;
+}
 
 namespace tuile {
 

@@ -2,6 +2,8 @@
 // src/measure).
 #include "app/commands.h"
 
+#include <CLI/CLI.hpp>
+
 #include <sys/resource.h>
 #include <unistd.h>
 

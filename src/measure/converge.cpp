@@ -13,6 +13,8 @@
 #include <stdexcept>
 
 #include "app/commands.h"
+
+#include <CLI/CLI.hpp>
 #include "accel/embree.h"
 #include "scene/image_io.h"
 #include "measure/metrics.h"

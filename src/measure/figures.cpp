@@ -15,6 +15,8 @@
 #include <memory>
 
 #include "app/commands.h"
+
+#include <CLI/CLI.hpp>
 #include "accel/embree.h"
 #include "scene/image_io.h"
 #include "measure/plot.h"

@@ -4,6 +4,10 @@
 #include <algorithm>
 #include <chrono>
 
+#ifndef TUILE_PASS_DIVISOR
+#define TUILE_PASS_DIVISOR 1
+#endif
+
 namespace tuile {
 
 uint32_t PassPlan::next_end(uint32_t done, uint32_t spp) const noexcept {
@@ -12,7 +16,7 @@ uint32_t PassPlan::next_end(uint32_t done, uint32_t spp) const noexcept {
 }
 
 PassPlan fixed_passes(uint64_t pixels) noexcept {
-  const uint64_t target = uint64_t(1) << 23;
+  const uint64_t target = (uint64_t(1) << 23) / TUILE_PASS_DIVISOR;
   const uint64_t per_pass = std::max<uint64_t>(1, target / std::max<uint64_t>(1, pixels));
   return {PassSchedule::fixed, static_cast<uint32_t>(std::min<uint64_t>(per_pass, 1u << 20))};
 }

@@ -29,7 +29,8 @@ struct PassPlan {
 // Fixed passes of about 2^23 samples (at least one sample per pixel): small enough that a
 // budget or a checkpoint is never far away (a fraction of a second on simple scenes, a
 // few seconds on large ones), large enough that adding a pass to the image costs little
-// against rendering it.
+// against rendering it. A test build with TUILE_TEST_SCALE = k (CI's sanitizer tree) makes
+// them 2^23 / k samples.
 PassPlan fixed_passes(uint64_t pixels) noexcept;
 inline PassPlan doubling_passes() noexcept { return {PassSchedule::doubling, 1}; }
 
