@@ -144,7 +144,8 @@ TEST(Plot, SvgIsWellFormedWithOnePolylinePerSeries) {
   p.guide_label = "1/t";
   for (int s = 0; s < 3; ++s) {
     PlotSeries ps;
-    ps.name = "s" + std::to_string(s);
+    ps.name = "s";
+    ps.name += std::to_string(s);
     for (int k = 0; k < 5; ++k) ps.x.push_back(std::ldexp(1.0, k)), ps.y.push_back((s + 1) * 0.1 / ps.x.back());
     p.series.push_back(ps);
   }
