@@ -240,8 +240,11 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
         tp->depth_packets[row] += static_cast<uint64_t>(packets);
         tp->depth_lane_packets[row] += static_cast<uint64_t>(cam_packets);
       }
+      // (a pipeline with the light stages may run a scene without lights: the general one,
+      // forced or standing in for all, whose empty light table has nothing to pick from)
       if constexpr (F.light) {
-        if (tb.points.count > 0 && e.strategy == Strategy::ris) {
+        if (v.lights.count == 0) {
+        } else if (tb.points.count > 0 && e.strategy == Strategy::ris) {
           if constexpr (F.bsdf) run_ris<F>(c, tb, timer, e, s, d, packets, rec, tp);
         } else if (tb.points.count > 0) {
           for (int j = 0; j < c.light_passes; ++j) {
