@@ -266,7 +266,8 @@ TEST(Paths, LightThroughGlassSlab) {
   } cases[] = {{1, 0.0}, {2, 2 * (1 - R) * (1 - R)}, {40, 2 * (1 - R) / (1 + R)}};
   for (const auto& c : cases)
     for (Strategy st : {Strategy::mis, Strategy::light, Strategy::bsdf, Strategy::ris}) {
-      RenderOptions o = path_options(c.depth, st, 256);
+      // the knob's samples (at least 32 per pixel): the z-test's standard error is the samples'
+      RenderOptions o = path_options(c.depth, st, scaled(256u, 32u));
       const Film f = render_film(s, o);
       const ImageSum is = image_sum(f);
       const double mean = is.sum / static_cast<double>(is.values);
