@@ -28,7 +28,7 @@ std::vector<Light> small_triangles(int n) {
   std::uniform_real_distribution<float> U(0.f, 1.f);
   std::vector<Light> out(static_cast<size_t>(n));
   for (Light& l : out) {
-    l.type = LightType::triangle;
+    l.type = LightKind::triangle;
     l.p0 = {10 * U(rng) - 5, 10 * U(rng) - 5, 10 * U(rng) - 5};
     const float z = 2 * U(rng) - 1, phi = 6.2831853f * U(rng), r = std::sqrt(std::max(0.f, 1 - z * z));
     const vec3f d{r * std::cos(phi), r * std::sin(phi), z};

@@ -67,7 +67,7 @@ BumpPlane bump_plane(bool normals, bool displaced = true, int res = 16) {
   s.camera.fov_deg = 60;
   camera_look_at(s.camera, {0, 1, 0}, {0, 0, 0}, {0, 0, 1});
   Light light;
-  light.type = LightType::distant;
+  light.type = LightKind::distant;
   light.e1 = b.l;
   light.radiance = {b.E, b.E, b.E};
   s.lights.push_back(light);

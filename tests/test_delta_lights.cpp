@@ -35,13 +35,13 @@ std::vector<double> exact_delta(const Scene& s, const Light& l, double rho, int 
           const double t = -static_cast<double>(o.y) / d.y;
           const double x[3] = {o.x + t * d.x, 0.0, o.z + t * d.z};
           double L = 0;
-          if (l.type == LightType::distant) {
+          if (l.type == LightKind::distant) {
             L = rho / M_PI * l.radiance.r * std::max(0.0, static_cast<double>(l.e1.y));
           } else {
             const double w[3] = {l.p0.x - x[0], l.p0.y - x[1], l.p0.z - x[2]};
             const double d2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2], dd = std::sqrt(d2);
             double I = l.radiance.r;
-            if (l.type == LightType::spot) {
+            if (l.type == LightKind::spot) {
               const double cos_t = -(w[0] * l.e1.x + w[1] * l.e1.y + w[2] * l.e1.z) / dd;
               I *= smoothstep(l.e2.y, l.e2.x, cos_t);
             }
@@ -57,17 +57,17 @@ std::vector<double> exact_delta(const Scene& s, const Light& l, double rho, int 
 }  // namespace
 
 TEST(DeltaLights, PointSpotDistantAreExact) {
-  for (LightType type : {LightType::point, LightType::spot, LightType::distant}) {
+  for (LightKind type : {LightKind::point, LightKind::spot, LightKind::distant}) {
     PlaneScene p = plane_scene({0, 0.6f, 0}, 80, 20, 0.6f);
     Light l;
     l.type = type;
     l.p0 = {0.3f, 1.0f, -0.2f};
     l.radiance = {3, 3, 3};
-    if (type == LightType::spot) {
+    if (type == LightKind::spot) {
       l.e1 = normalize(vec3f{-0.2f, -1, 0.1f});
       l.e2 = {std::cos(0.35f), std::cos(0.6f), 0};  // falloff start, total
     }
-    if (type == LightType::distant) l.e1 = normalize(vec3f{0.3f, 1, -0.4f});
+    if (type == LightKind::distant) l.e1 = normalize(vec3f{0.3f, 1, -0.4f});
     p.scene.lights.push_back(l);
     finalize_scene(p.scene);
     const std::vector<double> exact = exact_delta(p.scene, p.scene.lights[0], 0.6);

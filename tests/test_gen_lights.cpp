@@ -56,7 +56,7 @@ TEST(GenLights, ThousandOneSidedSourcesFacingIn) {
   for (const tuile::Mesh& m : s.meshes) emissive_meshes += m.emissive();
   EXPECT_EQ(emissive_meshes, 40u);
   for (const tuile::Light& l : s.lights) {
-    ASSERT_EQ(l.type, tuile::LightType::triangle);
+    ASSERT_EQ(l.type, tuile::LightKind::triangle);
     EXPECT_FALSE(l.two_sided);
     EXPECT_GT(l.area, 0.f);
     // emission side: cross(e1, e2); the centre must be strictly in front

@@ -55,19 +55,19 @@ Scene all_lights_scene(bool extras = false) {
   sp.emission = {5, 5, 5};
   s.spheres.push_back(sp);
   Light pt;
-  pt.type = LightType::point;
+  pt.type = LightKind::point;
   pt.p0 = {0, 3, 0};
   pt.radiance = {2, 2, 2};
   s.lights.push_back(pt);
   Light spot;
-  spot.type = LightType::spot;
+  spot.type = LightKind::spot;
   spot.p0 = {1, 3, 1};
   spot.e1 = normalize(vec3f{0, -1, 0.2f});
   spot.e2 = {0.95f, 0.85f, 0};
   spot.radiance = {4, 4, 4};
   s.lights.push_back(spot);
   Light dist;
-  dist.type = LightType::distant;
+  dist.type = LightKind::distant;
   dist.e1 = normalize(vec3f{0.3f, 1, 0.2f});
   dist.radiance = {1, 1, 1};
   s.lights.push_back(dist);
@@ -924,7 +924,7 @@ TEST(Lanes, EmitterQueueEqualScalar) {
         if (li < 0) continue;
         const Light& src = s.lights[static_cast<size_t>(li)];
         const vec3f d{r.ray.dir_x[l], r.ray.dir_y[l], r.ray.dir_z[l]};
-        if (src.type == LightType::sphere)
+        if (src.type == LightKind::sphere)
           expected += light_front(views.lights, li, r.ray.org_x[l], r.ray.org_y[l], r.ray.org_z[l], d.x, d.y, d.z);
         else {
           expected += src.two_sided || dot(d, cross(src.e1, src.e2)) < 0.f;

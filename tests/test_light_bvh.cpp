@@ -40,22 +40,22 @@ std::vector<Light> mixed_lights(int n, uint32_t seed) {
     const float L = std::pow(10.f, 6 * U(rng) - 3);
     l.radiance = {L, 0.5f * L, 0.2f * L};
     if (kind <= 2) {
-      l.type = kind == 0 ? LightType::triangle : LightType::parallelogram;
+      l.type = kind == 0 ? LightKind::triangle : LightKind::parallelogram;
       l.e1 = dir() * (0.05f + U(rng));
       l.e2 = dir() * (0.05f + U(rng));
       l.area = length(cross(l.e1, l.e2)) * (kind == 0 ? 0.5f : 1.f);
       l.two_sided = kind == 2;
     } else if (kind == 3) {
-      l.type = LightType::sphere;
+      l.type = LightKind::sphere;
       l.e1 = {0.02f + 0.3f * U(rng), 0, 0};
     } else if (kind == 4) {
-      l.type = LightType::point;
+      l.type = LightKind::point;
     } else if (kind == 5) {
-      l.type = LightType::spot;
+      l.type = LightKind::spot;
       l.e1 = dir();
       l.e2 = {0.9f, 0.7f, 0};
     } else {
-      l.type = LightType::triangle;  // a coplanar family: many sources share an axis
+      l.type = LightKind::triangle;  // a coplanar family: many sources share an axis
       l.p0.y = 4.9f;
       l.e1 = {0.2f, 0, 0};
       l.e2 = {0, 0, 0.2f};
@@ -88,7 +88,7 @@ TEST(LightBvh, PmfIsThePickProbabilityAndSumsToOne) {
     std::vector<Light> lights = mixed_lights(nl, 5u + static_cast<uint32_t>(nl));
     if (nl == 17) {  // distant sources beside the tree
       Light d;
-      d.type = LightType::distant;
+      d.type = LightKind::distant;
       d.e1 = {0, 1, 0};
       d.radiance = {1, 1, 1};
       lights.push_back(d);
@@ -143,7 +143,7 @@ TEST(LightBvh, SourcesFacingAwayAreNeverPicked) {
   std::vector<Light> lights;
   for (int i = 0; i < 20; ++i) {
     Light l;
-    l.type = LightType::parallelogram;
+    l.type = LightKind::parallelogram;
     l.p0 = {static_cast<float>(i % 5), 1, static_cast<float>(i / 5)};
     l.e1 = {0, 0, 0.5f};
     l.e2 = {0.5f, 0, 0};  // cross = +y
@@ -227,18 +227,18 @@ TEST(LightBvh, BoundsAreConservative) {
   int checked = 0;
   for (size_t l = 0; l < lights.size(); l += 3) {
     const Light& L = lights[l];
-    const bool planar = L.type == LightType::triangle || L.type == LightType::parallelogram;
+    const bool planar = L.type == LightKind::triangle || L.type == LightKind::parallelogram;
     const vec3f nl = planar ? normalize(cross(L.e1, L.e2)) : vec3f{0, 0, 0};
     for (int k = 0; k < 12; ++k) {
       // a point of the source, and a direction it emits into
       float a = U(rng), b = U(rng);
-      if (L.type == LightType::triangle && a + b > 1) a = 1 - a, b = 1 - b;
+      if (L.type == LightKind::triangle && a + b > 1) a = 1 - a, b = 1 - b;
       vec3f p = planar ? L.p0 + L.e1 * a + L.e2 * b : L.p0;
       vec3f d = dir();
       if (planar && !L.two_sided && dot(d, nl) < 0) d = -d;
       if (planar && std::abs(dot(d, nl)) < 1e-3f) continue;
-      if (L.type == LightType::sphere) p = L.p0 + d * L.e1.x;
-      if (L.type == LightType::spot && dot(d, L.e1) < 0.71f) continue;  // outside the falloff cone
+      if (L.type == LightKind::sphere) p = L.p0 + d * L.e1.x;
+      if (L.type == LightKind::spot && dot(d, L.e1) < 0.71f) continue;  // outside the falloff cone
       const float t = k % 3 == 0 ? 1e-3f : k % 3 == 1 ? 0.2f : 4.f;
       const vec3f x = p + d * t;
       for (const vec3f& n : {vec3f{0, 0, 0}, -d}) {
@@ -308,7 +308,7 @@ TEST(LightBvh, DepthStaysWithinTheTrail) {
   std::vector<Light> lights;
   for (int i = 0; i < 120; ++i) {
     Light l;
-    l.type = LightType::point;
+    l.type = LightKind::point;
     const float x = std::pow(1.2f, static_cast<float>(i));
     l.p0 = {x, x, x};
     l.radiance = {std::ldexp(1.f, i), 1, 1};

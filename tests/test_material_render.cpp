@@ -102,7 +102,7 @@ Scene every_surface() {
   lamp.emission = {5, 5, 5};
   s.spheres.push_back(lamp);
   Light spot;
-  spot.type = LightType::spot;
+  spot.type = LightKind::spot;
   spot.p0 = {0.2f, 1.5f, 0.3f};
   spot.e1 = normalize(vec3f{0.1f, -1, -0.2f});
   spot.e2 = {0.9f, 0.8f, 0};

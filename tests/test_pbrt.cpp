@@ -451,19 +451,19 @@ TEST(Pbrt, PointSpotDistantLights) {
       "LightSource \"distant\" \"point3 from\" [0 0 0] \"point3 to\" [0 0 1] \"rgb L\" [3 3 3]\n");
   ASSERT_EQ(s.lights.size(), 4u);
   const Light& p = s.lights[0];
-  EXPECT_EQ(p.type, LightType::point);
+  EXPECT_EQ(p.type, LightKind::point);
   EXPECT_FLOAT_EQ(p.p0.x, 1);
   EXPECT_FLOAT_EQ(p.p0.y, 5);
   EXPECT_FLOAT_EQ(p.radiance.b, 6);
   EXPECT_NEAR(s.lights[1].radiance.g * 4 * kPi, 100, 1e-3);
   const Light& sp = s.lights[2];
-  EXPECT_EQ(sp.type, LightType::spot);
+  EXPECT_EQ(sp.type, LightKind::spot);
   EXPECT_FLOAT_EQ(sp.p0.x, 1);
   EXPECT_NEAR(sp.e1.y, -1, 1e-6);
   EXPECT_NEAR(sp.e2.x, std::cos(30 * kPi / 180), 1e-6);
   EXPECT_NEAR(sp.e2.y, std::cos(40 * kPi / 180), 1e-6);
   const Light& d = s.lights[3];
-  EXPECT_EQ(d.type, LightType::distant);
+  EXPECT_EQ(d.type, LightKind::distant);
   EXPECT_NEAR(d.e1.z, -1, 1e-6);  // towards the light = from - to
   EXPECT_FLOAT_EQ(d.radiance.r, 3);
 }

@@ -19,12 +19,12 @@ Scene point_lit() {
   Scene s = builtin_scene("cornell");
   s.meshes.pop_back();  // no area light
   Light p;
-  p.type = LightType::point;
+  p.type = LightKind::point;
   p.p0 = {0.5f, 0.9f, 0.5f};
   p.radiance = {1, 1, 1};
   s.lights.push_back(p);
   Light spot;
-  spot.type = LightType::spot;
+  spot.type = LightKind::spot;
   spot.p0 = {0.2f, 0.9f, 0.8f};
   spot.e1 = normalize(vec3f{0.2f, -1, -0.3f});
   spot.e2 = {0.9f, 0.8f, 0};
@@ -40,7 +40,7 @@ Scene single_point() {
 Scene mixed() {
   Scene s = builtin_scene("cornell");
   Light d;
-  d.type = LightType::distant;
+  d.type = LightKind::distant;
   d.e1 = normalize(vec3f{0.1f, 1, 0.4f});
   d.radiance = {0.5f, 0.5f, 0.5f};
   s.lights.push_back(d);
@@ -88,7 +88,7 @@ Scene materials() {
   translucent.kind = MaterialKind::diffuse_transmission;
   add(translucent, {0.8f, 0.6f, 0.7f}, 0.1f);
   Light spot;
-  spot.type = LightType::spot;
+  spot.type = LightKind::spot;
   spot.p0 = {0.2f, 0.9f, 0.8f};
   spot.e1 = normalize(vec3f{0.2f, -1, -0.3f});
   spot.e2 = {0.9f, 0.8f, 0};

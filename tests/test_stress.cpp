@@ -620,20 +620,20 @@ TEST(StressFarAndSmall, ExactPlaneAt1e5) {
 //    equals the pdf MIS evaluates for the same direction, and the two weights are finite
 //    and sum to 1 for every heuristic.
 TEST(StressMis, ExtremePdfsThroughLightKernels) {
-  auto planar = [](int32_t type, vec3f p0, vec3f e1, vec3f e2) {
+  auto planar = [](LightKind type, vec3f p0, vec3f e1, vec3f e2) {
     LightGeom<float> g;
-    g.type = type;
+    g.type = static_cast<int32_t>(type);
     g.p0 = p0;
     g.e1 = e1;
     g.e2 = e2;
     g.n = normalize(cross(e1, e2));
-    g.area = length(cross(e1, e2)) * (type == lt_triangle ? 0.5f : 1.f);
+    g.area = length(cross(e1, e2)) * (type == LightKind::triangle ? 0.5f : 1.f);
     g.two_sided = 0;
     light_geom_derive(g);
     return g;
   };
   LightGeom<float> sph;
-  sph.type = lt_sphere;
+  sph.type = static_cast<int32_t>(LightKind::sphere);
   sph.p0 = {0, 1, 0};
   sph.e1 = {1e-15f, 0, 0};
   sph.e2 = {0, 0, 0};
@@ -648,10 +648,10 @@ TEST(StressMis, ExtremePdfsThroughLightKernels) {
   };
   const C cases[] = {
       {"sphere r=1e-15", sph, {0.3f, 0, 0.2f}},
-      {"triangle side 1e-8", planar(lt_triangle, {0.1f, 1, 0}, {0, 0, 1e-8f}, {1e-8f, 0, 0}), {0, 0, 0}},
-      {"quad 1e-6 above", planar(lt_parallelogram, {-1, 1e-6f, -0.5f}, {1, 0, 0}, {0, 0, 1}), {-0.2f, 0, 0}},
-      {"quad grazing", planar(lt_parallelogram, {5, 1e-3f, -0.5f}, {1, 0, 0}, {0, 0, 1}), {0, 0, 0}},
-      {"quad behind", planar(lt_parallelogram, {-0.5f, 1, -0.5f}, {0, 0, 1}, {1, 0, 0}), {0, 0, 0}},
+      {"triangle side 1e-8", planar(LightKind::triangle, {0.1f, 1, 0}, {0, 0, 1e-8f}, {1e-8f, 0, 0}), {0, 0, 0}},
+      {"quad 1e-6 above", planar(LightKind::parallelogram, {-1, 1e-6f, -0.5f}, {1, 0, 0}, {0, 0, 1}), {-0.2f, 0, 0}},
+      {"quad grazing", planar(LightKind::parallelogram, {5, 1e-3f, -0.5f}, {1, 0, 0}, {0, 0, 1}), {0, 0, 0}},
+      {"quad behind", planar(LightKind::parallelogram, {-0.5f, 1, -0.5f}, {0, 0, 1}, {1, 0, 0}), {0, 0, 0}},
   };
   const vec3f n{0, 1, 0};
   double q_min = INFINITY, q_max = 0;
@@ -1005,7 +1005,7 @@ TEST(StressCamera, NoLightAndZeroRadiance) {
     if (k == 1) add_emitter(p, {-0.5f, 1, -0.5f}, {1, 0, 0}, {0, 0, 1}, 0.f);
     if (k == 2) {
       Light l;
-      l.type = LightType::point;
+      l.type = LightKind::point;
       l.p0 = {0, 1, 0};
       p.scene.lights.push_back(l);
     }
@@ -1022,7 +1022,7 @@ TEST(StressCamera, NoLightAndZeroRadiance) {
   PlaneScene p = plane_scene({0, 0.5f, 0}, 90, 8);
   add_source_quad(p, {-0.5f, 1, -0.5f}, {1, 0, 0}, {0, 0, 1}, 2.f);
   Light dark;
-  dark.type = LightType::point;
+  dark.type = LightKind::point;
   dark.p0 = {0, 1, 0};
   p.scene.lights.push_back(dark);
   finalize_scene(p.scene);

@@ -87,32 +87,6 @@ namespace tuile {
 
 namespace bsdf_detail {
 
-// 2^n for integer-valued n in [-126, 127], by building the float's exponent bits.
-inline float pow2_int(float n) noexcept { return std::bit_cast<float>((static_cast<int32_t>(n) + 127) << 23); }
-inline vfloat pow2_int(const vfloat& n) noexcept {
-  return xsimd::bitwise_cast<vfloat>((xsimd::batch_cast<int32_t>(n) + vint(127)) << 23);
-}
-template <class V> inline Twin<V> pow2_int(const Twin<V>& n) noexcept { return {pow2_int(n.a), pow2_int(n.b)}; }
-
-// exp(x) for x <= 0 (0 below -87), from +, -, *, floor and mul_add: the same bits in every
-// lane (xsimd's exp and the C library's differ). Cody-Waite reduction x = n ln2 + r,
-// |r| <= ln2 / 2, and the Taylor series of e^r to r^8 (truncation < 3e-10 relative).
-template <class T> inline T exp_nonpositive(const T& x) noexcept {
-  const T xc = max(min(x, T(0.f)), T(-87.f));
-  const T n = floor(mul_add(xc, T(1.44269504088896341f), T(0.5f)));
-  const T r = mul_add(n, T(-1.42860677e-6f), mul_add(n, T(-0.693145752f), xc));
-  T p = T(1.f / 40320.f);
-  p = mul_add(p, r, T(1.f / 5040.f));
-  p = mul_add(p, r, T(1.f / 720.f));
-  p = mul_add(p, r, T(1.f / 120.f));
-  p = mul_add(p, r, T(1.f / 24.f));
-  p = mul_add(p, r, T(1.f / 6.f));
-  p = mul_add(p, r, T(0.5f));
-  p = mul_add(p, r, T(1.f));
-  p = mul_add(p, r, T(1.f));
-  return sel(x > T(-87.f), p * pow2_int(n), T(0.f));
-}
-
 // 8-point Gauss-Legendre on [0, 1]: nodes and weights.
 inline constexpr float gl8_x[8] = {0.0198550717512319f, 0.1016667612931866f, 0.2372337950418355f,
                                    0.4082826787521751f, 0.5917173212478249f, 0.7627662049581645f,
@@ -150,7 +124,7 @@ template <class T> inline T coat_internal_reflectance(const CoatNodes<T>& c, con
   T sum = T(0.f);
   for (int k = 0; k < 16; ++k) {
     const T mu = c.mu[k];
-    const T att = exp_nonpositive(-a / sel(mu > T(0.f), mu, T(1.f)));
+    const T att = lane_math::exp_nonpositive(-a / sel(mu > T(0.f), mu, T(1.f)));
     sum = mul_add(c.w[k], sel(mu > T(0.f), att, T(0.f)), sum);
   }
   return sum;
@@ -166,7 +140,7 @@ template <class T> inline T refracted_cos(const T& mu, const T& inv_eta) noexcep
 // optical depth sd = sigma thickness: exp(-sd / mu') (0 where mu' <= 0 is never read: the
 // callers mask those lanes).
 template <class T> inline T layer_tr(const T& sd, const T& mu) noexcept {
-  return exp_nonpositive(-sd / sel(mu > T(0.f), mu, T(1.f)));
+  return lane_math::exp_nonpositive(-sd / sel(mu > T(0.f), mu, T(1.f)));
 }
 template <class T> inline Rgb3<T> layer_tr(const Rgb3<T>& sd, const T& mu) noexcept {
   return {layer_tr(sd.r, mu), layer_tr(sd.g, mu), layer_tr(sd.b, mu)};
@@ -217,9 +191,24 @@ inline Vec3<T> coat_sample_dir(const TrowbridgeReitz<T>& d, const CoatTop<T>& c,
 
 }  // namespace bsdf_detail
 
-template <class T> struct CoatedDiffuseBsdf {
+// A dielectric coat (index eta, Trowbridge-Reitz alpha_x, alpha_y) over a base layer,
+// separated by a slab of thickness `thickness` and single-scattering albedo `albedo`: the
+// shape of pbrt-v4's LayeredBxDF<DielectricBxDF, Bottom>, evaluated by the deterministic
+// models of the header comment instead of its random walk. The template owns the coat: its
+// reflection lobe, the choice between coat and base when sampling, the mirrored frame
+// (two-sided), the delta lobes' weights and the sample's bookkeeping. Base, the layer seen
+// through the coat, provides (all in the mirrored frame, wo.z >= 0):
+//   struct Setup: its per-lane quantities of wo (setup(coat, top, sigma_d));
+//   weight(Setup, top): its albedo seen from wo, against which F(mu_o) sets the probability
+//     of sampling the coat;
+//   eval(coat, Setup, sigma_d, i, up, f, pdf): its f and its lobe's density at i;
+//   mixture_pdf(p_coat, up, i, pdf_base, pdf_coat): the two lobes' mixture density;
+//   sample(coat, Setup, u1, u2): a direction of its lobe, whether it exists, whether it is a
+//     delta lobe (smooth), and that lobe's weight per channel (delta_weight, 0 where it has
+//     no delta lobe).
+template <class T, class Base> struct CoatedBsdf {
   T eta, alpha_x, alpha_y;
-  Rgb3<T> rho;
+  Base base;
   T thickness;
   Rgb3<T> albedo;
 
@@ -228,56 +217,32 @@ template <class T> struct CoatedDiffuseBsdf {
   // The per-lane quantities that do not depend on wi.
   struct Setup {
     bsdf_detail::CoatTop<T> top;
-    T p_coat;
-    Rgb3<T> k;  // (1 - F(mu_o)) Tr(mu_o') rho / (pi eta^2 (1 - rho R_i)) per channel
     Rgb3<T> sigma_d;  // sigma thickness per channel
+    typename Base::Setup b;
+    T p_coat;
   };
   Setup setup(const Vec3<T>& wo) const noexcept {
     using namespace bsdf_detail;
     Setup s;
     s.top = coat_top(wo, eta, alpha_x, alpha_y);
     s.sigma_d = slab_depth(albedo, thickness);
-    const CoatNodes<T> nodes = coat_internal_nodes(eta);
-    Rgb3<T> Ri;
-    Ri.r = coat_internal_reflectance(nodes, T(2.f) * s.sigma_d.r);
-    if (all(albedo.r == T(0.f) && albedo.g == T(0.f) && albedo.b == T(0.f))) {
-      Ri.g = Ri.r;
-      Ri.b = Ri.r;
-    } else {
-      Ri.g = coat_internal_reflectance(nodes, T(2.f) * s.sigma_d.g);
-      Ri.b = coat_internal_reflectance(nodes, T(2.f) * s.sigma_d.b);
-    }
-    const T inv_eta = T(1.f) / eta;
-    const T mo = refracted_cos(s.top.o.z, inv_eta);
-    const T c = (T(1.f) - s.top.Fo) * (T(inv_pi_f) * inv_eta * inv_eta);
-    auto chan = [&](const T& rh, const T& sd, const T& ri) {
-      return sel(mo > T(0.f), c * rh * layer_tr(sd, mo) / max(T(1.f) - rh * ri, T(1e-6f)), T(0.f));
-    };
-    s.k = {chan(rho.r, s.sigma_d.r, Ri.r), chan(rho.g, s.sigma_d.g, Ri.g), chan(rho.b, s.sigma_d.b, Ri.b)};
-    s.p_coat = coat_probability(s.top.Fo, (T(1.f) - s.top.Fo) * max3(rho));
+    s.b = base.setup(*this, s.top, s.sigma_d);
+    s.p_coat = coat_probability(s.top.Fo, base.weight(s.b, s.top));
     return s;
   }
 
-  // f and the mixture pdf for a direction i in the mirrored frame.
+  // f and the mixture pdf (continuous lobes) for a direction i in the mirrored frame.
   void eval_mirrored(const Setup& s, const Vec3<T>& i, Rgb3<T>& f, T& pdf) const noexcept {
     using namespace bsdf_detail;
-    const Vec3<T>& o = s.top.o;
-    const mask_t<T> up = i.z > T(0.f) && o.z > T(0.f);
-    const T inv_eta = T(1.f) / eta;
-    const T mi = refracted_cos(i.z, inv_eta);
-    const T Fi = fresnel_dielectric(i.z, eta);
-    const T ti = (T(1.f) - Fi);
-    const mask_t<T> base_on = up && mi > T(0.f);
-    f.r = sel(base_on, s.k.r * ti * layer_tr(s.sigma_d.r, mi), T(0.f));
-    f.g = sel(base_on, s.k.g * ti * layer_tr(s.sigma_d.g, mi), T(0.f));
-    f.b = sel(base_on, s.k.b * ti * layer_tr(s.sigma_d.b, mi), T(0.f));
+    const mask_t<T> up = i.z > T(0.f) && s.top.o.z > T(0.f);
+    T pb;
+    base.eval(*this, s.b, s.sigma_d, i, up, f, pb);
     T fc, pc;
     coat_lobe(distribution(), s.top, eta, i, fc, pc);
     f.r = f.r + fc;
     f.g = f.g + fc;
     f.b = f.b + fc;
-    const T p_diff = sel(up, (T(1.f) - s.p_coat) * (i.z * T(inv_pi_f)), T(0.f));
-    pdf = p_diff + s.p_coat * pc;
+    pdf = Base::mixture_pdf(s.p_coat, up, i, pb, pc);
   }
 
   BsdfEval<T> eval(const Vec3<T>& wo, const Vec3<T>& wi) const noexcept {
@@ -288,62 +253,133 @@ template <class T> struct CoatedDiffuseBsdf {
   }
   T pdf(const Vec3<T>& wo, const Vec3<T>& wi) const noexcept { return eval(wo, wi).pdf; }
 
+  // The coat's lobe with probability p_coat, else the base's. Delta lobes (pdf = the
+  // lobe's probability): a smooth coat's mirror (weight F / p_coat), a smooth base's delta
+  // (its delta_weight / (1 - p_coat)), and, where both are smooth, their one lobe at the
+  // mirror direction (pdf 1, weight F + the base's).
   BsdfSample<T> sample(const Vec3<T>& wo, const T& uc, const T& u1, const T& u2) const noexcept {
     using namespace bsdf_detail;
     const Setup s = setup(wo);
     const Vec3<T>& o = s.top.o;
     const mask_t<T> coat = uc < s.p_coat;
-    const Vec3<T> ir = coat_sample_dir(distribution(), s.top, u1, u2);
-    const Vec3<T> l = sample_cosine_hemisphere(u1, u2);
-    const Vec3<T> i = sel(coat, ir, l);
+    const Vec3<T> ic = coat_sample_dir(distribution(), s.top, u1, u2);
+    const typename Base::Sample bs = base.sample(*this, s.b, u1, u2);
+    const Vec3<T> i = sel(coat, ic, bs.wi);
     Rgb3<T> f;
     T p;
     eval_mirrored(s, i, f, p);
     BsdfSample<T> r;
-    r.delta = coat && s.top.smooth;
+    const mask_t<T> both = s.top.smooth && bs.smooth;
+    r.delta = both || sel_mask(coat, s.top.smooth, bs.smooth);
     const mask_t<T> delta_ok = o.z > T(0.f);
-    const mask_t<T> cont_ok = i.z > T(0.f) && p > T(0.f) && o.z > T(0.f);
+    const mask_t<T> cont_ok = i.z > T(0.f) && p > T(0.f) && o.z > T(0.f) && (coat || bs.ok);
     r.valid = sel_mask(r.delta, delta_ok, cont_ok);
     r.wi = sel(r.valid, mirror_z(i, s.top.sgn), Vec3<T>(T(0.f), T(0.f), T(1.f)) * s.top.sgn);
-    r.pdf = sel(r.valid, sel(r.delta, s.p_coat, p), T(0.f));
+    const T p_lobe = sel(both, T(1.f), sel(coat, s.p_coat, T(1.f) - s.p_coat));
+    r.pdf = sel(r.valid, sel(r.delta, p_lobe, p), T(0.f));
     const T wc = div_or0(r.valid && !r.delta, i.z, p);
-    const T wd = div_or0(r.valid && r.delta, s.top.Fo, s.p_coat);
-    r.weight = {sel(r.delta, wd, f.r * wc), sel(r.delta, wd, f.g * wc), sel(r.delta, wd, f.b * wc)};
+    const mask_t<T> dv = r.valid && r.delta;
+    const T wcoat = sel(both || coat, s.top.Fo, T(0.f));
+    const mask_t<T> with_base = both || !coat;
+    auto chan = [&](const T& fch, const T& Bo) {
+      return sel(r.delta, div_or0(dv, wcoat + sel(with_base, Bo, T(0.f)), p_lobe), fch * wc);
+    };
+    r.weight = {chan(f.r, bs.delta_weight.r), chan(f.g, bs.delta_weight.g), chan(f.b, bs.delta_weight.b)};
     return r;
   }
 };
 
-// pbrt-v4's "coatedconductor": the same coat over a conductor (complex index
-// conductor_eta + i conductor_k relative to the outside, Trowbridge-Reitz base_alpha_x,
-// base_alpha_y). See the second part of the header comment for the model.
-template <class T> struct CoatedConductorBsdf {
-  T eta, alpha_x, alpha_y;
+// The base of pbrt-v4's "coateddiffuse": a Lambertian layer of albedo rho (the first part
+// of the header comment).
+template <class T> struct DiffuseBase {
+  Rgb3<T> rho;
+
+  struct Setup {
+    Rgb3<T> k;  // (1 - F(mu_o)) Tr(mu_o') rho / (pi eta^2 (1 - rho R_i)) per channel
+  };
+  template <class Coat>
+  Setup setup(const Coat& coat, const bsdf_detail::CoatTop<T>& top, const Rgb3<T>& sigma_d) const noexcept {
+    using namespace bsdf_detail;
+    Setup s;
+    const CoatNodes<T> nodes = coat_internal_nodes(coat.eta);
+    Rgb3<T> Ri;
+    Ri.r = coat_internal_reflectance(nodes, T(2.f) * sigma_d.r);
+    const Rgb3<T>& albedo = coat.albedo;
+    if (all(albedo.r == T(0.f) && albedo.g == T(0.f) && albedo.b == T(0.f))) {
+      Ri.g = Ri.r;
+      Ri.b = Ri.r;
+    } else {
+      Ri.g = coat_internal_reflectance(nodes, T(2.f) * sigma_d.g);
+      Ri.b = coat_internal_reflectance(nodes, T(2.f) * sigma_d.b);
+    }
+    const T inv_eta = T(1.f) / coat.eta;
+    const T mo = refracted_cos(top.o.z, inv_eta);
+    const T c = (T(1.f) - top.Fo) * (T(inv_pi_f) * inv_eta * inv_eta);
+    auto chan = [&](const T& rh, const T& sd, const T& ri) {
+      return sel(mo > T(0.f), c * rh * layer_tr(sd, mo) / max(T(1.f) - rh * ri, T(1e-6f)), T(0.f));
+    };
+    s.k = {chan(rho.r, sigma_d.r, Ri.r), chan(rho.g, sigma_d.g, Ri.g), chan(rho.b, sigma_d.b, Ri.b)};
+    return s;
+  }
+  T weight(const Setup&, const bsdf_detail::CoatTop<T>& top) const noexcept {
+    return (T(1.f) - top.Fo) * bsdf_detail::max3(rho);
+  }
+  template <class Coat>
+  void eval(const Coat& coat, const Setup& s, const Rgb3<T>& sigma_d, const Vec3<T>& i, const mask_t<T>& up, Rgb3<T>& f,
+            T& pdf) const noexcept {
+    using namespace bsdf_detail;
+    const T inv_eta = T(1.f) / coat.eta;
+    const T mi = refracted_cos(i.z, inv_eta);
+    const T Fi = fresnel_dielectric(i.z, coat.eta);
+    const T ti = (T(1.f) - Fi);
+    const mask_t<T> base_on = up && mi > T(0.f);
+    f.r = sel(base_on, s.k.r * ti * layer_tr(sigma_d.r, mi), T(0.f));
+    f.g = sel(base_on, s.k.g * ti * layer_tr(sigma_d.g, mi), T(0.f));
+    f.b = sel(base_on, s.k.b * ti * layer_tr(sigma_d.b, mi), T(0.f));
+    pdf = i.z * T(inv_pi_f);  // cosine-weighted (read where up)
+  }
+  static T mixture_pdf(const T& p_coat, const mask_t<T>& up, const Vec3<T>&, const T& pb, const T& pc) noexcept {
+    return sel(up, (T(1.f) - p_coat) * pb, T(0.f)) + p_coat * pc;
+  }
+  struct Sample {
+    Vec3<T> wi;
+    mask_t<T> ok, smooth;
+    Rgb3<T> delta_weight;
+  };
+  template <class Coat> Sample sample(const Coat&, const Setup&, const T& u1, const T& u2) const noexcept {
+    Sample b;
+    b.wi = sample_cosine_hemisphere(u1, u2);
+    b.ok = mask_t<T>(true);
+    b.smooth = mask_t<T>(false);
+    b.delta_weight = {T(0.f), T(0.f), T(0.f)};
+    return b;
+  }
+};
+
+// The base of pbrt-v4's "coatedconductor": a conductor of complex index conductor_eta +
+// i conductor_k relative to the outside, Trowbridge-Reitz base_alpha_x, base_alpha_y (the
+// second part of the header comment).
+template <class T> struct ConductorBase {
   Rgb3<T> conductor_eta, conductor_k;
   T base_alpha_x, base_alpha_y;
-  T thickness;
-  Rgb3<T> albedo;
-
-  TrowbridgeReitz<T> distribution() const noexcept { return TrowbridgeReitz<T>{alpha_x, alpha_y}.clamped(); }
 
   // The base's distribution as seen inside the coat: its alphas widened by the rough
   // coat's spread of the refracted directions, alpha'^2 = alpha_base^2 + w alpha_coat^2
   // with w = (eta - 1)^2 / (2 eta^2) (0 under a smooth coat), not yet clamped.
-  TrowbridgeReitz<T> base_distribution(const mask_t<T>& coat_smooth) const noexcept {
-    const T e1 = eta - T(1.f);
-    const T w = sel(coat_smooth, T(0.f), (e1 * e1) / (T(2.f) * eta * eta));
-    return {sqrt(mul_add(w * alpha_x, alpha_x, base_alpha_x * base_alpha_x)),
-            sqrt(mul_add(w * alpha_y, alpha_y, base_alpha_y * base_alpha_y))};
+  template <class Coat> TrowbridgeReitz<T> distribution(const Coat& coat, const mask_t<T>& coat_smooth) const noexcept {
+    const T e1 = coat.eta - T(1.f);
+    const T w = sel(coat_smooth, T(0.f), (e1 * e1) / (T(2.f) * coat.eta * coat.eta));
+    return {sqrt(mul_add(w * coat.alpha_x, coat.alpha_x, base_alpha_x * base_alpha_x)),
+            sqrt(mul_add(w * coat.alpha_y, coat.alpha_y, base_alpha_y * base_alpha_y))};
   }
 
-  // The per-lane quantities that do not depend on wi.
   struct Setup {
-    bsdf_detail::CoatTop<T> top;
     TrowbridgeReitz<T> base;  // clamped
     mask_t<T> base_smooth;
-    T inv_eta, p_coat;
+    T inv_eta;
+    Vec3<T> o;              // wo mirrored
     Vec3<T> op;             // o refracted into the coat, pointing up (the base's wo)
     Rgb3<T> ceta, ck;       // the conductor's index relative to the coat
-    Rgb3<T> sigma_d;        // sigma thickness per channel
     Rgb3<T> ko;             // h(o) / eta^2, h(x) = (1 - F) Tr / sqrt(1 - F Fc Tr^2) at x
     Rgb3<T> Bo;             // the smooth base's weight (1 - F)^2 Fc Tr^2 / (1 - F Fc Tr^2) at o
   };
@@ -355,45 +391,43 @@ template <class T> struct CoatedConductorBsdf {
     h = t * tr / sqrt(den);
     B = t * t * Fc * tr2 / den;
   }
-  Setup setup(const Vec3<T>& wo) const noexcept {
+  template <class Coat>
+  Setup setup(const Coat& coat, const bsdf_detail::CoatTop<T>& top, const Rgb3<T>& sigma_d) const noexcept {
     using namespace bsdf_detail;
     Setup s;
-    s.top = coat_top(wo, eta, alpha_x, alpha_y);
-    const TrowbridgeReitz<T> b = base_distribution(s.top.smooth);
+    const TrowbridgeReitz<T> b = distribution(coat, top.smooth);
     s.base_smooth = b.effectively_smooth();
     s.base = b.clamped();
-    s.inv_eta = T(1.f) / eta;
-    const T mo = refracted_cos(s.top.o.z, s.inv_eta);
-    s.op = {s.top.o.x * s.inv_eta, s.top.o.y * s.inv_eta, mo};
+    s.inv_eta = T(1.f) / coat.eta;
+    s.o = top.o;
+    const T mo = refracted_cos(top.o.z, s.inv_eta);
+    s.op = {top.o.x * s.inv_eta, top.o.y * s.inv_eta, mo};
     s.ceta = scale(conductor_eta, s.inv_eta);
     s.ck = scale(conductor_k, s.inv_eta);
-    s.sigma_d = slab_depth(albedo, thickness);
     const Rgb3<T> Fc = fresnel_complex(mo, s.ceta, s.ck);
-    const Rgb3<T> tr = layer_tr(s.sigma_d, mo);
+    const Rgb3<T> tr = layer_tr(sigma_d, mo);
     const T c = s.inv_eta * s.inv_eta;
     const mask_t<T> in = mo > T(0.f);
     T h, B;
-    base_factors(s.top.Fo, Fc.r, tr.r, h, B);
+    base_factors(top.Fo, Fc.r, tr.r, h, B);
     s.ko.r = sel(in, h * c, T(0.f)), s.Bo.r = sel(in, B, T(0.f));
-    base_factors(s.top.Fo, Fc.g, tr.g, h, B);
+    base_factors(top.Fo, Fc.g, tr.g, h, B);
     s.ko.g = sel(in, h * c, T(0.f)), s.Bo.g = sel(in, B, T(0.f));
-    base_factors(s.top.Fo, Fc.b, tr.b, h, B);
+    base_factors(top.Fo, Fc.b, tr.b, h, B);
     s.ko.b = sel(in, h * c, T(0.f)), s.Bo.b = sel(in, B, T(0.f));
-    s.p_coat = coat_probability(s.top.Fo, max3(s.Bo));
     return s;
   }
-
-  // f and the mixture pdf (continuous lobes) for a direction i in the mirrored frame.
-  void eval_mirrored(const Setup& s, const Vec3<T>& i, Rgb3<T>& f, T& pdf) const noexcept {
+  T weight(const Setup& s, const bsdf_detail::CoatTop<T>&) const noexcept { return bsdf_detail::max3(s.Bo); }
+  template <class Coat>
+  void eval(const Coat& coat, const Setup& s, const Rgb3<T>& sigma_d, const Vec3<T>& i, const mask_t<T>& up, Rgb3<T>& f,
+            T& pdf) const noexcept {
     using namespace bsdf_detail;
-    const Vec3<T>& o = s.top.o;
-    const mask_t<T> up = i.z > T(0.f) && o.z > T(0.f);
-    // the base: between the refracted directions o' and i'
+    // between the refracted directions o' and i'
     const T mi = refracted_cos(i.z, s.inv_eta);
     const Vec3<T> ip{i.x * s.inv_eta, i.y * s.inv_eta, mi};
-    const T Fi = fresnel_dielectric(i.z, eta);
+    const T Fi = fresnel_dielectric(i.z, coat.eta);
     const Rgb3<T> Fci = fresnel_complex(mi, s.ceta, s.ck);
-    const Rgb3<T> tri = layer_tr(s.sigma_d, mi);
+    const Rgb3<T> tri = layer_tr(sigma_d, mi);
     const ReflectionTerms<T> t = reflection_terms(s.base, s.op, ip);
     const mask_t<T> base_on = up && mi > T(0.f) && s.op.z > T(0.f) && t.ok && !s.base_smooth;
     const Rgb3<T> Fm = fresnel_complex(t.dot_o, s.ceta, s.ck);
@@ -406,63 +440,45 @@ template <class T> struct CoatedConductorBsdf {
     f = {chan(s.ko.r, Fci.r, tri.r, Fm.r), chan(s.ko.g, Fci.g, tri.g, Fm.g), chan(s.ko.b, Fci.b, tri.b, Fm.b)};
     // the density of i = the density of i' times d omega' / d omega = mu_i / (eta^2 mu_i')
     const T jac = div_or0(base_on, i.z * (s.inv_eta * s.inv_eta), mi);
-    const T pb = sel(base_on, t.pdf * jac, T(0.f));
-    // the coat
-    T fc, pc;
-    coat_lobe(distribution(), s.top, eta, i, fc, pc);
-    f.r = f.r + fc;
-    f.g = f.g + fc;
-    f.b = f.b + fc;
-    pdf = mul_add(T(1.f) - s.p_coat, pb, s.p_coat * pc);
+    pdf = sel(base_on, t.pdf * jac, T(0.f));
   }
-
-  BsdfEval<T> eval(const Vec3<T>& wo, const Vec3<T>& wi) const noexcept {
-    const Setup s = setup(wo);
-    BsdfEval<T> e;
-    eval_mirrored(s, bsdf_detail::mirror_z(wi, s.top.sgn), e.f, e.pdf);
-    return e;
+  static T mixture_pdf(const T& p_coat, const mask_t<T>&, const Vec3<T>&, const T& pb, const T& pc) noexcept {
+    return mul_add(T(1.f) - p_coat, pb, p_coat * pc);
   }
-  T pdf(const Vec3<T>& wo, const Vec3<T>& wi) const noexcept { return eval(wo, wi).pdf; }
-
-  BsdfSample<T> sample(const Vec3<T>& wo, const T& uc, const T& u1, const T& u2) const noexcept {
-    using namespace bsdf_detail;
-    const Setup s = setup(wo);
-    const Vec3<T>& o = s.top.o;
-    const mask_t<T> coat = uc < s.p_coat;
-    const Vec3<T> ic = coat_sample_dir(distribution(), s.top, u1, u2);
-    // the base: a visible normal of the inner distribution seen from o', the reflection
-    // about it, refracted out (invalid where it is totally internally reflected)
+  struct Sample {
+    Vec3<T> wi;
+    mask_t<T> ok, smooth;
+    Rgb3<T> delta_weight;
+  };
+  // a visible normal of the inner distribution seen from o', the reflection about it,
+  // refracted out (invalid where it is totally internally reflected); a smooth base: the
+  // mirror direction
+  template <class Coat> Sample sample(const Coat& coat, const Setup& s, const T& u1, const T& u2) const noexcept {
+    Sample b;
     const Vec3<T> wm = s.base.sample_visible(s.op, u1, u2);
     const Vec3<T> ipb = reflect(s.op, wm);
-    const T e2 = eta * eta;
+    const T e2 = coat.eta * coat.eta;
     const T st2 = e2 * mul_add(ipb.x, ipb.x, ipb.y * ipb.y);
-    const mask_t<T> base_ok = ipb.z > T(0.f) && st2 < T(1.f);
-    const Vec3<T> mirror{-o.x, -o.y, o.z};
-    const Vec3<T> ib = sel(s.base_smooth, mirror, Vec3<T>(ipb.x * eta, ipb.y * eta, sqrt(max(T(1.f) - st2, T(0.f)))));
-    const Vec3<T> i = sel(coat, ic, ib);
-    Rgb3<T> f;
-    T p;
-    eval_mirrored(s, i, f, p);
-    BsdfSample<T> r;
-    // a smooth coat over a smooth base: both deltas are the mirror direction, one lobe
-    const mask_t<T> both = s.top.smooth && s.base_smooth;
-    r.delta = both || sel_mask(coat, s.top.smooth, s.base_smooth);
-    const mask_t<T> delta_ok = o.z > T(0.f);
-    const mask_t<T> cont_ok = i.z > T(0.f) && p > T(0.f) && o.z > T(0.f) && (coat || base_ok);
-    r.valid = sel_mask(r.delta, delta_ok, cont_ok);
-    r.wi = sel(r.valid, mirror_z(i, s.top.sgn), Vec3<T>(T(0.f), T(0.f), T(1.f)) * s.top.sgn);
-    const T p_lobe = sel(both, T(1.f), sel(coat, s.p_coat, T(1.f) - s.p_coat));
-    r.pdf = sel(r.valid, sel(r.delta, p_lobe, p), T(0.f));
-    const T wc = div_or0(r.valid && !r.delta, i.z, p);
-    const mask_t<T> dv = r.valid && r.delta;
-    const T wcoat = sel(both || coat, s.top.Fo, T(0.f));
-    const mask_t<T> with_base = both || !coat;
-    auto chan = [&](const T& fch, const T& Bo) {
-      return sel(r.delta, div_or0(dv, wcoat + sel(with_base, Bo, T(0.f)), p_lobe), fch * wc);
-    };
-    r.weight = {chan(f.r, s.Bo.r), chan(f.g, s.Bo.g), chan(f.b, s.Bo.b)};
-    return r;
+    b.ok = ipb.z > T(0.f) && st2 < T(1.f);
+    const Vec3<T> mirror{-s.o.x, -s.o.y, s.o.z};
+    b.wi = sel(s.base_smooth, mirror, Vec3<T>(ipb.x * coat.eta, ipb.y * coat.eta, sqrt(max(T(1.f) - st2, T(0.f)))));
+    b.smooth = s.base_smooth;
+    b.delta_weight = s.Bo;
+    return b;
   }
+};
+
+// pbrt-v4's "coateddiffuse" and "coatedconductor", with their parameters in pbrt's order.
+template <class T> struct CoatedDiffuseBsdf : CoatedBsdf<T, DiffuseBase<T>> {
+  CoatedDiffuseBsdf(T eta, T alpha_x, T alpha_y, Rgb3<T> rho, T thickness, Rgb3<T> albedo) noexcept
+      : CoatedBsdf<T, DiffuseBase<T>>{eta, alpha_x, alpha_y, DiffuseBase<T>{rho}, thickness, albedo} {}
+};
+template <class T> struct CoatedConductorBsdf : CoatedBsdf<T, ConductorBase<T>> {
+  CoatedConductorBsdf(T eta, T alpha_x, T alpha_y, Rgb3<T> conductor_eta, Rgb3<T> conductor_k, T base_alpha_x,
+                      T base_alpha_y, T thickness, Rgb3<T> albedo) noexcept
+      : CoatedBsdf<T, ConductorBase<T>>{eta, alpha_x, alpha_y,
+                                         ConductorBase<T>{conductor_eta, conductor_k, base_alpha_x, base_alpha_y},
+                                         thickness, albedo} {}
 };
 
 }  // namespace tuile

@@ -4,7 +4,11 @@
 // differently in the two instantiations: the build uses -ffp-contract=off and writes fused
 // steps out as mul_add).
 #pragma once
+#include <bit>
+#include <cstdint>
+
 #include "lanes/simd.h"
+#include "lanes/twin.h"
 
 namespace tuile {
 
@@ -92,6 +96,33 @@ template <class T> inline T atan2(const T& y, const T& x) noexcept {
 template <class T> inline T asin(const T& t) noexcept {
   const T tc = min(max(t, T(-1.f)), T(1.f));
   return lane_math::atan2(tc, sqrt((T(1.f) - tc) * (T(1.f) + tc)));
+}
+
+// 2^n for integer-valued n in [-126, 127], by building the float's exponent bits.
+inline float pow2_int(float n) noexcept { return std::bit_cast<float>((static_cast<int32_t>(n) + 127) << 23); }
+inline vfloat pow2_int(const vfloat& n) noexcept {
+  return xsimd::bitwise_cast<vfloat>((xsimd::batch_cast<int32_t>(n) + vint(127)) << 23);
+}
+template <class V> inline Twin<V> pow2_int(const Twin<V>& n) noexcept { return {pow2_int(n.a), pow2_int(n.b)}; }
+
+// exp(x) for x <= 0 (0 below -87: e^-87 is 1.6e-38, near the smallest normal float), from +, -, *, floor and mul_add: the same bits in every
+// lane (xsimd's exp and the C library's differ); the one exp of the kernels (the coated
+// BSDFs' layer transmittance, the Gaussian pixel filter). Cody-Waite reduction x = n ln2 + r,
+// |r| <= ln2 / 2, and the Taylor series of e^r to r^8 (truncation < 3e-10 relative).
+template <class T> inline T exp_nonpositive(const T& x) noexcept {
+  const T xc = max(min(x, T(0.f)), T(-87.f));
+  const T n = floor(mul_add(xc, T(1.44269504088896341f), T(0.5f)));
+  const T r = mul_add(n, T(-1.42860677e-6f), mul_add(n, T(-0.693145752f), xc));
+  T p = T(1.f / 40320.f);
+  p = mul_add(p, r, T(1.f / 5040.f));
+  p = mul_add(p, r, T(1.f / 720.f));
+  p = mul_add(p, r, T(1.f / 120.f));
+  p = mul_add(p, r, T(1.f / 24.f));
+  p = mul_add(p, r, T(1.f / 6.f));
+  p = mul_add(p, r, T(0.5f));
+  p = mul_add(p, r, T(1.f));
+  p = mul_add(p, r, T(1.f));
+  return sel(x >= T(-87.f), p * pow2_int(n), T(0.f));
 }
 
 } // namespace lane_math

@@ -5,15 +5,12 @@
 #include <type_traits>
 
 #include "lanes/vec.h"
+#include "light/kinds.h"
 #include "sample/spherical.h"
 
 namespace tuile {
 
 enum class LightPoint : int { area = 0, solid_angle = 1 };
-
-// light types as in src/scene/scene.h LightType
-inline constexpr int32_t lt_triangle = 0, lt_parallelogram = 1, lt_sphere = 2, lt_point = 3, lt_spot = 4,
-                         lt_distant = 5;
 
 struct LightBvhView;
 
@@ -22,7 +19,7 @@ struct LightView {
   // how the tables are read per lane (table_tier): arrays padded to small_table_size or
   // medium_table_size where count fits, then lookup_small / lookup_medium read them
   int tier = 0;
-  const int32_t* type = nullptr;
+  const int32_t* type = nullptr;  // LightKind
   const float *p0x = nullptr, *p0y = nullptr, *p0z = nullptr;
   const float *e1x = nullptr, *e1y = nullptr, *e1z = nullptr;
   const float *e2x = nullptr, *e2y = nullptr, *e2z = nullptr;
@@ -68,15 +65,9 @@ template <class F> inline void with_table_tier(const LightView& L, F&& f) {
   else f(std::integral_constant<int, tier_gather>{});
 }
 
-// Which kinds of source a pipeline can meet (wave/features.h): the code for the other
-// kinds is removed at compile time.
-// kind_rects (with kind_area alone): every source is a rectangle, so the light stage runs
-// Urena's map without dispatching on the kind of source (the same values as kind_area).
-inline constexpr unsigned kind_area = 1, kind_delta = 2, kind_all = 3, kind_rects = 4;
-
 // Geometry of the sources of each lane.
 template <class T> struct LightGeom {
-  i32_t<T> type;
+  i32_t<T> type;  // LightKind
   Vec3<T> p0, e1, e2, n;
   T area, two_sided;
   T len1, len2, inv_len1, inv_len2, rect;  // light_geom_derive
@@ -122,7 +113,7 @@ template <int Tier = tier_gather, class I> inline auto gather_light(const LightV
 template <int Tier = tier_gather, class I> inline auto gather_rect_light(const LightView& L, const I& idx) {
   using T = decltype(gather(L.area, idx));
   LightGeom<T> g;
-  g.type = i32_t<T>(lt_parallelogram);
+  g.type = i32_t<T>(static_cast<int32_t>(LightKind::parallelogram));
   g.p0 = {lget<Tier>(L.p0x, idx), lget<Tier>(L.p0y, idx), lget<Tier>(L.p0z, idx)};
   g.ex = {lget<Tier>(L.exx, idx), lget<Tier>(L.exy, idx), lget<Tier>(L.exz, idx)};
   g.ey = {lget<Tier>(L.eyx, idx), lget<Tier>(L.eyy, idx), lget<Tier>(L.eyz, idx)};
@@ -183,7 +174,7 @@ template <class T> inline void light_geom_derive(LightGeom<T>& g) {
   g.inv_len1 = T(1.f) / sel(ok, g.len1, T(1.f));
   g.inv_len2 = T(1.f) / sel(ok, g.len2, T(1.f));
   derive_unit_edges(g);
-  g.rect = sel(type_is<T>(g.type, lt_parallelogram) && parallelogram_is_rectangle(g.e1, g.e2), T(1.f), T(0.f));
+  g.rect = sel(type_is<T>(g.type, static_cast<int32_t>(LightKind::parallelogram)) && parallelogram_is_rectangle(g.e1, g.e2), T(1.f), T(0.f));
   // a rectangle's area is the product of its edge lengths, so the rectangle pipelines
   // derive it instead of reading it
   g.area = sel(g.rect > T(0.5f), g.len1 * g.len2, g.area);

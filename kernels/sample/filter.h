@@ -76,30 +76,6 @@ struct FilterView {
   bool weighted() const noexcept { return kind != FilterKind::box && kind != FilterKind::triangle; }
 };
 
-namespace filter_detail {
-
-inline float pow2i(int32_t k) noexcept { return std::bit_cast<float>(static_cast<uint32_t>(k + 127) << 23); }
-inline vfloat pow2i(const vint& k) noexcept { return xsimd::bitwise_cast<vfloat>((k + vint(127)) << 23); }
-
-// exp(x) for x <= 0 (flushes below e^-87 to about 1e-38): Cody-Waite reduction by ln 2
-// (the high part has 9 significant bits, so k * hi is exact), Taylor series to r^7 for
-// |r| <= ln(2) / 2 (truncation error < 1e-8), scaled by 2^k built in the exponent bits.
-template <class T> inline T exp_nonpositive(T x) noexcept {
-  x = max(x, T(-87.f));
-  const T k = floor(x * T(1.44269504088896340736f) + T(0.5f));
-  const T r = (x - k * T(0.693359375f)) - k * T(-2.12194440e-4f);
-  T p = T(1.f / 5040.f);
-  p = mul_add(p, r, T(1.f / 720.f));
-  p = mul_add(p, r, T(1.f / 120.f));
-  p = mul_add(p, r, T(1.f / 24.f));
-  p = mul_add(p, r, T(1.f / 6.f));
-  p = mul_add(p, r, T(0.5f));
-  p = mul_add(p, r, T(1.f));
-  p = mul_add(p, r, T(1.f));
-  return p * pow2i(to_i32(k));
-}
-
-}  // namespace filter_detail
 
 // The one-dimensional factor f1 of a separable tabulated filter on axis a, at x (any x;
 // 0 outside [-r, r]). Unnormalised (the weight divides by its integral).
@@ -107,7 +83,7 @@ template <class T> inline T filter_value_1d(const FilterView& f, const FilterAxi
   const T ax = abs(x);
   const auto inside = ax <= T(a.r);
   if (f.kind == FilterKind::gaussian) {
-    const T g = filter_detail::exp_nonpositive(-(x * x) * T(a.t_scale)) - T(a.f_at_r);
+    const T g = lane_math::exp_nonpositive(-(x * x) * T(a.t_scale)) - T(a.f_at_r);
     return sel(inside, max(g, T(0.f)), T(0.f));
   }
   if (f.kind == FilterKind::mitchell) {

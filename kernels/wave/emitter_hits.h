@@ -26,8 +26,8 @@ TUILE_FLATTEN inline T light_pdf_of_hit(const LightView& L, const Estimator& est
   with_table_tier(L, [&](auto tier) {
     constexpr int S = decltype(tier)::value;
     if constexpr ((Kinds & kind_rects) != 0)
-      pdf_point = pdf_rectangle_point_sa(est.point, gather_rect_light<S>(L, idx), x, wi, dist);
-    else pdf_point = pdf_light_point_sa(est.point, gather_light<S>(L, idx), x, wi, dist);
+      pdf_point = pdf_light_point_sa<Kinds>(est.point, gather_rect_light<S>(L, idx), x, wi, dist);
+    else pdf_point = pdf_light_point_sa<Kinds>(est.point, gather_light<S>(L, idx), x, wi, dist);
     if (L.bvh) {  // the pick's context: the shading point's position and geometric normal
       const Vec3<T> n{gather(tb.points.nx, point), gather(tb.points.ny, point), gather(tb.points.nz, point)};
       pick = BvhPicker{*L.bvh}.template pmf<S>(PickContext<T>{x, n}, idx);

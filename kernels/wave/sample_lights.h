@@ -90,7 +90,6 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
   const LightPointSample<T> s =
       sample_light_point<Kinds>(est.point, g, x, load<T>(tb.tech.u2 + k), load<T>(tb.tech.u3 + k));
 
-  constexpr bool rects = (Kinds & kind_rects) != 0;
   // the shading normal where the scene has them (vertex normals, bump maps: the BSDF's
   // frame and the cosine), the geometric one n for offsets and which side wi leaves by
   const Vec3<T> ns = G.shading_normals ? load3<T>(tb.points.snx + k, tb.points.sny + k, tb.points.snz + k) : n;
@@ -98,8 +97,14 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
   constexpr bool transmits = (Bsdfs & bsdf_transmits) != 0;
   const T cos_s = dot(ns, s.wi);
   out.cos_x = transmits ? abs(cos_s) : cos_s;
-  const auto planar = rects ? mask_t<T>(true) : type_is<T>(g.type, lt_triangle) || type_is<T>(g.type, lt_parallelogram);
-  const auto front = !planar || g.two_sided > T(0.f) || dot(x - g.p0, g.n) > T(0.f);
+  // x is on the side the source emits to (one-sided planar sources), and the lanes whose
+  // source is at infinity (the shadow ray has no end point)
+  auto front = mask_t<T>(true), at_infinity = mask_t<T>(false);
+  for_each_light_kind<Kinds>(g, [&](auto ops, const mask_t<T>& m) {
+    using Ops = decltype(ops);
+    if constexpr (kind_info(Ops::kind).planar) front = sel_mask(m, ops.lit_from(g, x), front);
+    if constexpr (kind_info(Ops::kind).at_infinity) at_infinity = at_infinity || m;
+  });
   out.pick = pick;
   out.pdf_sa = s.pdf_sa;
   out.scale = s.scale;
@@ -115,31 +120,24 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
   out.org = transmits || G.shading_normals
                 ? x + sel(dot(n, s.wi) < T(0.f), Vec3<T>(T(0.f), T(0.f), T(0.f)) - n, n) * eps
                 : x + n * eps;
-  const auto is_dist = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_distant);
-  const auto is_sph = rects ? mask_t<T>(false) : type_is<T>(g.type, lt_sphere);
-  const Vec3<T> y = x + s.wi * sel(is_dist, T(0.f), s.dist);
+  const Vec3<T> y = x + s.wi * sel(at_infinity, T(0.f), s.dist);
   // error bound of the light point, per axis (it is p0 + u e1 + v e2, or x + t wi), with
   // |e1| + |e2| bounding every axis's |e1_i| + |e2_i| (a sphere's |e1| is its radius)
   const T g7 = T(gamma_err(7));
   const T edges = g.len1 + g.len2;
   const Vec3<T> err_y{g7 * (abs(g.p0.x) + edges + abs(y.x)), g7 * (abs(g.p0.y) + edges + abs(y.y)),
                       g7 * (abs(g.p0.z) + edges + abs(y.z))};
-  Vec3<T> ny = sel(dot(g.n, s.wi) > T(0.f), -g.n, g.n);  // planar normal facing x
-  if (!rects && any(is_sph)) {  // outward normal; a point at the centre of a tiny sphere falls back to -wi
-    const Vec3<T> rel = y - g.p0;
-    const T rl = length(rel);
-    const auto good = rl > T(0.f) && is_finite(rl);
-    ny = sel(is_sph, sel(good, rel * (T(1.f) / sel(good, rl, T(1.f))), -s.wi), ny);
-  }
-  ny = sel(planar || is_sph, ny, Vec3<T>(T(0.f), T(0.f), T(0.f)));
+  // the source's normal at y facing x (none for point-like sources)
+  Vec3<T> ny(T(0.f), T(0.f), T(0.f));
+  for_each_light_kind<Kinds>(g, [&](auto ops, const mask_t<T>& m) { ny = sel(m, ops.endpoint_normal(g, y, s.wi), ny); });
   const T eps_y = abs(ny.x) * err_y.x + abs(ny.y) * err_y.y + abs(ny.z) * err_y.z;
   const Vec3<T> target = y + ny * eps_y;
   const Vec3<T> to = target - out.org;
   const T len2 = dot(to, to);
   const T ilen = rsqrt_nr(sel(len2 > T(0.f), len2, T(1.f)));
   const T len = len2 * ilen;
-  out.dir = sel(is_dist || !(len > T(0.f)), s.wi, to * ilen);
-  out.tfar = sel(is_dist, T(3.0e38f), len * T(1.f - 1.f / 4096.f));
+  out.dir = sel(at_infinity || !(len > T(0.f)), s.wi, to * ilen);
+  out.tfar = sel(at_infinity, T(LightKindOps<LightKind::distant>::infinite_distance), len * T(1.f - 1.f / 4096.f));
   // one test on the sum: a NaN or infinite term makes it non-finite
   out.ray_ok = is_finite(((out.dir.x + out.dir.y) + (out.dir.z + out.tfar)) + ((out.org.x + out.org.y) + out.org.z));
   return out;

@@ -106,7 +106,7 @@ FilterView build_filter(const FilterParams& p, std::vector<float>& storage) {
     const float r = radius[d];
     if (p.kind == FilterKind::gaussian) {
       a.t_scale = 1.f / (2.f * p.sigma * p.sigma);
-      a.f_at_r = filter_detail::exp_nonpositive<float>(-(r * r) * a.t_scale);
+      a.f_at_r = lane_math::exp_nonpositive<float>(-(r * r) * a.t_scale);
     } else if (p.kind == FilterKind::mitchell) {
       a.t_scale = 2.f / r;
     } else {

@@ -22,6 +22,8 @@
 #include <cmath>
 #include <utility>
 
+#include "light/dispatch.h"
+
 namespace tuile {
 
 namespace {
@@ -128,71 +130,20 @@ double max_component(const Rgb& c) { return std::max({c.r, c.g, c.b}); }
 // A source's bounds as pbrt-v4's lights give them (its Bounds()); false: never picked (no
 // power, or a distant source).
 bool light_prim(const Light& l, uint32_t index, Prim& p) {
-  const double L = max_component(l.radiance);
-  double phi = 0, cos_o = 1, cos_e = 0;
-  vec3f w{0, 0, 1};
-  bool two_sided = false;
-  vec3f lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
-  auto grow = [&](const vec3f& q) {
-    lo = {std::min(lo.x, q.x), std::min(lo.y, q.y), std::min(lo.z, q.z)};
-    hi = {std::max(hi.x, q.x), std::max(hi.y, q.y), std::max(hi.z, q.z)};
-  };
-  switch (l.type) {
-    case LightType::triangle:
-    case LightType::parallelogram: {
-      grow(l.p0);
-      grow(l.p0 + l.e1);
-      grow(l.p0 + l.e2);
-      if (l.type == LightType::parallelogram) grow(l.p0 + l.e1 + l.e2);
-      const vec3f c = cross(l.e1, l.e2);
-      const double n[3] = {c.x, c.y, c.z}, len = std::sqrt(dot3(n, n));
-      if (!(len > 0)) return false;
-      w = {static_cast<float>(n[0] / len), static_cast<float>(n[1] / len), static_cast<float>(n[2] / len)};
-      cos_o = 1;
-      cos_e = 0;  // cos(pi / 2)
-      two_sided = l.two_sided;
-      phi = L * l.area * kPi * (l.two_sided ? 2 : 1);
-      break;
-    }
-    case LightType::sphere: {
-      const float r = l.e1.x;
-      grow(l.p0 - vec3f{r, r, r});
-      grow(l.p0 + vec3f{r, r, r});
-      cos_o = -1;
-      cos_e = 0;
-      phi = L * 4 * kPi * double(r) * r * kPi;
-      break;
-    }
-    case LightType::point:
-      grow(l.p0);
-      cos_o = -1;
-      cos_e = 0;
-      phi = 4 * kPi * L;
-      break;
-    case LightType::spot: {
-      grow(l.p0);
-      w = l.e1;
-      const double cs = std::clamp(double(l.e2.x), -1.0, 1.0), ce = std::clamp(double(l.e2.y), -1.0, 1.0);
-      cos_o = cs;
-      cos_e = std::cos(std::acos(ce) - std::acos(cs));
-      phi = 4 * kPi * L;  // pbrt-v4's (an overestimate, as its comment says)
-      break;
-    }
-    case LightType::distant:
-      return false;  // not in the tree
-  }
-  if (!(phi > 0) || !std::isfinite(phi)) return false;
+  LightBounds b;  // each kind's own (light/kinds/)
+  if (!light_bounds(l, max_component(l.radiance), b)) return false;
+  if (!(b.phi > 0) || !std::isfinite(b.phi)) return false;
   for (int a = 0; a < 3; ++a) {
-    p.v[a] = (&lo.x)[a];
-    p.v[3 + a] = -(&hi.x)[a];
-    p.v[6 + a] = (&w.x)[a];
-    p.v[9 + a] = -(&w.x)[a];
+    p.v[a] = (&b.lo.x)[a];
+    p.v[3 + a] = -(&b.hi.x)[a];
+    p.v[6 + a] = (&b.w.x)[a];
+    p.v[9 + a] = -(&b.w.x)[a];
   }
-  p.v[12] = round_down(cos_o);
-  p.v[13] = round_down(cos_e);
-  p.v[14] = -round_up(std::acos(std::clamp(cos_e, -1.0, 1.0)));
-  p.v[15] = static_cast<float>(phi);
-  p.light = index | (two_sided ? kTwoSidedBit : 0u);
+  p.v[12] = round_down(b.cos_o);
+  p.v[13] = round_down(b.cos_e);
+  p.v[14] = -round_up(std::acos(std::clamp(b.cos_e, -1.0, 1.0)));
+  p.v[15] = static_cast<float>(b.phi);
+  p.light = index | (b.two_sided ? kTwoSidedBit : 0u);
   return true;
 }
 
@@ -653,7 +604,7 @@ LightBvh build_light_bvh(const std::vector<Light>& lights) {
   prims.reserve(nl);
   for (size_t i = 0; i < nl; ++i) {
     if (in_tree[i]) prims.push_back(all[i]);
-    else if (lights[i].type == LightType::distant && max_component(lights[i].radiance) > 0) {
+    else if (kind_info(lights[i].type).at_infinity && max_component(lights[i].radiance) > 0) {
       t.trail_hi[i] = light_bvh_outside | light_bvh_distant;
       t.distant_light.push_back(static_cast<int32_t>(i));
     }

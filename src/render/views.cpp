@@ -69,7 +69,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     // pipelines compute from the unit edges instead of reading it (the same bits)
     vec3f nn{0, 0, 0};
     if (g.rect > 0.5f) nn = cross(g.ex, g.ey);
-    else if (l.type == LightType::triangle || l.type == LightType::parallelogram) nn = normalize(cross(l.e1, l.e2));
+    else if (is_planar(l.type)) nn = normalize(cross(l.e1, l.e2));
     v.nx.push_back(nn.x); v.ny.push_back(nn.y); v.nz.push_back(nn.z);
   }
   // pick distribution

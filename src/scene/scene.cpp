@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "light/dispatch.h"
 #include "sample/spherical.h"
 #include "scene/pbrt.h"
 
@@ -215,13 +216,12 @@ void finalize_scene(Scene& scene) {
         e2 = vertex(m, m.indices[3 * t + 2]) - p0;
       }
       if (degenerate(e1, e2)) continue;  // a zero-area emitter emits nothing
-      l.type = quad ? LightType::parallelogram : LightType::triangle;
+      l.type = quad ? LightKind::parallelogram : LightKind::triangle;
       if (sign < 0) std::swap(e1, e2);  // emission side follows cross(e1, e2)
       l.p0 = p0;
       l.e1 = e1;
       l.e2 = e2;
       l.area = length(cross(e1, e2)) * (quad ? 1.f : 0.5f);
-      l.power = luminance(l.radiance) * 3.14159265f * l.area * (l.two_sided ? 2.f : 1.f);
       m.prim_light[t] = static_cast<int32_t>(lights.size());
       if (quad) m.prim_light[t + 1] = static_cast<int32_t>(lights.size());
       lights.push_back(l);
@@ -237,12 +237,11 @@ void finalize_scene(Scene& scene) {
       continue;
     }
     Light l;
-    l.type = LightType::sphere;
+    l.type = LightKind::sphere;
     l.p0 = s.center;
     l.e1 = {s.radius, 0, 0};
     l.radiance = s.emission;
     l.area = 4.f * 3.14159265f * s.radius * s.radius;
-    l.power = luminance(l.radiance) * 3.14159265f * l.area;
     l.sphere = static_cast<int>(si);
     s.light = static_cast<int>(lights.size());
     lights.push_back(l);
@@ -258,10 +257,7 @@ void finalize_scene(Scene& scene) {
   for (Light& l : lights) {
     for (float v : {l.radiance.r, l.radiance.g, l.radiance.b})
       if (!std::isfinite(v) || v < 0) throw SceneError(scene.source + ": error: light intensity must be finite and >= 0");
-    if (l.type == LightType::point) l.power = 4.f * 3.14159265f * luminance(l.radiance);
-    if (l.type == LightType::spot)
-      l.power = 2.f * 3.14159265f * luminance(l.radiance) * (1.f - 0.5f * (l.e2.x + l.e2.y));
-    if (l.type == LightType::distant) l.power = 3.14159265f * radius * radius * luminance(l.radiance);
+    l.power = light_power(l, luminance(l.radiance), radius);
   }
   scene.lights = std::move(lights);
 
@@ -277,7 +273,7 @@ void finalize_scene(Scene& scene) {
   // the test light_geom_derive applies to a source's edges (a kernel's rule, in one place)
   bool all_rects = !scene.lights.empty();
   for (const Light& l : scene.lights)
-    all_rects = all_rects && l.type == LightType::parallelogram && parallelogram_is_rectangle(l.e1, l.e2);
+    all_rects = all_rects && l.type == LightKind::parallelogram && parallelogram_is_rectangle(l.e1, l.e2);
   if (all_rects) f |= feat_rect_lights_only;
   scene.features = f;
 }

@@ -11,6 +11,7 @@
 
 #include "bsdf/bsdf.h"
 #include "lanes/vec.h"
+#include "light/kinds.h"
 #include "sample/filter.h"
 
 namespace tuile {
@@ -110,24 +111,11 @@ struct Sphere {
   bool emissive() const { return emission.any_positive(); }
 };
 
-enum class LightType : int32_t {
-  triangle = 0,       // p0, p0+e1, p0+e2
-  parallelogram = 1,  // p0 + u e1 + v e2, u,v in [0,1]
-  sphere = 2,         // centre p0, radius in e1.x
-  point = 3,          // position p0, intensity in radiance
-  spot = 4,           // position p0, axis e1 (unit), cos of cone start/end in e2.x/e2.y
-  distant = 5,        // direction the light travels *from*: towards the light is e1 (unit)
-};
-
-inline bool is_delta(LightType t) { return t == LightType::point || t == LightType::spot || t == LightType::distant; }
-
-struct Light {
-  LightType type = LightType::point;
-  vec3f p0{0, 0, 0}, e1{0, 0, 0}, e2{0, 0, 0};
+// A light source: its kind and shape (light/kinds.h: the one list of kinds, whose code is
+// in light/kinds/<name>.h) and what the scene knows of it.
+struct Light : LightShape {
   Rgb radiance;       // L for area lights, I (W/sr) for point and spot, E (irradiance) for distant
-  bool two_sided = false;
-  float area = 0;     // of the emitting surface (0 for delta lights)
-  float power = 0;    // emitted power (luminance of radiance times pi A for one-sided area lights)
+  float power = 0;    // emitted power (LightKindOps<kind>::power; luminance of radiance times pi A for one-sided area lights)
   int mesh = -1, prim = -1;  // where it came from (-1 for spheres/delta lights)
   int sphere = -1;
 };

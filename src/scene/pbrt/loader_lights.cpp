@@ -51,13 +51,13 @@ void Loader::light(Lexer& lx, const Token& t, const std::string& type, Params& p
   const float lum = luminance(c);
   const Vec3d p = apply_point(gs_.ctm, {from[0], from[1], from[2]});
   if (type == "point") {
-    l.type = LightType::point;
+    l.type = LightKind::point;
     const float power = ps.one_float("power", -1);
     l.radiance = mul(c, s * (power > 0 && lum > 0 ? power / (4 * float(M_PI) * lum) : 1.f));
     l.p0 = vec3f(float(p.x), float(p.y), float(p.z));
     l.power = 4 * float(M_PI) * luminance(l.radiance);
   } else if (type == "spot") {
-    l.type = LightType::spot;
+    l.type = LightKind::spot;
     const float cone = ps.one_float("coneangle", 30), delta = ps.one_float("conedeltaangle", 5);
     if (!(cone > 0 && cone <= 180 && delta >= 0 && delta <= cone))
       lx.fail(t, "spot light cone angles out of range", "0 < coneangle <= 180 and 0 <= conedeltaangle <= coneangle");
@@ -72,7 +72,7 @@ void Loader::light(Lexer& lx, const Token& t, const std::string& type, Params& p
     l.e2 = vec3f(cos_start, cos_end, 0);
     l.power = k_e * luminance(l.radiance);
   } else {
-    l.type = LightType::distant;
+    l.type = LightKind::distant;
     const float e = ps.one_float("illuminance", -1);
     l.radiance = mul(c, s * (e > 0 && lum > 0 ? e / lum : 1.f));
     const Vec3d w = normalized(apply_vector(gs_.ctm, {from[0] - to[0], from[1] - to[1], from[2] - to[2]}));
