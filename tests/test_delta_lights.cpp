@@ -97,3 +97,106 @@ TEST(DeltaLights, PointSpotDistantAreExact) {
       }
   }
 }
+
+// The light kinds (light/kinds.h): the dispatch over a batch of lanes visits each kind the
+// batch holds exactly once, with the mask of its lanes (disjoint masks covering the batch),
+// only the kinds of the groups asked for, and a rectangle pipeline's one case over every
+// lane; each kind's power is its documented formula.
+TEST(LightKinds, DispatchVisitsEachKindPresentOnceWithItsLanes) {
+  alignas(64) int32_t types[simd_width];
+  const uint32_t all_lanes = simd_width == 32 ? ~0u : (1u << simd_width) - 1;
+  for (int pattern = 0; pattern < 64; ++pattern) {
+    for (int l = 0; l < simd_width; ++l) types[l] = (pattern * 7 + l * (pattern % 5 + 1)) % light_kind_count;
+    LightGeom<vfloat> g;
+    g.type = load_i32<vfloat>(types);
+    for (unsigned groups : {kind_all, kind_area, kind_delta}) {
+      int visits[light_kind_count] = {};
+      uint32_t seen = 0;
+      for_each_light_kind<0u>(g, [](auto, const vmask&) {});  // no group: nothing runs
+      auto visit = [&](auto ops, const vmask& m) {
+        const int k = static_cast<int>(decltype(ops)::kind);
+        ++visits[k];
+        const uint32_t bits = lane_bits(m);
+        EXPECT_EQ(bits & seen, 0u) << "masks overlap";
+        seen |= bits;
+        for (int l = 0; l < simd_width; ++l) EXPECT_EQ(((bits >> l) & 1u) != 0, types[l] == k) << k << " lane " << l;
+      };
+      if (groups == kind_all) for_each_light_kind<kind_all>(g, visit);
+      else if (groups == kind_area) for_each_light_kind<kind_area>(g, visit);
+      else for_each_light_kind<kind_delta>(g, visit);
+      uint32_t expected = 0;
+      for (int k = 0; k < light_kind_count; ++k) {
+        bool present = false;
+        for (int l = 0; l < simd_width; ++l) present = present || types[l] == k;
+        const bool asked = (kind_info(static_cast<LightKind>(k)).group & groups) != 0;
+        EXPECT_EQ(visits[k], present && asked ? 1 : 0) << "kind " << kind_info(static_cast<LightKind>(k)).name;
+        for (int l = 0; l < simd_width; ++l)
+          if (types[l] == k && asked) expected |= 1u << l;
+      }
+      EXPECT_EQ(seen, expected);
+    }
+  }
+  int runs = 0;
+  for_each_light_kind<kind_area | kind_rects>(LightGeom<vfloat>{}, [&](auto ops, const vmask& m) {
+    ++runs;
+    EXPECT_EQ(decltype(ops)::kind, LightKind::parallelogram);
+    EXPECT_EQ(lane_bits(m), all_lanes);
+  });
+  EXPECT_EQ(runs, 1);
+  // the groups: delta kinds have no surface, the others a density
+  for (int k = 0; k < light_kind_count; ++k) {
+    const LightKind kind = static_cast<LightKind>(k);
+    EXPECT_EQ(is_delta(kind), kind == LightKind::point || kind == LightKind::spot || kind == LightKind::distant);
+    EXPECT_EQ(is_planar(kind), kind == LightKind::triangle || kind == LightKind::parallelogram);
+  }
+}
+
+TEST(LightKinds, PowerAndBoundsFollowEachKindsFormula) {
+  const float pi = 3.14159265f;
+  LightShape l;
+  l.p0 = {1, 2, 3};
+  l.e1 = {0.5f, 0, 0};
+  l.e2 = {0, 0, 2};
+  l.area = 1;
+  l.type = LightKind::parallelogram;
+  EXPECT_FLOAT_EQ(light_power(l, 3.f, 10.f), 3.f * pi);
+  l.two_sided = true;
+  EXPECT_FLOAT_EQ(light_power(l, 3.f, 10.f), 6.f * pi);
+  l.type = LightKind::sphere;
+  l.two_sided = false;
+  l.area = 4 * pi * 0.25f;
+  EXPECT_FLOAT_EQ(light_power(l, 2.f, 10.f), 2.f * pi * l.area);
+  l.type = LightKind::point;
+  EXPECT_FLOAT_EQ(light_power(l, 2.f, 10.f), 8.f * pi);
+  l.type = LightKind::spot;
+  l.e1 = {0, -1, 0};
+  l.e2 = {0.9f, 0.7f, 0};  // cos of the falloff start, of the cone's edge
+  EXPECT_FLOAT_EQ(light_power(l, 2.f, 10.f), 4.f * pi * (1.f - 0.8f));
+  l.type = LightKind::distant;
+  EXPECT_FLOAT_EQ(light_power(l, 2.f, 10.f), pi * 100.f * 2.f);
+  // bounds: a point with every direction, a spot's cone around its axis, none at infinity
+  LightBounds b;
+  l.type = LightKind::point;
+  ASSERT_TRUE(light_bounds(l, 1.0, b));
+  EXPECT_EQ(b.lo.x, 1.f);
+  EXPECT_EQ(b.hi.z, 3.f);
+  EXPECT_EQ(b.cos_o, -1.0);
+  b = LightBounds{};
+  l.type = LightKind::spot;
+  ASSERT_TRUE(light_bounds(l, 1.0, b));
+  EXPECT_EQ(b.w.y, -1.f);
+  EXPECT_NEAR(b.cos_o, 0.9, 1e-7);
+  EXPECT_NEAR(b.cos_e, std::cos(std::acos(0.7) - std::acos(0.9)), 1e-7);
+  b = LightBounds{};
+  l.type = LightKind::distant;
+  EXPECT_FALSE(light_bounds(l, 1.0, b));
+  b = LightBounds{};
+  l.type = LightKind::triangle;
+  l.e1 = {1, 0, 0};
+  l.e2 = {0, 0, 1};
+  l.area = 0.5f;
+  ASSERT_TRUE(light_bounds(l, 2.0, b));
+  EXPECT_EQ(b.w.y, -1.f);  // cross(e1, e2) = (0, -1, 0)
+  EXPECT_EQ(b.hi.x, 2.f);
+  EXPECT_NEAR(b.phi, 2.0 * 0.5 * 3.14159265358979323846, 1e-12);
+}

@@ -542,7 +542,7 @@ TEST(Lanes, RisStagesEqualScalar) {
         RayHit16& h = a->bounce[k / packet_width];
         const int l = k % packet_width;
         const uint32_t r = rng() % 8;
-        h.geomID[l] = r < 5 ? 1u : r == 5 ? static_cast<uint32_t>(views.geom.mesh_count) : r == 6 ? 0u : ~0u;
+        h.geomID[l] = r < 5 ? 1u : r == 5 ? static_cast<uint32_t>(s.meshes.size()) : r == 6 ? 0u : ~0u;  // (5: the first sphere)
         h.primID[l] = r < 5 ? r : 0u;
         h.ray.tfar[l] = 0.2f + static_cast<float>(rng() % 100) * 0.05f;
       }
@@ -691,7 +691,7 @@ TEST(Lanes, CameraHitsEqualScalar) {
   // the flattened triangle table holds every mesh's vertices and lights
   for (size_t m = 0; m < s.meshes.size(); ++m)
     for (size_t t = 0; t < s.meshes[m].triangle_count(); ++t) {
-      const int32_t tri = views.geom.tri_offset[m] + static_cast<int32_t>(t);
+      const int32_t tri = views.geom.geom_first[m] + static_cast<int32_t>(t);
       for (int k = 0; k < 9; ++k)
         ASSERT_EQ(views.geom.tri_pos[9 * tri + k], s.meshes[m].positions[3 * s.meshes[m].indices[3 * t + k / 3] + k % 3]);
       ASSERT_EQ(views.geom.tri_light[tri], s.meshes[m].prim_light.empty() ? -1 : s.meshes[m].prim_light[t]);
@@ -776,7 +776,7 @@ TEST(Lanes, CameraHitsEqualScalar) {
       for (int i = 0; i < lanes; ++i) {
         const uint32_t g = a->cam[i / 16].geomID[i % 16];
         hits += g != invalid_id;
-        spheres += g != invalid_id && static_cast<int32_t>(g) >= views.geom.mesh_count;
+        spheres += g != invalid_id && views.geom.geom_kind[g] == static_cast<int32_t>(GeomKind::sphere);
         textured += g == 2;
         emitted += a->lanes.Lr[i] > 0.f;
       }

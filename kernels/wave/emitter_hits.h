@@ -49,12 +49,13 @@ inline i32_t<T> bounce_hit_light(const GeomView& G, const TileBuffers& tb, int k
   const auto traced = i_mask_from_f(traced_in) && geom >= i32_t<T>(0);  // invalid_id reads as -1
   if (!any(f_mask_from_i(traced))) return i32_t<T>(-1);
   const i32_t<T> gi = max(geom, i32_t<T>(0));
-  const auto mesh = traced && geom < i32_t<T>(G.mesh_count);
-  const auto sphere = traced && geom >= i32_t<T>(G.mesh_count);
+  // the geometry table: a mesh's light per triangle, other kinds' per geometry
+  const i32_t<T> kind = gather(G.geom_kind, gi);
+  const auto mesh = traced && kind == i32_t<T>(static_cast<int32_t>(GeomKind::triangles));
+  const auto other = traced && kind != i32_t<T>(static_cast<int32_t>(GeomKind::triangles));
   const i32_t<T> prim = load_i32<T>(reinterpret_cast<const int32_t*>(r.primID + l));
-  i32_t<T> light = sel(mesh, gather(G.tri_light, sel(mesh, gather(G.tri_offset, gi) + prim, i32_t<T>(0))), i32_t<T>(-1));
-  if (any(f_mask_from_i(sphere)))
-    light = sel(sphere, gather(G.sphere_light, sel(sphere, gi - i32_t<T>(G.mesh_count), i32_t<T>(0))), light);
+  i32_t<T> light = sel(mesh, gather(G.tri_light, sel(mesh, gather(G.geom_first, gi) + prim, i32_t<T>(0))), i32_t<T>(-1));
+  if (any(f_mask_from_i(other))) light = sel(other, gather(G.geom_light, gi), light);
   return light;
 }
 

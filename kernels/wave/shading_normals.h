@@ -152,7 +152,7 @@ template <bool Materials> inline void apply_shading_normals(const GeomView& G, S
     const float gx = P.nx[k], gy = P.ny[k], gz = P.nz[k];
     float sx = gx, sy = gy, sz = gz;
     const int32_t g = P.geom[k];
-    const float* N = g < G.mesh_count ? G.normals[g] : nullptr;
+    const float* N = G.normals[g];  // (nullptr for every kind but meshes)
     if (N) {
       const uint32_t* idx = G.indices[g] + 3 * static_cast<size_t>(P.prim[k]);
       const float b1 = P.bu[k], b2 = P.bv[k], b0 = 1.f - b1 - b2;
@@ -177,7 +177,7 @@ template <bool Materials> inline void apply_shading_normals(const GeomView& G, S
         }
       }
     }
-    if (G.has_bump && g < G.mesh_count) {
+    if (G.has_bump && is_mesh(G, g)) {
       const int32_t m = Materials ? P.mat[k] : G.geom_material[g];
       const int32_t t = G.mat_bump[m];
       vec3f sn;

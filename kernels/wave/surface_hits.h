@@ -21,8 +21,9 @@ namespace tuile {
 // The light a ray hit, or -1.
 inline int32_t light_of_hit(const GeomView& G, uint32_t geom, uint32_t prim) {
   if (geom == invalid_id) return -1;
-  if (static_cast<int32_t>(geom) < G.mesh_count) return G.tri_light[G.tri_offset[geom] + static_cast<int32_t>(prim)];
-  return G.sphere_light[geom - G.mesh_count];
+  const auto g = static_cast<int32_t>(geom);
+  if (is_mesh(G, g)) return G.tri_light[G.geom_first[g] + static_cast<int32_t>(prim)];
+  return G.geom_light[g];
 }
 
 // Ray offset for a surface point: the per-axis error bound of the point projected on the
@@ -78,8 +79,6 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   // The hit point and its error bound (pbrt-v4): for triangles from the barycentrics,
   // err_i = gamma(7) sum_k |b_k v_k,i|, so an axis-aligned plane at any distance keeps
   // an exact coordinate; for spheres reprojected onto the surface, err = gamma(5) |x|.
-  const auto tri_i = i_mask_from_f(ok) && geom < i32_t<T>(G.mesh_count);
-  const auto sphere = ok && !f_mask_from_i(tri_i);
   const i32_t<T> prim = load_i32<T>(reinterpret_cast<const int32_t*>(p.primID + l));
   // Coherent camera rays often hit one geometry, even one triangle, in every lane: then
   // broadcasts of the first hit's data replace the gathers (same values). Lanes without
@@ -87,8 +86,13 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   const int k0 = std::countr_zero(keep);
   const int32_t g0 = static_cast<int32_t>(p.geomID[l + k0]), p0 = static_cast<int32_t>(p.primID[l + k0]);
   const bool one_geom = all(!ok || f_mask_from_i(geom == i32_t<T>(g0)));
-  const bool one_tri = one_geom && (g0 >= G.mesh_count || all(!ok || f_mask_from_i(prim == i32_t<T>(p0))));
-  const int32_t t0 = g0 < G.mesh_count ? G.tri_offset[g0] + p0 : 0;
+  // the geometry table's kind of each lane's hit
+  const i32_t<T> kind = one_geom ? i32_t<T>(G.geom_kind[g0]) : gather(G.geom_kind, gi);
+  const auto tri_i = i_mask_from_f(ok) && kind == i32_t<T>(static_cast<int32_t>(GeomKind::triangles));
+  const auto sphere = ok && !f_mask_from_i(tri_i);
+  const bool mesh0 = is_mesh(G, g0);
+  const bool one_tri = one_geom && (!mesh0 || all(!ok || f_mask_from_i(prim == i32_t<T>(p0))));
+  const int32_t t0 = mesh0 ? G.geom_first[g0] + p0 : 0;
   i32_t<T> tri;
   Vec3<T> v0, v1, v2;
   if (one_tri) {
@@ -98,7 +102,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     v1 = {T(P[3]), T(P[4]), T(P[5])};
     v2 = {T(P[6]), T(P[7]), T(P[8])};
   } else {
-    tri = sel(tri_i, gather(G.tri_offset, gi) + prim, i32_t<T>(0));
+    tri = sel(tri_i, gather(G.geom_first, gi) + prim, i32_t<T>(0));
     const i32_t<T> tv = tri * i32_t<T>(9);
     v0 = gather3(G.tri_pos, G.tri_pos + 1, G.tri_pos + 2, tv);
     v1 = gather3(G.tri_pos + 3, G.tri_pos + 4, G.tri_pos + 5, tv);
@@ -111,7 +115,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
               g7 * (abs(b0 * v0.y) + abs(b1 * v1.y) + abs(b2 * v2.y)),
               g7 * (abs(b0 * v0.z) + abs(b1 * v1.z) + abs(b2 * v2.z))};
   if (any(sphere)) {
-    const i32_t<T> s4 = sel(i_mask_from_f(sphere), gi - i32_t<T>(G.mesh_count), i32_t<T>(0)) * i32_t<T>(4);
+    const i32_t<T> s4 = sel(i_mask_from_f(sphere), gather(G.geom_first, gi), i32_t<T>(0)) * i32_t<T>(4);
     const Vec3<T> c = gather3(G.sphere_center, G.sphere_center + 1, G.sphere_center + 2, s4);
     Vec3<T> rel = o + d * t - c;
     rel = rel * (gather(G.sphere_center + 3, s4) / length(rel));
@@ -130,8 +134,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   if constexpr (Emitters && !Bounce) {
     i32_t<T> light = sel(tri_i, one_tri ? i32_t<T>(G.tri_light[t0]) : gather(G.tri_light, tri), i32_t<T>(-1));
     if (any(sphere)) {
-      const i32_t<T> sl = sel(i_mask_from_f(sphere), gi - i32_t<T>(G.mesh_count), i32_t<T>(0));
-      light = sel(i_mask_from_f(sphere), gather(G.sphere_light, sl), light);
+      light = sel(i_mask_from_f(sphere), gather(G.geom_light, gi), light);
     }
     const auto lit = f_mask_from_i(light >= i32_t<T>(0));
     if (any(lit)) {  // then the light table is not empty

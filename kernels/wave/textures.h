@@ -14,7 +14,7 @@ namespace tuile {
 // The texture of a hit's material, or -1 (spheres and meshes without uv have none).
 inline int32_t hit_texture(const GeomView& G, uint32_t geom) {
   const int32_t t = G.mat_texture[G.geom_material[geom]];  // never -1 material: build_views appends a default
-  if (t < 0 || static_cast<int32_t>(geom) >= G.mesh_count || !G.uvs[geom]) return -1;
+  if (t < 0 || !G.uvs[geom]) return -1;  // (nullptr for every kind but meshes)
   return t;
 }
 
@@ -115,7 +115,7 @@ inline void apply_roughness_textures(const GeomView& G, ShadingPoints& P) {
     const int32_t g = P.geom[k];
     for (int i = 0; i < 2; ++i) {
       const int32_t t = G.mat_alpha_tex[2 * m + i];
-      if (t < 0 || g >= G.mesh_count) continue;
+      if (t < 0 || !is_mesh(G, g)) continue;
       const uint32_t* idx = G.indices[g] + 3 * static_cast<size_t>(P.prim[k]);
       float uv[3][2] = {{0, 0}, {1, 0}, {1, 1}};
       if (const float* UV = G.uvs[g])

@@ -22,17 +22,28 @@ enum MatParam : int {
   mp_count
 };
 
+// The kind of geometry an Embree geomID names, which decides how its hits are found and
+// shaded: a triangle mesh (its triangles flattened in GeomView::tri_pos), or a sphere.
+enum class GeomKind : int32_t { triangles = 0, sphere = 1 };
+
 // Per-geometry data the hit stages look up by Embree's geomID / primID.
 struct GeomView {
-  int32_t mesh_count = 0;
-  const int32_t* geom_material = nullptr;      // per geomID (meshes then spheres), never -1
+  // The geometry table, one row per geomID (build_views: the meshes, then the spheres),
+  // that every stage asks instead of comparing geomIDs: the geometry's kind, material,
+  // outside, where its primitives are, and its light. A new kind of geometry (instances,
+  // curves) is a GeomKind and the rows build_views writes for it (docs/DESIGN.md).
+  int32_t geom_count = 0;
+  const int32_t* geom_kind = nullptr;          // GeomKind
+  const int32_t* geom_material = nullptr;      // never -1
+  // triangles: its first triangle in the flattened table (triangle geom_first[g] + primID
+  // of tri_pos and tri_light); a sphere: its index in sphere_center
+  const int32_t* geom_first = nullptr;
+  const int32_t* geom_light = nullptr;         // a sphere's light or -1 (a mesh's lights are per triangle)
   const float* sphere_center = nullptr;        // per sphere: centre xyz and radius
   bool has_textures = false;
-  // Every triangle of every mesh, flattened: triangle tri_offset[geomID] + primID.
-  const int32_t* tri_offset = nullptr;         // per geomID (0 for spheres)
+  // Every triangle of every mesh, flattened.
   const float* tri_pos = nullptr;              // per triangle: v0 v1 v2, xyz each (9 floats)
   const int32_t* tri_light = nullptr;          // per triangle: light or -1
-  const int32_t* sphere_light = nullptr;       // per sphere: light or -1
   const float *mat_r = nullptr, *mat_g = nullptr, *mat_b = nullptr;
   const int32_t* mat_texture = nullptr;
   const int32_t* mat_kind = nullptr;           // per material: MaterialKind
@@ -45,10 +56,11 @@ struct GeomView {
   // per geomID: +1, or -1 where the surface's outside (pbrt's normal, which decides which
   // side of a dielectric is inside) is opposite Embree's Ng
   const float* geom_side = nullptr;
-  const uint32_t* const* indices = nullptr;    // per mesh
-  const float* const* positions = nullptr;     // per mesh, xyz per vertex
-  const float* const* uvs = nullptr;           // per mesh, nullptr without uv
-  const float* const* normals = nullptr;       // per mesh, shading normals per vertex, nullptr without
+  // per geomID, a mesh's arrays (nullptr for other kinds)
+  const uint32_t* const* indices = nullptr;
+  const float* const* positions = nullptr;     // xyz per vertex
+  const float* const* uvs = nullptr;           // nullptr without uv
+  const float* const* normals = nullptr;       // shading normals per vertex, nullptr without
   bool has_normals = false;                    // some mesh has shading normals
   // Bump mapping (pbrt-v4's "displacement"): per material, the float texture whose
   // gradient tilts the shading normal, or -1 (none, or a constant: build_views drops
@@ -75,6 +87,9 @@ struct GeomView {
   const float* const* tex_rgb = nullptr;       // per texture
   const int32_t *tex_w = nullptr, *tex_h = nullptr;
 };
+
+// Whether geometry g is a triangle mesh.
+inline bool is_mesh(const GeomView& G, int32_t g) { return G.geom_kind[g] == static_cast<int32_t>(GeomKind::triangles); }
 
 struct CameraView {
   float m[3][4];          // world_from_camera

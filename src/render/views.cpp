@@ -150,10 +150,14 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
                              std::to_string(INT32_MAX / 9 - 1) + " are supported");
   v.tri_pos.reserve(9 * (tris + 1));
   v.tri_light.reserve(tris + 1);
+  // The geometry table, one row per Embree geomID (src/accel/embree.cpp attaches the meshes,
+  // then the spheres, in scene order).
   for (const Mesh& m : scene.meshes) {
+    v.geom_kind.push_back(static_cast<int32_t>(GeomKind::triangles));
     v.geom_material.push_back(m.material >= 0 ? m.material : default_material);
     v.geom_side.push_back(m.reverse_orientation ? -1.f : 1.f);
-    v.tri_offset.push_back(static_cast<int32_t>(v.tri_light.size()));
+    v.geom_first.push_back(static_cast<int32_t>(v.tri_light.size()));
+    v.geom_light.push_back(-1);  // per triangle: tri_light
     for (size_t t = 0; t < m.triangle_count(); ++t) {
       for (int k = 0; k < 3; ++k) {
         const float* p = m.positions.data() + 3 * static_cast<size_t>(m.indices[3 * t + k]);
@@ -168,13 +172,23 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     v.geom.has_normals |= !m.normals.empty();
   }
   for (const Sphere& s : scene.spheres) {
+    v.geom_kind.push_back(static_cast<int32_t>(GeomKind::sphere));
     v.geom_material.push_back(s.material >= 0 ? s.material : default_material);
     v.geom_side.push_back(s.reverse_orientation ? -1.f : 1.f);
+    v.geom_first.push_back(static_cast<int32_t>(v.sphere_center.size() / 4));
+    v.geom_light.push_back(s.light);
     v.sphere_center.insert(v.sphere_center.end(), {s.center.x, s.center.y, s.center.z, s.radius});
-    v.sphere_light.push_back(s.light);
-    v.tri_offset.push_back(0);
+    v.indices.push_back(nullptr);  // a mesh's arrays: none
+    v.positions.push_back(nullptr);
+    v.uvs.push_back(nullptr);
+    v.normals.push_back(nullptr);
   }
-  v.sphere_light.push_back(-1);  // never empty
+  v.geom.geom_count = static_cast<int32_t>(v.geom_kind.size());
+  // never empty (a scene without geometry reads row 0 of no hit)
+  v.geom_kind.push_back(static_cast<int32_t>(GeomKind::triangles));
+  v.geom_first.push_back(0);
+  v.geom_light.push_back(-1);
+  v.sphere_center.insert(v.sphere_center.end(), 4, 0.f);
   v.tri_pos.insert(v.tri_pos.end(), 9, 0.f);  // a spare triangle: never empty
   v.tri_light.push_back(-1);
   // A displacement texture whose texels are all equal moves the surface along its normal
@@ -256,13 +270,13 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     v.tex_h.push_back(t.height);
   }
   GeomView& G = v.geom;
-  G.mesh_count = static_cast<int32_t>(scene.meshes.size());
+  G.geom_kind = v.geom_kind.data();
   G.geom_material = v.geom_material.data();
+  G.geom_first = v.geom_first.data();
+  G.geom_light = v.geom_light.data();
   G.sphere_center = v.sphere_center.data();
-  G.tri_offset = v.tri_offset.data();
   G.tri_pos = v.tri_pos.data();
   G.tri_light = v.tri_light.data();
-  G.sphere_light = v.sphere_light.data();
   G.mat_r = v.mat_r.data();
   G.mat_g = v.mat_g.data();
   G.mat_b = v.mat_b.data();

@@ -33,8 +33,8 @@ struct SceneViews {
   double light_bvh_seconds = 0;
   // geometry
   std::vector<float> sphere_center;
-  std::vector<int32_t> geom_material, sphere_light, mat_texture, tex_w, tex_h;
-  std::vector<int32_t> tri_offset, tri_light;
+  std::vector<int32_t> geom_kind, geom_material, geom_first, geom_light, mat_texture, tex_w, tex_h;  // the geometry table
+  std::vector<int32_t> tri_light;
   std::vector<float> tri_pos;
   std::vector<const uint32_t*> indices;
   std::vector<const float*> positions;

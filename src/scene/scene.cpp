@@ -153,10 +153,9 @@ void resolve_material_params(Scene& scene) {
   if (sphere_bump) scene.warnings.push_back("displacement (bump mapping) on spheres: not supported, they are shaded smooth");
 }
 
-}  // namespace
-
-void finalize_scene(Scene& scene) {
-  // validation: numbers and indices
+// Numbers and indices: a clear error naming what is wrong (meshes, spheres, materials, the
+// camera); pads each mesh's vertex buffer for Embree.
+void validate_scene(Scene& scene) {
   for (Mesh& m : scene.meshes) {
     if (m.positions.size() % 3 != 0 && m.positions.size() % 3 != 1)
       throw SceneError(m.name + ": error: vertex positions are not a multiple of 3");
@@ -191,8 +190,12 @@ void finalize_scene(Scene& scene) {
     throw SceneError(scene.source + ": error: absurd image resolution " + std::to_string(c.width) + "x" +
                      std::to_string(c.height) + " (expected 1..32768 per axis, at most 2^28 pixels)");
   if (!(c.fov_deg > 0 && c.fov_deg < 180)) throw SceneError(scene.source + ": error: camera fov must be in (0, 180)");
+}
 
-  // lights: keep the delta lights the loader gave, derive the area lights
+// The light table: the delta lights the loader gave, an area light per emissive triangle
+// (or parallelogram, where two triangles of a mesh form one) and per emissive sphere, each
+// with its kind's power (light/kinds/).
+void derive_lights(Scene& scene) {
   std::vector<Light> lights;
   for (const Light& l : scene.lights)
     if (is_delta(l.type)) lights.push_back(l);
@@ -260,7 +263,10 @@ void finalize_scene(Scene& scene) {
     l.power = light_power(l, luminance(l.radiance), radius);
   }
   scene.lights = std::move(lights);
+}
 
+// The scene's feature bits (SceneFeature), which pick its tile pipeline.
+void detect_features(Scene& scene) {
   uint32_t f = 0;
   bool any_area = false, any_delta = false;
   for (const Light& l : scene.lights) (is_delta(l.type) ? any_delta : any_area) = true;
@@ -276,6 +282,14 @@ void finalize_scene(Scene& scene) {
     all_rects = all_rects && l.type == LightKind::parallelogram && parallelogram_is_rectangle(l.e1, l.e2);
   if (all_rects) f |= feat_rect_lights_only;
   scene.features = f;
+}
+
+}  // namespace
+
+void finalize_scene(Scene& scene) {
+  validate_scene(scene);
+  derive_lights(scene);
+  detect_features(scene);
 }
 
 Scene load_scene(const std::string& path) {

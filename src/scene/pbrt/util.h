@@ -107,4 +107,19 @@ Rgb unbounded_spectrum_rgb(const double* pairs, size_t count);
 // The same spectrum's value at lambda nm (piecewise linear, clamped to its end values).
 double spectrum_at(const double* pairs, size_t count, double lambda);
 
+// The mean of an image texture's texels (a reflectance texture used where tuile takes a
+// constant), and of a float texture's.
+inline Rgb average(const Texture& t) {
+  double s[3] = {0, 0, 0};
+  const size_t n = size_t(t.width) * t.height;
+  for (size_t i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) s[c] += t.rgb[3 * i + c];
+  return n ? Rgb{float(s[0] / n), float(s[1] / n), float(s[2] / n)} : Rgb{};
+}
+inline float average(const FloatTexture& t) {
+  double s = 0;
+  for (float v : t.value) s += v;
+  return t.value.empty() ? 0.f : float(s / double(t.value.size()));
+}
+
 }  // namespace tuile::pbrt
