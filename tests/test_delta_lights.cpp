@@ -136,6 +136,26 @@ TEST(LightKinds, DispatchVisitsEachKindPresentOnceWithItsLanes) {
       EXPECT_EQ(seen, expected);
     }
   }
+  // the planar kinds together (their shared code), every other kind alone
+  for (int pattern = 0; pattern < 16; ++pattern) {
+    for (int l = 0; l < simd_width; ++l) types[l] = (pattern + l * (pattern % 3 + 1)) % light_kind_count;
+    LightGeom<vfloat> g;
+    g.type = load_i32<vfloat>(types);
+    uint32_t seen = 0;
+    int planar_runs = 0;
+    for_each_light_shape<kind_all>(g, [&](auto ops, const vmask& m) {
+      const uint32_t bits = lane_bits(m);
+      EXPECT_EQ(bits & seen, 0u);
+      seen |= bits;
+      if constexpr (decltype(ops)::planar) {
+        ++planar_runs;
+        for (int l = 0; l < simd_width; ++l)
+          EXPECT_EQ(((bits >> l) & 1u) != 0, types[l] <= static_cast<int>(LightKind::parallelogram));
+      }
+    });
+    EXPECT_EQ(seen, all_lanes);
+    EXPECT_LE(planar_runs, 1);
+  }
   int runs = 0;
   for_each_light_kind<kind_area | kind_rects>(LightGeom<vfloat>{}, [&](auto ops, const vmask& m) {
     ++runs;

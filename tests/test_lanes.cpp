@@ -421,19 +421,19 @@ TEST(Lanes, StagesEqualScalar) {
           for (int k = 0; k < n; k += 3) a->shadow[k / packet_width].tfar[k % packet_width] = -INFINITY;
           for (int k = 0; k < n; ++k) b->shadow[k / packet_width].tfar[k % packet_width] = a->shadow[k / packet_width].tfar[k % packet_width];
           for (TileBuffers* t : {a.get(), b.get()}) {
-            std::fill_n(t->points.Sr, max_tile_lanes, 0.25f);
-            std::fill_n(t->points.Sg, max_tile_lanes, 0.f);
-            std::fill_n(t->points.Sb, max_tile_lanes, 1.f);
+            std::fill_n(t->radiance.r, max_tile_lanes, 0.25f);
+            std::fill_n(t->radiance.g, max_tile_lanes, 0.f);
+            std::fill_n(t->radiance.b, max_tile_lanes, 1.f);
           }
           accumulate_shadow<vfloat>(*a);
           accumulate_shadow<float>(*b);
-          expect_same_floats(a->points.Sr, b->points.Sr, max_tile_lanes, name);
-          expect_same_floats(a->points.Sg, b->points.Sg, max_tile_lanes, name);
-          expect_same_floats(a->points.Sb, b->points.Sb, max_tile_lanes, name);
+          expect_same_floats(a->radiance.r, b->radiance.r, max_tile_lanes, name);
+          expect_same_floats(a->radiance.g, b->radiance.g, max_tile_lanes, name);
+          expect_same_floats(a->radiance.b, b->radiance.b, max_tile_lanes, name);
           // an occluded lane adds nothing, a lit one its contribution
           for (int k = 0; k < n; ++k) {
             const bool lit = a->tech.valid[k] && k % 3 != 0;
-            ASSERT_EQ(a->points.Sr[k], lit ? 0.25f + a->tech.cr[k] : 0.25f) << name() << " lane " << k;
+            ASSERT_EQ(a->radiance.r[k], lit ? 0.25f + a->tech.cr[k] : 0.25f) << name() << " lane " << k;
           }
           // cosine stage: one batch at a time, two at a time (vfloat2, as the stage runs
           // them), and the scalar reference
@@ -891,9 +891,9 @@ TEST(Lanes, EmitterQueueEqualScalar) {
       sample_bsdf(views.geom, est, 0, SampleLayout{}.bsdf(0), SampleLayout{}.bsdf_lobe(0), *a);
       const int padded = packet_padded(count);
       for (int p = 0; p < padded / packet_width; ++p) accel.intersect16(a->tech.valid + p * packet_width, a->bounce[p], false);
-      std::fill_n(a->points.Sr, max_tile_lanes, 0.f);
-      std::fill_n(a->points.Sg, max_tile_lanes, 0.f);
-      std::fill_n(a->points.Sb, max_tile_lanes, 0.f);
+      std::fill_n(a->radiance.r, max_tile_lanes, 0.f);
+      std::fill_n(a->radiance.g, max_tile_lanes, 0.f);
+      std::fill_n(a->radiance.b, max_tile_lanes, 0.f);
       auto b = std::make_unique<TileBuffers>(*a);
       if (rects) weight_bounce<vfloat, kind_area | kind_rects>(views.geom, views.lights, est, 1.f, 1.f, *a);
       else weight_bounce<vfloat>(views.geom, views.lights, est, 1.f, 1.f, *a);
@@ -910,9 +910,9 @@ TEST(Lanes, EmitterQueueEqualScalar) {
         ASSERT_EQ(a->queue.light[j], b->queue.light[j]) << name() << " entry " << j;
         ASSERT_EQ(a->queue.point[j], b->queue.point[j]) << name() << " entry " << j;
       }
-      expect_same_floats(a->points.Sr, b->points.Sr, count, name);
-      expect_same_floats(a->points.Sg, b->points.Sg, count, name);
-      expect_same_floats(a->points.Sb, b->points.Sb, count, name);
+      expect_same_floats(a->radiance.r, b->radiance.r, count, name);
+      expect_same_floats(a->radiance.g, b->radiance.g, count, name);
+      expect_same_floats(a->radiance.b, b->radiance.b, count, name);
       // every queued entry is a traced ray that hit the front of an emitter, and every such
       // ray is queued; planar fronts from the scene's own sources (two-sided: either side)
       int expected = 0;
@@ -963,9 +963,9 @@ TEST(Lanes, AccumulateEqualScalar) {
       // shading points of some lanes, compacted in lane order, with their sums
       for (int i = 0, k = 0; i < 256; ++i) {
         a->lanes.shade_of[i] = b->lanes.shade_of[i] = rng() % 4 == 0 ? -1 : k++;
-        a->points.Sr[i] = b->points.Sr[i] = U(rng);
-        a->points.Sg[i] = b->points.Sg[i] = U(rng);
-        a->points.Sb[i] = b->points.Sb[i] = U(rng);
+        a->radiance.r[i] = b->radiance.r[i] = U(rng);
+        a->radiance.g[i] = b->radiance.g[i] = U(rng);
+        a->radiance.b[i] = b->radiance.b[i] = U(rng);
       }
       accumulate_samples<vfloat>(*a, lanes, true);
       accumulate_samples<float>(*b, lanes, true);
@@ -1002,12 +1002,12 @@ TEST(Lanes, AccumulateSkipsEmptyBatchesExactly) {
         a->lanes.wsum[i] = kind == 2 && i % 7 == 0 ? U(rng) : 0.f;
         a->lanes.wcnt[i] = a->lanes.wsum[i] > 0.f ? 1.f : 0.f;
         if (shaded) {
-          a->points.Sr[a->lanes.shade_of[i]] = U(rng);
-          a->points.Sg[a->lanes.shade_of[i]] = a->points.Sb[a->lanes.shade_of[i]] = 0.f;
+          a->radiance.r[a->lanes.shade_of[i]] = U(rng);
+          a->radiance.g[a->lanes.shade_of[i]] = a->radiance.b[a->lanes.shade_of[i]] = 0.f;
         }
       }
       for (int i = 0; i < lanes; ++i) {  // the reference: every lane added
-        const float r = a->lanes.Lr[i] + (a->lanes.shade_of[i] >= 0 ? a->points.Sr[a->lanes.shade_of[i]] : 0.f);
+        const float r = a->lanes.Lr[i] + (a->lanes.shade_of[i] >= 0 ? a->radiance.r[a->lanes.shade_of[i]] : 0.f);
         sr[i] += static_cast<double>(r);
         srr[i] += static_cast<double>(r) * static_cast<double>(r);
         if (aov) {

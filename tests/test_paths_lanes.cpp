@@ -208,11 +208,11 @@ void fill_path_points(TileBuffers& tb, std::mt19937& rng, int n, int materials) 
     tb.points.mat[k] = static_cast<int32_t>(U(rng) * static_cast<float>(materials)) % materials;
     tb.points.side[k] = U(rng) < 0.4f ? -1.f : 1.f;
     const float t = U(rng);
-    tb.points.tr[k] = t < 0.2f ? 1.f : 0.05f + 2.f * U(rng);
-    tb.points.tg[k] = t < 0.2f ? 1.f : 0.05f + 2.f * U(rng);
-    tb.points.tbl[k] = t < 0.2f ? 1.f : 0.05f + 2.f * U(rng);
+    tb.path.throughput_r[k] = t < 0.2f ? 1.f : 0.05f + 2.f * U(rng);
+    tb.path.throughput_g[k] = t < 0.2f ? 1.f : 0.05f + 2.f * U(rng);
+    tb.path.throughput_b[k] = t < 0.2f ? 1.f : 0.05f + 2.f * U(rng);
     const float e = U(rng);
-    tb.points.eta_scale[k] = e < 0.4f ? 1.f : e < 0.6f ? 2.25f : e < 0.8f ? 1.f / 2.25f : 0.2f + 4.f * U(rng);
+    tb.path.eta_scale[k] = e < 0.4f ? 1.f : e < 0.6f ? 2.25f : e < 0.8f ? 1.f / 2.25f : 0.2f + 4.f * U(rng);
     tb.points.pixel[k] = static_cast<uint32_t>(rng() % 4096u);
     tb.points.lane[k] = k;
     tb.tech.valid[k] = U(rng) < 0.8f ? -1 : 0;
@@ -271,10 +271,10 @@ TEST(PathLanes, ContinuePathsEqualScalar) {
         const std::string what = std::string(mats ? "materials" : "diffuse") + (roulette ? ", roulette" : "") +
                                  (sampler == SamplerKind::sobol ? ", sobol" : ", independent");
         // (the lanes of non-finite weights apart: below)
-        expect_same_bits(a->points.tr, b->points.tr, padded, what + " tr", {17, 51});
-        expect_same_bits(a->points.tg, b->points.tg, padded, what + " tg", {17, 51});
-        expect_same_bits(a->points.tbl, b->points.tbl, padded, what + " tbl", {17, 51});
-        expect_same_bits(a->points.eta_scale, b->points.eta_scale, padded, what + " eta_scale");
+        expect_same_bits(a->path.throughput_r, b->path.throughput_r, padded, what + " tr", {17, 51});
+        expect_same_bits(a->path.throughput_g, b->path.throughput_g, padded, what + " tg", {17, 51});
+        expect_same_bits(a->path.throughput_b, b->path.throughput_b, padded, what + " tbl", {17, 51});
+        expect_same_bits(a->path.eta_scale, b->path.eta_scale, padded, what + " eta_scale");
         expect_same_bits(a->tech.valid, b->tech.valid, padded, what + " valid");
         if (roulette) expect_same_bits(a->tech.u3, b->tech.u3, padded, what + " u3");
         EXPECT_EQ(a->stats.rejected_bsdf, b->stats.rejected_bsdf) << what;
@@ -287,8 +287,8 @@ TEST(PathLanes, ContinuePathsEqualScalar) {
         // std::max(x, NaN) is x, while the SIMD max returns its second operand when either
         // is NaN; so an ended path's throughput is stored as 0.)
         for (int k : {17, 51}) {
-          const float* pa[3] = {a->points.tr, a->points.tg, a->points.tbl};
-          const float* pb[3] = {b->points.tr, b->points.tg, b->points.tbl};
+          const float* pa[3] = {a->path.throughput_r, a->path.throughput_g, a->path.throughput_b};
+          const float* pb[3] = {b->path.throughput_r, b->path.throughput_g, b->path.throughput_b};
           for (int c = 0; c < 3; ++c)
           {
             EXPECT_EQ(std::memcmp(pa[c] + k, pb[c] + k, sizeof(float)), 0)
@@ -300,16 +300,16 @@ TEST(PathLanes, ContinuePathsEqualScalar) {
         // what the kernel does, lane by lane, in its plainest terms
         const TileBuffers& o = *before;
         for (int k = 0; k < n; ++k) {
-          const float br = o.points.tr[k] * o.tech.beta_r[k], bg = o.points.tg[k] * o.tech.beta_g[k],
-                      bb = o.points.tbl[k] * o.tech.beta_b[k];
+          const float br = o.path.throughput_r[k] * o.tech.beta_r[k], bg = o.path.throughput_g[k] * o.tech.beta_g[k],
+                      bb = o.path.throughput_b[k] * o.tech.beta_b[k];
           const bool finite = std::isfinite(br) && std::isfinite(bg) && std::isfinite(bb);
           const bool live = o.tech.valid[k] != 0 && finite && std::max(br, std::max(bg, bb)) > 0.f;
           if (!live) {
             ASSERT_EQ(a->tech.valid[k], 0) << what << " lane " << k;
             continue;
           }
-          const float eta_new = a->points.eta_scale[k];
-          if (eta_new != o.points.eta_scale[k]) {
+          const float eta_new = a->path.eta_scale[k];
+          if (eta_new != o.path.eta_scale[k]) {
             ++eta_changed;
             ASSERT_TRUE(mats) << what << " lane " << k;
             ASSERT_EQ(s.materials[static_cast<size_t>(o.points.mat[k])].kind, MaterialKind::dielectric) << k;
@@ -318,10 +318,10 @@ TEST(PathLanes, ContinuePathsEqualScalar) {
             ++ended_by_roulette;
             ASSERT_TRUE(roulette) << what << " lane " << k;
             ASSERT_LT(std::max(br, std::max(bg, bb)) * eta_new, 1.f) << what << " lane " << k;
-          } else if (a->points.tr[k] != br) {
+          } else if (a->path.throughput_r[k] != br) {
             ++reweighted;  // survived Russian roulette: divided by its probability
             ASSERT_TRUE(roulette) << what << " lane " << k;
-            ASSERT_GT(a->points.tr[k], br) << what << " lane " << k;
+            ASSERT_GT(a->path.throughput_r[k], br) << what << " lane " << k;
           }
         }
       }
@@ -395,13 +395,20 @@ TEST(PathLanes, BounceHitsEqualScalar) {
         } arrays[] = {{"px", &ShadingPoints::px},   {"py", &ShadingPoints::py},   {"pz", &ShadingPoints::pz},
                       {"nx", &ShadingPoints::nx},   {"ny", &ShadingPoints::ny},   {"nz", &ShadingPoints::nz},
                       {"eps", &ShadingPoints::eps}, {"ar", &ShadingPoints::ar},   {"ag", &ShadingPoints::ag},
-                      {"ab", &ShadingPoints::ab},   {"tr", &ShadingPoints::tr},   {"tg", &ShadingPoints::tg},
-                      {"tbl", &ShadingPoints::tbl}, {"eta_scale", &ShadingPoints::eta_scale},
+                      {"ab", &ShadingPoints::ab},
                       {"snx", &ShadingPoints::snx}, {"sny", &ShadingPoints::sny}, {"snz", &ShadingPoints::snz},
                       {"wox", &ShadingPoints::wox}, {"woy", &ShadingPoints::woy}, {"woz", &ShadingPoints::woz},
-                      {"side", &ShadingPoints::side}, {"choose_light", &ShadingPoints::choose_light},
-                      {"Sr", &ShadingPoints::Sr},   {"Sg", &ShadingPoints::Sg},   {"Sb", &ShadingPoints::Sb}};
+                      {"side", &ShadingPoints::side}, {"choose_light", &ShadingPoints::choose_light}};
         for (const auto& f : arrays) expect_same_bits(a->points.*f.arr, b->points.*f.arr, padded, what + " " + f.name);
+        const struct {
+          const char* name;
+          float (PathStates::*arr)[lane_array];
+        } path_arrays[] = {{"throughput_r", &PathStates::throughput_r}, {"throughput_g", &PathStates::throughput_g},
+                           {"throughput_b", &PathStates::throughput_b}, {"eta_scale", &PathStates::eta_scale}};
+        for (const auto& f : path_arrays) expect_same_bits(a->path.*f.arr, b->path.*f.arr, padded, what + " " + f.name);
+        expect_same_bits(a->radiance.r, b->radiance.r, padded, what + " radiance r");
+        expect_same_bits(a->radiance.g, b->radiance.g, padded, what + " radiance g");
+        expect_same_bits(a->radiance.b, b->radiance.b, padded, what + " radiance b");
         expect_same_bits(a->points.pixel, b->points.pixel, padded, what + " pixel");
         expect_same_bits(a->points.lane, b->points.lane, padded, what + " lane");
         if (mats) expect_same_bits(a->points.mat, b->points.mat, padded, what + " mat");
@@ -440,10 +447,10 @@ TEST(PathLanes, BounceHitsEqualScalar) {
           ASSERT_LT(a->points.lane[j], lanes) << what << " point " << j;
           ASSERT_EQ(a->points.pixel[j], o.points.pixel[k]) << what << " point " << j;
           ASSERT_EQ(a->points.pixel[j], o.lanes.pixel[a->points.lane[j]]) << what << " point " << j;
-          ASSERT_EQ(a->points.tr[j], o.points.tr[k]) << what << " point " << j;
-          ASSERT_EQ(a->points.tg[j], o.points.tg[k]) << what << " point " << j;
-          ASSERT_EQ(a->points.tbl[j], o.points.tbl[k]) << what << " point " << j;
-          ASSERT_EQ(a->points.eta_scale[j], o.points.eta_scale[k]) << what << " point " << j;
+          ASSERT_EQ(a->path.throughput_r[j], o.path.throughput_r[k]) << what << " point " << j;
+          ASSERT_EQ(a->path.throughput_g[j], o.path.throughput_g[k]) << what << " point " << j;
+          ASSERT_EQ(a->path.throughput_b[j], o.path.throughput_b[k]) << what << " point " << j;
+          ASSERT_EQ(a->path.eta_scale[j], o.path.eta_scale[k]) << what << " point " << j;
           // at the ray's hit, the normal facing where the ray came from
           const RayHit16& r = o.bounce[k / packet_width];
           const int l = k % packet_width;

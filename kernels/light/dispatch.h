@@ -42,6 +42,34 @@ template <unsigned Kinds, class T, class F> inline void for_each_light_kind(cons
   }
 }
 
+// for_each_light_kind for the code the planar kinds share (PlanarLight: which side emits,
+// the cosine at the source, the normal at a point): triangles and parallelograms run once,
+// together, as PlanarLight (the same expressions, so the same bits), then each other kind.
+template <unsigned Kinds, class T, class F> inline void for_each_light_shape(const LightGeom<T>& g, F&& f) {
+  if constexpr ((Kinds & kind_rects) != 0) {
+    f(RectangleLight{}, mask_t<T>(true));
+  } else {
+    if constexpr ((Kinds & kind_area) != 0) {
+      const mask_t<T> planar = kind_is<T>(g.type, LightKind::triangle) || kind_is<T>(g.type, LightKind::parallelogram);
+      if (any(planar)) f(PlanarLight{}, planar);
+      visit_light_kind<Kinds, LightKind::sphere, T>(g.type, f);
+    }
+    visit_light_kind<Kinds, LightKind::point, T>(g.type, f);
+    visit_light_kind<Kinds, LightKind::spot, T>(g.type, f);
+    visit_light_kind<Kinds, LightKind::distant, T>(g.type, f);
+  }
+}
+static_assert(light_kind_count == 6, "for_each_light_shape names every kind");
+
+// Each kind's code agrees with the list about what it is.
+template <int... K> constexpr bool kinds_agree(std::integer_sequence<int, K...>) {
+  return ((LightKindOps<static_cast<LightKind>(K)>::planar == kind_info(static_cast<LightKind>(K)).planar &&
+           LightKindOps<static_cast<LightKind>(K)>::at_infinity == kind_info(static_cast<LightKind>(K)).at_infinity &&
+           LightKindOps<static_cast<LightKind>(K)>::kind == static_cast<LightKind>(K)) &&
+          ...);
+}
+static_assert(kinds_agree(std::make_integer_sequence<int, light_kind_count>{}), "light/kinds.h and LightKindOps disagree");
+
 // f(LightKindOps<k>{}) for one source's kind k.
 template <class F> inline decltype(auto) with_light_kind(LightKind k, F&& f) {
   switch (k) {

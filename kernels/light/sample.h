@@ -20,7 +20,7 @@ namespace tuile {
 template <unsigned Kinds = kind_all, class T>
 inline T pdf_area_as_solid_angle(const LightGeom<T>& g, const Vec3<T>& x, const Vec3<T>& wi, T dist) {
   T cos_y(0.f);
-  for_each_light_kind<area_kinds(Kinds)>(g, [&](auto ops, const mask_t<T>& m) {
+  for_each_light_shape<area_kinds(Kinds)>(g, [&](auto ops, const mask_t<T>& m) {
     cos_y = sel(m, ops.emit_cos(g, x, wi, dist), cos_y);
   });
   return sel(cos_y > T(0.f), dist * dist / (cos_y * g.area), T(0.f));

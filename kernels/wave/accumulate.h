@@ -70,9 +70,9 @@ TUILE_FLATTEN inline void accumulate_lanes(TileBuffers& tb, int i, int lanes, bo
     return;
   if (shaded) {
     const int32_t first = tb.lanes.shade_of[i + std::countr_zero(shaded)];
-    r = r + expand_load<T>(tb.points.Sr + first, shaded);
-    g = g + expand_load<T>(tb.points.Sg + first, shaded);
-    b = b + expand_load<T>(tb.points.Sb + first, shaded);
+    r = r + expand_load<T>(tb.radiance.r + first, shaded);
+    g = g + expand_load<T>(tb.radiance.g + first, shaded);
+    b = b + expand_load<T>(tb.radiance.b + first, shaded);
   }
   if constexpr (Weighted) {
     const T w = load<T>(tb.lanes.fw + i);

@@ -211,9 +211,9 @@ inline void weight_queue(const LightView& L, const Estimator& est, float rate_li
       continue;
     }
     const int k = tb.queue.point[j];
-    tb.points.Sr[k] += r;
-    tb.points.Sg[k] += g;
-    tb.points.Sb[k] += b;
+    tb.radiance.r[k] += r;
+    tb.radiance.g[k] += g;
+    tb.radiance.b[k] += b;
     if (est.aov_mis_weight) {
       const int i = tb.points.lane[k];
       tb.lanes.wsum[i] += tb.tech.wb[j];

@@ -1,11 +1,12 @@
 // Paths (Estimator::max_depth > 1): what the wavefront adds to direct lighting between two
 // vertices. After a vertex's light and BSDF samples (whose radiance its shading points
-// hold in S), add_vertex_radiance adds throughput x S into each path's pixel lane; then
+// hold in TileBuffers::radiance), add_vertex_radiance adds throughput x that radiance into
+// each path's pixel lane; then
 // continue_paths multiplies each path's throughput by its BSDF sample's f cos / p, plays
 // Russian roulette (pbrt-v4's PathIntegrator rule) and clears the bounce rays of the
 // paths that end, so that bounce_hits (wave/surface_hits.h) turns the others' hits into
 // the next vertex's shading points, compacted.
-// Reads and writes the shading points' throughput and eta scale, the BSDF samples'
+// Reads and writes the paths' throughput and eta scale (TileBuffers::path), the BSDF samples'
 // validity; reads the bounce packets (the sampled directions).
 #pragma once
 #include "wave/tile.h"
@@ -15,33 +16,35 @@ namespace tuile {
 // Starts every path at the camera hits: throughput 1, eta scale 1.
 inline void start_paths(TileBuffers& tb) {
   const int padded = packet_padded(tb.points.count);
-  std::fill_n(tb.points.tr, padded, 1.f);
-  std::fill_n(tb.points.tg, padded, 1.f);
-  std::fill_n(tb.points.tbl, padded, 1.f);
-  std::fill_n(tb.points.eta_scale, padded, 1.f);
+  std::fill_n(tb.path.throughput_r, padded, 1.f);
+  std::fill_n(tb.path.throughput_g, padded, 1.f);
+  std::fill_n(tb.path.throughput_b, padded, 1.f);
+  std::fill_n(tb.path.eta_scale, padded, 1.f);
 }
 
-// The radiance the vertex's techniques found (S), times the path's throughput, into its
-// pixel's lane (each lane has at most one shading point per vertex). first: the camera's
-// vertex, whose throughput is 1: L + S exactly.
+// The radiance the vertex's techniques found (TileBuffers::radiance), times the path's
+// throughput, into its pixel's lane (each lane has at most one shading point per vertex).
+// first: the camera's vertex, whose throughput is 1: L plus that radiance exactly.
 inline void add_vertex_radiance(TileBuffers& tb, bool first) {
   const int n = tb.points.count;
-  ShadingPoints& P = tb.points;
+  const ShadingPoints& P = tb.points;
+  const PointRadiance& R = tb.radiance;
+  const PathStates& S = tb.path;
   PixelLanes& La = tb.lanes;
   if (first) {
     for (int k = 0; k < n; ++k) {
       const int i = P.lane[k];
-      La.Lr[i] += P.Sr[k];
-      La.Lg[i] += P.Sg[k];
-      La.Lb[i] += P.Sb[k];
+      La.Lr[i] += R.r[k];
+      La.Lg[i] += R.g[k];
+      La.Lb[i] += R.b[k];
     }
     return;
   }
   for (int k = 0; k < n; ++k) {
     const int i = P.lane[k];
-    La.Lr[i] += P.tr[k] * P.Sr[k];
-    La.Lg[i] += P.tg[k] * P.Sg[k];
-    La.Lb[i] += P.tbl[k] * P.Sb[k];
+    La.Lr[i] += S.throughput_r[k] * R.r[k];
+    La.Lg[i] += S.throughput_g[k] * R.g[k];
+    La.Lb[i] += S.throughput_b[k] * R.b[k];
   }
 }
 
@@ -57,10 +60,10 @@ inline void add_vertex_radiance(TileBuffers& tb, bool first) {
 template <class T, bool Materials>
 TUILE_FLATTEN inline void continue_path_lanes(const GeomView& G, TileBuffers& tb, int k, bool roulette) {
   const auto live = f_mask_from_i(load_i32<T>(tb.tech.valid + k) != i32_t<T>(0));
-  T br = load<T>(tb.points.tr + k) * load<T>(tb.tech.beta_r + k);
-  T bg = load<T>(tb.points.tg + k) * load<T>(tb.tech.beta_g + k);
-  T bb = load<T>(tb.points.tbl + k) * load<T>(tb.tech.beta_b + k);
-  T eta_scale = load<T>(tb.points.eta_scale + k);
+  T br = load<T>(tb.path.throughput_r + k) * load<T>(tb.tech.beta_r + k);
+  T bg = load<T>(tb.path.throughput_g + k) * load<T>(tb.tech.beta_g + k);
+  T bb = load<T>(tb.path.throughput_b + k) * load<T>(tb.tech.beta_b + k);
+  T eta_scale = load<T>(tb.path.eta_scale + k);
   if constexpr (Materials) {
     const RayHit16& r = tb.bounce[k / packet_width];
     const int l = k % packet_width;
@@ -92,10 +95,10 @@ TUILE_FLATTEN inline void continue_path_lanes(const GeomView& G, TileBuffers& tb
   }
   // an ended path keeps throughput 0 (never read again; and the same bits in every lane
   // whatever a NaN did to max above)
-  store(tb.points.tr + k, sel(go, br, T(0.f)));
-  store(tb.points.tg + k, sel(go, bg, T(0.f)));
-  store(tb.points.tbl + k, sel(go, bb, T(0.f)));
-  store(tb.points.eta_scale + k, eta_scale);
+  store(tb.path.throughput_r + k, sel(go, br, T(0.f)));
+  store(tb.path.throughput_g + k, sel(go, bg, T(0.f)));
+  store(tb.path.throughput_b + k, sel(go, bb, T(0.f)));
+  store(tb.path.eta_scale + k, eta_scale);
   store_valid(tb.tech.valid + k, go);
 }
 

@@ -100,10 +100,10 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
   // x is on the side the source emits to (one-sided planar sources), and the lanes whose
   // source is at infinity (the shadow ray has no end point)
   auto front = mask_t<T>(true), at_infinity = mask_t<T>(false);
-  for_each_light_kind<Kinds>(g, [&](auto ops, const mask_t<T>& m) {
+  for_each_light_shape<Kinds>(g, [&](auto ops, const mask_t<T>& m) {
     using Ops = decltype(ops);
-    if constexpr (kind_info(Ops::kind).planar) front = sel_mask(m, ops.lit_from(g, x), front);
-    if constexpr (kind_info(Ops::kind).at_infinity) at_infinity = at_infinity || m;
+    if constexpr (Ops::planar) front = sel_mask(m, ops.lit_from(g, x), front);
+    if constexpr (Ops::at_infinity) at_infinity = at_infinity || m;
   });
   out.pick = pick;
   out.pdf_sa = s.pdf_sa;
@@ -129,7 +129,7 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
                       g7 * (abs(g.p0.z) + edges + abs(y.z))};
   // the source's normal at y facing x (none for point-like sources)
   Vec3<T> ny(T(0.f), T(0.f), T(0.f));
-  for_each_light_kind<Kinds>(g, [&](auto ops, const mask_t<T>& m) { ny = sel(m, ops.endpoint_normal(g, y, s.wi), ny); });
+  for_each_light_shape<Kinds>(g, [&](auto ops, const mask_t<T>& m) { ny = sel(m, ops.endpoint_normal(g, y, s.wi), ny); });
   const T eps_y = abs(ny.x) * err_y.x + abs(ny.y) * err_y.y + abs(ny.z) * err_y.z;
   const Vec3<T> target = y + ny * eps_y;
   const Vec3<T> to = target - out.org;
@@ -201,9 +201,9 @@ inline void sample_lights(const GeomView& G, const LightView& L, const Estimator
 template <class T> inline void accumulate_shadow_lanes(TileBuffers& tb, int k) {
   const T tfar = load<T>(tb.shadow[k / packet_width].tfar + k % packet_width);
   const auto lit = f_mask_from_i(load_i32<T>(tb.tech.valid + k) != i32_t<T>(0)) && tfar != T(-INFINITY);
-  store(tb.points.Sr + k, load<T>(tb.points.Sr + k) + sel(lit, load<T>(tb.tech.cr + k), T(0.f)));
-  store(tb.points.Sg + k, load<T>(tb.points.Sg + k) + sel(lit, load<T>(tb.tech.cg + k), T(0.f)));
-  store(tb.points.Sb + k, load<T>(tb.points.Sb + k) + sel(lit, load<T>(tb.tech.cb + k), T(0.f)));
+  store(tb.radiance.r + k, load<T>(tb.radiance.r + k) + sel(lit, load<T>(tb.tech.cr + k), T(0.f)));
+  store(tb.radiance.g + k, load<T>(tb.radiance.g + k) + sel(lit, load<T>(tb.tech.cg + k), T(0.f)));
+  store(tb.radiance.b + k, load<T>(tb.radiance.b + k) + sel(lit, load<T>(tb.tech.cb + k), T(0.f)));
 }
 
 template <class T = vfloat> inline void accumulate_shadow(TileBuffers& tb) {

@@ -32,6 +32,69 @@ template <class T> inline T offset_along_normal(const Vec3<T>& err, const Vec3<T
   return abs(n.x) * err.x + abs(n.y) * err.y + abs(n.z) * err.z + T(1e-30f);
 }
 
+// The camera hits of a batch that meet a texture are listed for apply_texels (their
+// vertex indices prefetched); the texels are applied once every batch of the tile is done.
+inline void list_textured_points(const GeomView& G, const RayHit16& p, int l, uint32_t keep, int n, TileBuffers& tb) {
+  int m = n;
+  for (uint32_t bits = keep; bits; bits &= bits - 1, ++m) {
+    const int k = std::countr_zero(bits);
+    const uint32_t geom = p.geomID[l + k], prim = p.primID[l + k];
+    const int32_t t = hit_texture(G, geom);
+    if (t < 0) continue;
+    __builtin_prefetch(G.indices[geom] + 3 * prim);
+    const int j = tb.textured.count++;
+    tb.textured.point[j] = m;
+    tb.textured.texture[j] = t;
+    tb.textured.geom[j] = geom;
+    tb.textured.prim[j] = prim;
+    tb.textured.u[j] = p.u[l + k];
+    tb.textured.v[j] = p.v[l + k];
+  }
+}
+
+// The cached stream keys of the shading pairs, for the points [n, n + popcount(keep)) made
+// from lanes [i, i + width): while every lane so far is a shading point (point k is lane
+// k) the points read the lanes' keys; from the first lane that is not, they are copied and
+// then compacted.
+template <class T> inline void compact_point_keys(TileBuffers& tb, uint32_t keep, int n, int i) {
+  if (tb.keys.keyed & ~1u) {  // (camera hits only: no later vertex reads a cached key)
+    constexpr uint32_t all = lane_traits<T>::width == 32 ? ~0u : (1u << lane_traits<T>::width) - 1u;
+    if (tb.keys.points_are_lanes && !(keep == all && n == i)) {
+      for (uint32_t bits = tb.keys.keyed & ~1u; bits; bits &= bits - 1)
+        for (int f = 0; f < 3; ++f)
+          std::copy_n(tb.keys.lane_key[std::countr_zero(bits)][f], n, tb.keys.point_key[std::countr_zero(bits)][f]);
+      tb.keys.points_are_lanes = false;
+    }
+    if (!tb.keys.points_are_lanes)
+      for (uint32_t bits = tb.keys.keyed & ~1u; bits; bits &= bits - 1) {
+        const int p = std::countr_zero(bits);
+        for (int f = 0; f < 3; ++f)
+          compress_store(reinterpret_cast<int32_t*>(tb.keys.point_key[p][f] + n),
+                         load_i32<T>(reinterpret_cast<const int32_t*>(tb.keys.lane_key[p][f] + i)), keep);
+      }
+  }
+}
+
+// The radiance of the emitters the camera sees directly (light: each lane's light or -1),
+// added to the lanes [i, i + width) where the ray meets their emitting side.
+template <class T>
+inline void add_seen_emission(const LightView& L, const i32_t<T>& light, const Vec3<T>& o, const Vec3<T>& d, int i,
+                              TileBuffers& tb) {
+  const auto lit = f_mask_from_i(light >= i32_t<T>(0));
+  if (any(lit)) {  // then the light table is not empty
+    const i32_t<T> li = max(light, i32_t<T>(0));
+    const auto emit = lit && light_front_lanes<T>(L, li, o, d);
+    with_table_tier(L, [&](auto tier) {
+      constexpr int S = decltype(tier)::value;
+      T Le_r, Le_g, Le_b;
+      lookup_radiance<S>(L, li, Le_r, Le_g, Le_b);
+      store(tb.lanes.Lr + i, sel(emit, load<T>(tb.lanes.Lr + i) + Le_r, load<T>(tb.lanes.Lr + i)));
+      store(tb.lanes.Lg + i, sel(emit, load<T>(tb.lanes.Lg + i) + Le_g, load<T>(tb.lanes.Lg + i)));
+      store(tb.lanes.Lb + i, sel(emit, load<T>(tb.lanes.Lb + i) + Le_b, load<T>(tb.lanes.Lb + i)));
+    });
+  }
+}
+
 // Lanes [i, i + width) of the camera packets: the hits among the first `lanes` become
 // shading points n, n + 1, ... in lane order (n is advanced). A hit with a degenerate
 // normal or distance is rejected (counted, no shading point).
@@ -54,10 +117,10 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   T beta_r(1.f), beta_g(1.f), beta_b(1.f), eta_scale(1.f);
   if constexpr (Bounce) {
     hit = hit && f_mask_from_i(load_i32<T>(tb.tech.valid + i) != i32_t<T>(0));
-    beta_r = load<T>(tb.points.tr + i);
-    beta_g = load<T>(tb.points.tg + i);
-    beta_b = load<T>(tb.points.tbl + i);
-    eta_scale = load<T>(tb.points.eta_scale + i);
+    beta_r = load<T>(tb.path.throughput_r + i);
+    beta_g = load<T>(tb.path.throughput_g + i);
+    beta_b = load<T>(tb.path.throughput_b + i);
+    eta_scale = load<T>(tb.path.eta_scale + i);
   }
   const i32_t<T> gi = max(geom, i32_t<T>(0));
   const T t = load<T>(p.ray.tfar + l);
@@ -133,22 +196,8 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
 
   if constexpr (Emitters && !Bounce) {
     i32_t<T> light = sel(tri_i, one_tri ? i32_t<T>(G.tri_light[t0]) : gather(G.tri_light, tri), i32_t<T>(-1));
-    if (any(sphere)) {
-      light = sel(i_mask_from_f(sphere), gather(G.geom_light, gi), light);
-    }
-    const auto lit = f_mask_from_i(light >= i32_t<T>(0));
-    if (any(lit)) {  // then the light table is not empty
-      const i32_t<T> li = max(light, i32_t<T>(0));
-      const auto emit = lit && light_front_lanes<T>(L, li, o, d);
-      with_table_tier(L, [&](auto tier) {
-        constexpr int S = decltype(tier)::value;
-        T Le_r, Le_g, Le_b;
-        lookup_radiance<S>(L, li, Le_r, Le_g, Le_b);
-        store(tb.lanes.Lr + i, sel(emit, load<T>(tb.lanes.Lr + i) + Le_r, load<T>(tb.lanes.Lr + i)));
-        store(tb.lanes.Lg + i, sel(emit, load<T>(tb.lanes.Lg + i) + Le_g, load<T>(tb.lanes.Lg + i)));
-        store(tb.lanes.Lb + i, sel(emit, load<T>(tb.lanes.Lb + i) + Le_b, load<T>(tb.lanes.Lb + i)));
-      });
-    }
+    if (any(sphere)) light = sel(i_mask_from_f(sphere), gather(G.geom_light, gi), light);
+    add_seen_emission<T>(L, light, o, d, i, tb);
   }
 
   if constexpr (Materials) {
@@ -180,25 +229,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     compress_store(tb.points.bu + n, b1, keep);
     compress_store(tb.points.bv + n, b2, keep);
   }
-  // Textured points are only listed here (their vertex indices prefetched); camera_hits
-  // applies the texels once every batch of the tile is done (apply_texels).
-  if (G.has_textures) {
-    int m = n;
-    for (uint32_t bits = keep; bits; bits &= bits - 1, ++m) {
-      const int k = std::countr_zero(bits);
-      const uint32_t geom = p.geomID[l + k], prim = p.primID[l + k];
-      const int32_t t = hit_texture(G, geom);
-      if (t < 0) continue;
-      __builtin_prefetch(G.indices[geom] + 3 * prim);
-      const int j = tb.textured.count++;
-      tb.textured.point[j] = m;
-      tb.textured.texture[j] = t;
-      tb.textured.geom[j] = geom;
-      tb.textured.prim[j] = prim;
-      tb.textured.u[j] = p.u[l + k];
-      tb.textured.v[j] = p.v[l + k];
-    }
-  }
+  if (G.has_textures) list_textured_points(G, p, l, keep, n, tb);
 
   // compaction: n <= i, so a whole batch written at n stays inside the arrays
   compress_store(tb.points.px + n, x.x, keep);
@@ -214,32 +245,14 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   compress_store(reinterpret_cast<int32_t*>(tb.points.pixel + n), pixel_id, keep);
   compress_store(tb.points.lane + n, lane, keep);
   if constexpr (Bounce) {
-    compress_store(tb.points.tr + n, beta_r, keep);
-    compress_store(tb.points.tg + n, beta_g, keep);
-    compress_store(tb.points.tbl + n, beta_b, keep);
-    compress_store(tb.points.eta_scale + n, eta_scale, keep);
+    compress_store(tb.path.throughput_r + n, beta_r, keep);
+    compress_store(tb.path.throughput_g + n, beta_g, keep);
+    compress_store(tb.path.throughput_b + n, beta_b, keep);
+    compress_store(tb.path.eta_scale + n, eta_scale, keep);
     n += std::popcount(keep);
     return;
   }
-  // The cached stream keys of the shading pairs: while every lane so far is a shading
-  // point (point k is lane k) the points read the lanes' keys; from the first lane that is
-  // not, they are copied and then compacted.
-  if (tb.keys.keyed & ~1u) {  // (camera hits only: no later vertex reads a cached key)
-    constexpr uint32_t all = lane_traits<T>::width == 32 ? ~0u : (1u << lane_traits<T>::width) - 1u;
-    if (tb.keys.points_are_lanes && !(keep == all && n == i)) {
-      for (uint32_t bits = tb.keys.keyed & ~1u; bits; bits &= bits - 1)
-        for (int f = 0; f < 3; ++f)
-          std::copy_n(tb.keys.lane_key[std::countr_zero(bits)][f], n, tb.keys.point_key[std::countr_zero(bits)][f]);
-      tb.keys.points_are_lanes = false;
-    }
-    if (!tb.keys.points_are_lanes)
-      for (uint32_t bits = tb.keys.keyed & ~1u; bits; bits &= bits - 1) {
-        const int p = std::countr_zero(bits);
-        for (int f = 0; f < 3; ++f)
-          compress_store(reinterpret_cast<int32_t*>(tb.keys.point_key[p][f] + n),
-                         load_i32<T>(reinterpret_cast<const int32_t*>(tb.keys.lane_key[p][f] + i)), keep);
-      }
-  }
+  compact_point_keys<T>(tb, keep, n, i);
   n += std::popcount(keep);
 }
 
@@ -274,15 +287,15 @@ inline void finish_points(const GeomView& G, const Estimator& est, uint32_t samp
     }
     tb.points.pixel[k] = n > 0 ? tb.points.pixel[0] : 0u;
     tb.points.lane[k] = -1;
-    tb.points.tr[k] = tb.points.tg[k] = tb.points.tbl[k] = 0.f;
-    tb.points.eta_scale[k] = 1.f;
+    tb.path.throughput_r[k] = tb.path.throughput_g[k] = tb.path.throughput_b[k] = 0.f;
+    tb.path.eta_scale[k] = 1.f;
     if (!tb.keys.points_are_lanes)  // (padded > n means n > 0; as lanes, the padding pixels are pixel 0 already)
       for (uint32_t bits = tb.keys.keyed & ~1u; bits; bits &= bits - 1)
         for (int f = 0; f < 3; ++f) tb.keys.point_key[std::countr_zero(bits)][f][k] = tb.keys.point_key[std::countr_zero(bits)][f][0];
   }
-  std::fill_n(tb.points.Sr, padded, 0.f);
-  std::fill_n(tb.points.Sg, padded, 0.f);
-  std::fill_n(tb.points.Sb, padded, 0.f);
+  std::fill_n(tb.radiance.r, padded, 0.f);
+  std::fill_n(tb.radiance.g, padded, 0.f);
+  std::fill_n(tb.radiance.b, padded, 0.f);
   if (est.one_sample()) {
     point_pairs(est, tb, sample, choice_pair, padded, tb.tech.u0, nullptr);  // the choice reads one dimension
     const float c = est.one_sample_light_prob();

@@ -77,15 +77,22 @@ struct ShadingPoints {
   alignas(64) uint32_t pixel[lane_array];                     // global pixel id
   alignas(64) int32_t lane[lane_array];                       // tile lane
   alignas(64) float choose_light[lane_array];                 // one-sample MIS: 1 = light technique
-  // radiance the light and BSDF techniques add to each point in this sample (summed into
-  // its pixel by accumulate, through PixelLanes::shade_of)
-  alignas(64) float Sr[lane_array], Sg[lane_array], Sb[lane_array];
-  // paths (Estimator::max_depth > 1) past the first vertex: the path's throughput (the
-  // product of f cos / p and 1 / (1 - q) of Russian roulette from the camera to this
-  // point) and pbrt-v4's eta scale (the squared relative indices of the transmissions,
-  // which Russian roulette divides out); compacted with the points
-  alignas(64) float tr[lane_array], tg[lane_array], tbl[lane_array];
+};
+
+// The path of each shading point (paths, Estimator::max_depth > 1, past the first vertex),
+// indexed and compacted with the points: its throughput (the product of f cos / p and
+// 1 / (1 - q) of Russian roulette from the camera to this point) and pbrt-v4's eta scale
+// (the squared relative indices of the transmissions, which Russian roulette divides out).
+struct PathStates {
+  alignas(64) float throughput_r[lane_array], throughput_g[lane_array], throughput_b[lane_array];
   alignas(64) float eta_scale[lane_array];
+};
+
+// The radiance the light and BSDF techniques add to each shading point in this sample:
+// summed into its pixel by accumulate (through PixelLanes::shade_of), or, at a path's later
+// vertices, times the path's throughput into its lane (path.h).
+struct PointRadiance {
+  alignas(64) float r[lane_array], g[lane_array], b[lane_array];
 };
 
 // The textured shading points of this sample: point, texture, triangle, barycentrics, texel.
@@ -179,7 +186,9 @@ struct alignas(64) TileBuffers {
   }
   PixelLanes lanes;
   TileSums sums;
-  ShadingPoints points;
+  ShadingPoints points;   // the surface hits being shaded
+  PathStates path;        // their paths' state
+  PointRadiance radiance;  // what this sample's techniques found at each of them
   TexturedPoints textured;
   TechniqueSample tech;
   EmitterHitQueue queue;

@@ -36,30 +36,17 @@ Features pipeline_features(const SceneViews& v, const Estimator& est, bool gener
   }
   const bool area = v.has_area(), delta = v.has_delta();
   const bool materials = v.has_materials();
-  Features f;
-  f.light = v.lights.count > 0 && (est.strategy != Strategy::bsdf || delta);
-  const bool ris = est.strategy == Strategy::ris && v.lights.count > 0;
-  // a specular surface needs its BSDF samples whatever the strategy: no light sample finds
-  // the light it reflects (sample_bsdf traces only those under --strategy light)
-  f.bsdf = area && (est.strategy != Strategy::light || (v.bsdf_kinds & bsdf_delta_capable) != 0);
-  f.pick = f.light && v.lights.count > 1 && est.pick != LightPick::all;
-  f.emitter_lookup = area;  // only area sources are seen by camera and bounce rays
-  f.kinds = !area && !delta ? kind_all : !area ? kind_delta : delta ? kind_all : v.all_rects() ? kind_area | kind_rects : kind_area;
-  f.bsdfs = materials ? bsdf_all : bsdf_diffuse;
-  if (materials) f.kinds = kind_all;  // one pipeline per technique for every other surface
-  if (est.max_depth > 1 && (area || delta)) {
-    // paths go on along a BSDF sample at every vertex, and their bounce rays look up
-    // the emitters they reach whatever the sources
-    f.bsdf = true;
-    f.emitter_lookup = true;
-    if (!area) f.kinds = kind_all;
-  }
-  if (ris) {  // the BSDF candidates and the last BSDF sample run on every scene with lights
-    f.bsdf = true;
-    f.emitter_lookup = true;
-    if (!area) f.kinds = kind_all;
-  }
-  if (!f.light && !f.bsdf) f = Features{kind_all, false, false, false, false, bsdf_diffuse};
+  PipelineFacts x;
+  x.area = area;
+  x.delta = delta;
+  x.rects = v.all_rects();
+  x.lights = std::min(v.lights.count, 2);
+  x.materials = materials;
+  x.delta_surfaces = (v.bsdf_kinds & bsdf_delta_capable) != 0;
+  x.strategy = est.strategy;
+  x.pick_all = est.pick == LightPick::all;
+  x.paths = est.max_depth > 1;
+  const Features f = features_for(x);
   why = std::string(area ? "area lights" : "no area light") + ", " + (delta ? "delta lights" : "no delta light") + ", " +
         std::to_string(v.lights.count) + " light(s), pick " + (f.pick ? "per lane" : "none") + ", strategy " +
         (est.strategy == Strategy::mis     ? "mis"

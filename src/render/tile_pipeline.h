@@ -2,6 +2,7 @@
 // instantiated pipelines (run_tile specialised to the features a scene has) from which
 // the renderer picks one per render. Internal to src/render.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <iterator>
 #include <string>
@@ -50,43 +51,98 @@ struct PipelineEntry {
   TileFn fn;
 };
 
-// The instantiated pipelines, one list. pick_pipeline chooses among them by the features a
-// scene and estimator need; a combination missing here is a bug (it throws). Their code is
-// compiled in pipeline_parts translation units (src/render/pipelines/part_<k>.cpp, pipeline
-// i in part i % pipeline_parts), so a parallel build compiles them side by side.
-inline constexpr Features registered_pipelines[] = {
-    general_features,                                                               // also mixed/mis/pick/materials
-    {kind_all, false, false, false, false, bsdf_diffuse},                           // no-lights
-    {kind_delta, true, false, true, false, bsdf_diffuse},
-    {kind_delta, true, false, false, false, bsdf_diffuse},
-    {kind_area | kind_rects, true, true, true, true, bsdf_diffuse},
-    {kind_area | kind_rects, true, true, false, true, bsdf_diffuse},
-    {kind_area | kind_rects, true, false, true, true, bsdf_diffuse},
-    {kind_area | kind_rects, true, false, false, true, bsdf_diffuse},
-    {kind_area | kind_rects, false, true, false, true, bsdf_diffuse},
-    {kind_area, true, true, true, true, bsdf_diffuse},
-    {kind_area, true, true, false, true, bsdf_diffuse},
-    {kind_area, true, false, true, true, bsdf_diffuse},
-    {kind_area, true, false, false, true, bsdf_diffuse},
-    {kind_area, false, true, false, true, bsdf_diffuse},
-    {kind_all, true, true, true, true, bsdf_diffuse},
-    {kind_all, true, true, false, true, bsdf_diffuse},
-    {kind_all, true, false, true, true, bsdf_diffuse},
-    {kind_all, true, false, false, true, bsdf_diffuse},
-    // scenes with other surfaces than diffuse: every kind of source and surface
-    {kind_all, true, true, false, true, bsdf_all},
-    {kind_all, false, true, false, true, bsdf_all},
-    {kind_all, true, false, true, true, bsdf_all},
-    {kind_all, true, false, false, true, bsdf_all},
-    {kind_all, true, false, true, false, bsdf_all},
-    {kind_all, true, false, false, false, bsdf_all},
+// What pipeline_features reads of a scene and an estimator: the facts a pipeline is chosen by.
+struct PipelineFacts {
+  bool area = false, delta = false;  // the scene has area sources, delta sources
+  bool rects = false;                // every source is a rectangle (SceneViews::all_rects)
+  int lights = 0;                    // how many sources: 0, 1, or 2 for more
+  bool materials = false;            // surfaces other than diffuse
+  bool delta_surfaces = false;       // some surface can have a delta lobe (bsdf_delta_capable)
+  Strategy strategy = Strategy::mis;
+  bool pick_all = false;  // --light-pick all
+  bool paths = false;     // max depth > 1
 };
-inline constexpr size_t pipeline_count = std::size(registered_pipelines);
-// The part that compiles each pipeline (same order as registered_pipelines). Pipelines that
-// share stage instantiations (the same BSDF kinds, the same light kinds) go together: a
-// stage instantiated in two parts is compiled twice.
-inline constexpr int pipeline_part[] = {0, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2, 2, 2, 2, 1, 1, 1, 1, 0, 0, 0, 0, 0, 0};
-static_assert(std::size(pipeline_part) == pipeline_count);
+
+// The features of the pipeline for those facts: the stages and lookups they need, and no
+// others.
+constexpr Features features_for(const PipelineFacts& x) {
+  Features f;
+  f.light = x.lights > 0 && (x.strategy != Strategy::bsdf || x.delta);
+  const bool ris = x.strategy == Strategy::ris && x.lights > 0;
+  // a specular surface needs its BSDF samples whatever the strategy: no light sample finds
+  // the light it reflects (sample_bsdf traces only those under --strategy light)
+  f.bsdf = x.area && (x.strategy != Strategy::light || x.delta_surfaces);
+  f.pick = f.light && x.lights > 1 && !x.pick_all;
+  f.emitter_lookup = x.area;  // only area sources are seen by camera and bounce rays
+  f.kinds = !x.area && !x.delta ? kind_all
+            : !x.area           ? kind_delta
+            : x.delta           ? kind_all
+            : x.rects           ? kind_area | kind_rects
+                                : kind_area;
+  f.bsdfs = x.materials ? bsdf_all : bsdf_diffuse;
+  if (x.materials) f.kinds = kind_all;  // one pipeline per technique for every other surface
+  if (x.paths && (x.area || x.delta)) {
+    // paths go on along a BSDF sample at every vertex, and their bounce rays look up the
+    // emitters they reach whatever the sources
+    f.bsdf = true;
+    f.emitter_lookup = true;
+    if (!x.area) f.kinds = kind_all;
+  }
+  if (ris) {  // the BSDF candidates and the last BSDF sample run on every scene with lights
+    f.bsdf = true;
+    f.emitter_lookup = true;
+    if (!x.area) f.kinds = kind_all;
+  }
+  if (!f.light && !f.bsdf) f = Features{kind_all, false, false, false, false, bsdf_diffuse};
+  return f;
+}
+
+// The registry: every feature set some scene and estimator can need, derived from every
+// consistent combination of the facts (general_features first). A new fact or feature bit
+// adds its pipelines here by itself; a combination features_for cannot produce gets none.
+struct PipelineRegistry {
+  Features f[64] = {};
+  size_t count = 0;
+};
+constexpr PipelineRegistry derive_pipelines() {
+  PipelineRegistry r;
+  auto add = [&r](const Features& f) {
+    for (size_t i = 0; i < r.count; ++i)
+      if (r.f[i] == f) return;
+    r.f[r.count++] = f;
+  };
+  add(general_features);
+  for (int area = 0; area < 2; ++area)
+    for (int delta = 0; delta < 2; ++delta)
+      for (int lights = 0; lights < 3; ++lights) {
+        if ((area || delta) != (lights > 0) || (area && delta && lights < 2)) continue;
+        for (int rects = 0; rects <= area; ++rects)
+          for (int materials = 0; materials < 2; ++materials)
+            for (int delta_surfaces = 0; delta_surfaces <= materials; ++delta_surfaces)
+              for (Strategy st : {Strategy::light, Strategy::bsdf, Strategy::mis, Strategy::ris})
+                for (int pick_all = 0; pick_all < 2; ++pick_all)
+                  for (int paths = 0; paths < 2; ++paths)
+                    add(features_for({area != 0, delta != 0, rects != 0, lights, materials != 0, delta_surfaces != 0, st,
+                                      pick_all != 0, paths != 0}));
+      }
+  return r;
+}
+inline constexpr PipelineRegistry pipeline_registry = derive_pipelines();
+inline constexpr size_t pipeline_count = pipeline_registry.count;
+static_assert(pipeline_count < std::size(PipelineRegistry{}.f), "the registry's array holds every pipeline");
+inline constexpr std::array<Features, pipeline_count> registered_pipelines = [] {
+  std::array<Features, pipeline_count> a{};
+  for (size_t i = 0; i < pipeline_count; ++i) a[i] = pipeline_registry.f[i];
+  return a;
+}();
+// The translation unit that compiles a pipeline (src/render/pipelines/part_<k>.cpp), so
+// that a parallel build compiles them side by side. Pipelines that share stage
+// instantiations (the same BSDF kinds, the same light kinds) go together: a stage
+// instantiated in two parts is compiled twice. Measured: the BSDF pipelines (with the
+// general one), the diffuse area-light ones, the other diffuse ones.
+constexpr int pipeline_part_of(const Features& f) {
+  return f == general_features || f.bsdfs != bsdf_diffuse ? 0 : f.kinds == kind_area ? 2 : 1;
+}
 inline constexpr int pipeline_parts = 3;
 // A build with -DTUILE_PIPELINES=general (CI's sanitizer tree, where instrumenting 24
 // pipelines costs most of its build) compiles the general pipeline alone and runs it for

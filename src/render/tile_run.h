@@ -145,22 +145,11 @@ void run_ris(const TileContext& c, TileBuffers& tb, StageTimer& timer, const Est
   timer.lap(Stage::accumulate);
 }
 
-// The tile pipeline, instantiated per Features (wave/features.h): it leaves out what its
-// scenes do not need.
-template <Features F>
-void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile, uint32_t begin, uint32_t end) {
-  const SceneViews& v = c.v;
-  const Estimator& est = c.est;
-  Film& film = c.film;
-  const int ts = c.tile_size;
-  const int x0 = (tile % c.tiles_x) * ts, y0 = (tile / c.tiles_x) * ts;
-  const int tw = std::min(ts, c.width - x0), th = std::min(ts, c.height - y0);
-  const int lanes = tw * th;
-  StageTimer timer(tp, c, tile);
-  timer.start();
-  // Lane order: 4x4 pixel blocks, one per packet of 16 (a smaller footprint than a row of
-  // 16, so Embree's packets are more coherent), where the tile divides into them; rows
-  // otherwise. Every lane's numbers depend on its pixel only, so the image does not change.
+// The tile's lanes, one per pixel: 4x4 pixel blocks, one per packet of 16 (a smaller
+// footprint than a row of 16, so Embree's packets are more coherent), where the tile
+// divides into them (returns true); rows otherwise. Every lane's numbers depend on its pixel
+// only, so the image does not change.
+inline bool set_tile_lanes(const TileContext& c, TileBuffers& tb, int x0, int y0, int tw, int th) {
   const bool blocks = tw % 4 == 0 && th % 4 == 0 && packet_width == 16;
   int i = 0;
   auto set_lane = [&](int x, int y) {
@@ -176,15 +165,14 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     for (int y = y0; y < y0 + th; ++y)
       for (int x = x0; x < x0 + tw; ++x) set_lane(x, y);
   }
-  const int cam_packets = packets_for(lanes);
-  timer.lap(Stage::generate);
-  clear_tile_sums(tb, lanes);
-  timer.lap(Stage::accumulate);
-  // The sampler's keys of the pairs this pipeline draws (pair numbers as below), hashed
-  // once per pixel for all of the tile's samples.
+  return blocks;
+}
+
+// The sampler's keys of the pairs this pipeline draws (pair numbers as run_tile draws
+// them), hashed once per pixel for all of the tile's samples.
+template <Features F> void hash_tile_keys(const TileContext& c, TileBuffers& tb, int lanes, int cam_packets) {
+  const Estimator& est = c.est;
   const SampleLayout& layout = c.layout;
-  Estimator deep = est;  // paths past the first vertex: the MIS-weight AOV is the first vertex's
-  deep.aov_mis_weight = false;
   tb.keys.keyed = 0;
   if (cacheable(est.sampler)) {
     auto bit = [](uint32_t pair) { return pair < SamplerKeys::pairs ? 1u << pair : 0u; };
@@ -208,6 +196,102 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     }
     tb.keys.keyed = want;
   }
+}
+
+// One vertex's light samples (the light technique: c.light_passes of them, each a shadow
+// ray), or resampled importance sampling of its direct light (run_ris).
+template <Features F>
+void run_light_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, const Estimator& e, uint32_t s, uint32_t d,
+                       int packets, bool rec, ThreadProfile* tp) {
+  const SceneViews& v = c.v;
+  const SampleLayout& layout = c.layout;
+  // (a pipeline with the light stages may run a scene without lights: the general one,
+  // forced or standing in for all, whose empty light table has nothing to pick from)
+  if (v.lights.count == 0) {
+  } else if (tb.points.count > 0 && e.strategy == Strategy::ris) {
+    if constexpr (F.bsdf) run_ris<F>(c, tb, timer, e, s, d, packets, rec, tp);
+  } else if (tb.points.count > 0) {
+    for (int j = 0; j < c.light_passes; ++j) {
+      LightPass pass;
+      pass.fixed_light = e.pick == LightPick::all ? j % c.light_count : (F.pick ? -1 : 0);
+      pass.rate_light = c.rate_light;
+      pass.rate_bsdf = c.rate_bsdf;
+      sample_lights<F.kinds, F.pick, F.bsdfs>(v.geom, v.lights, e, pass, s, layout.light_pick(static_cast<uint32_t>(j), d),
+                                             layout.light_point(static_cast<uint32_t>(j), d), tb);
+      timer.lap(Stage::sample_lights);
+      trace_shadow(c, tb, timer, packets, rec, tp);
+      timer.lap(Stage::intersect_shadow);
+      accumulate_shadow(tb);
+      timer.lap(Stage::accumulate);
+    }
+  }
+}
+
+// One vertex's BSDF samples: each traced, its emitter hits queued and MIS-weighted; the last
+// one is the path's continuation (continuation rays need their nearest hit in the scene).
+template <Features F>
+void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, const Estimator& e, uint32_t s, uint32_t d,
+                      int packets, bool rec, ThreadProfile* tp, bool last) {
+  const SceneViews& v = c.v;
+  const SampleLayout& layout = c.layout;
+  if (tb.points.count > 0) {
+    // the last vertex's bounce rays may look for the emitters alone (then a visibility
+    // ray); a path's other bounce rays need their nearest hit in the scene
+    const bool against_emitters = last && c.bounce_against_emitters;
+    // resampled importance sampling took its BSDF candidates (run_ris): what is left is
+    // the last BSDF sample, for the path's continuation and the delta lobes
+    const bool ris = e.strategy == Strategy::ris;
+    for (int m = ris ? c.bsdf_passes - 1 : 0; m < c.bsdf_passes; ++m) {
+      const bool continuation = !last && m == c.bsdf_passes - 1;
+      if (ris && !continuation && (F.bsdfs & bsdf_delta_capable) == 0) break;
+      sample_bsdf<F.bsdfs>(v.geom, e, s, layout.bsdf(static_cast<uint32_t>(m), d),
+                           layout.bsdf_lobe(static_cast<uint32_t>(m), d), tb,
+                           e.strategy == Strategy::light || ris, continuation);
+      timer.lap(Stage::sample_bsdf);
+      trace_bounce(c, tb, timer, packets, rec, tp, against_emitters ? Bvh::emitters : Bvh::scene);
+      timer.lap(Stage::intersect_bounce);
+      constexpr bool delta = (F.bsdfs & bsdf_delta_capable) != 0;
+      queue_bounce_hits<vfloat, F.kinds, delta>(v.geom, v.lights, tb, against_emitters, continuation && e.one_sample());
+      if (against_emitters && tb.queue.count > 0) {
+        const int qpackets = bounce_visibility_rays(tb);
+        timer.lap(Stage::mis_weight);
+        clear_high_vector_registers();
+        for (int p = 0; p < qpackets; ++p) {
+          if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], tb.queue.valid + p * packet_width); });
+          c.accel.occluded16(tb.queue.valid + p * packet_width, tb.shadow[p], false);
+        }
+        tb.stats.rays_bounce_visibility += static_cast<uint64_t>(tb.queue.count);
+        timer.lap(Stage::intersect_bounce);
+        read_bounce_visibility(tb);
+      }
+      weight_queue<F.kinds, delta>(v.lights, e, c.rate_light, c.rate_bsdf, tb);
+      timer.lap(Stage::mis_weight);
+    }
+  }
+}
+
+// The tile pipeline, instantiated per Features (wave/features.h): it leaves out what its
+// scenes do not need.
+template <Features F>
+void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile, uint32_t begin, uint32_t end) {
+  const SceneViews& v = c.v;
+  const Estimator& est = c.est;
+  Film& film = c.film;
+  const int ts = c.tile_size;
+  const int x0 = (tile % c.tiles_x) * ts, y0 = (tile / c.tiles_x) * ts;
+  const int tw = std::min(ts, c.width - x0), th = std::min(ts, c.height - y0);
+  const int lanes = tw * th;
+  StageTimer timer(tp, c, tile);
+  timer.start();
+  const bool blocks = set_tile_lanes(c, tb, x0, y0, tw, th);
+  const int cam_packets = packets_for(lanes);
+  timer.lap(Stage::generate);
+  clear_tile_sums(tb, lanes);
+  timer.lap(Stage::accumulate);
+  const SampleLayout& layout = c.layout;
+  Estimator deep = est;  // paths past the first vertex: the MIS-weight AOV is the first vertex's
+  deep.aov_mis_weight = false;
+  hash_tile_keys<F>(c, tb, lanes, cam_packets);
   timer.lap(Stage::generate);
   for (uint32_t s = begin; s < end; ++s) {
     generate(v.camera, est, s, layout.camera, lanes, tb);
@@ -240,64 +324,8 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
         tp->depth_packets[row] += static_cast<uint64_t>(packets);
         tp->depth_lane_packets[row] += static_cast<uint64_t>(cam_packets);
       }
-      // (a pipeline with the light stages may run a scene without lights: the general one,
-      // forced or standing in for all, whose empty light table has nothing to pick from)
-      if constexpr (F.light) {
-        if (v.lights.count == 0) {
-        } else if (tb.points.count > 0 && e.strategy == Strategy::ris) {
-          if constexpr (F.bsdf) run_ris<F>(c, tb, timer, e, s, d, packets, rec, tp);
-        } else if (tb.points.count > 0) {
-          for (int j = 0; j < c.light_passes; ++j) {
-            LightPass pass;
-            pass.fixed_light = e.pick == LightPick::all ? j % c.light_count : (F.pick ? -1 : 0);
-            pass.rate_light = c.rate_light;
-            pass.rate_bsdf = c.rate_bsdf;
-            sample_lights<F.kinds, F.pick, F.bsdfs>(v.geom, v.lights, e, pass, s, layout.light_pick(static_cast<uint32_t>(j), d),
-                                                   layout.light_point(static_cast<uint32_t>(j), d), tb);
-            timer.lap(Stage::sample_lights);
-            trace_shadow(c, tb, timer, packets, rec, tp);
-            timer.lap(Stage::intersect_shadow);
-            accumulate_shadow(tb);
-            timer.lap(Stage::accumulate);
-          }
-        }
-      }
-      if constexpr (F.bsdf) {
-        if (tb.points.count > 0) {
-          // the last vertex's bounce rays may look for the emitters alone (then a visibility
-          // ray); a path's other bounce rays need their nearest hit in the scene
-          const bool against_emitters = last && c.bounce_against_emitters;
-          // resampled importance sampling took its BSDF candidates (run_ris): what is left is
-          // the last BSDF sample, for the path's continuation and the delta lobes
-          const bool ris = e.strategy == Strategy::ris;
-          for (int m = ris ? c.bsdf_passes - 1 : 0; m < c.bsdf_passes; ++m) {
-            const bool continuation = !last && m == c.bsdf_passes - 1;
-            if (ris && !continuation && (F.bsdfs & bsdf_delta_capable) == 0) break;
-            sample_bsdf<F.bsdfs>(v.geom, e, s, layout.bsdf(static_cast<uint32_t>(m), d),
-                                 layout.bsdf_lobe(static_cast<uint32_t>(m), d), tb,
-                                 e.strategy == Strategy::light || ris, continuation);
-            timer.lap(Stage::sample_bsdf);
-            trace_bounce(c, tb, timer, packets, rec, tp, against_emitters ? Bvh::emitters : Bvh::scene);
-            timer.lap(Stage::intersect_bounce);
-            constexpr bool delta = (F.bsdfs & bsdf_delta_capable) != 0;
-            queue_bounce_hits<vfloat, F.kinds, delta>(v.geom, v.lights, tb, against_emitters, continuation && e.one_sample());
-            if (against_emitters && tb.queue.count > 0) {
-              const int qpackets = bounce_visibility_rays(tb);
-              timer.lap(Stage::mis_weight);
-              clear_high_vector_registers();
-              for (int p = 0; p < qpackets; ++p) {
-                if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], tb.queue.valid + p * packet_width); });
-                c.accel.occluded16(tb.queue.valid + p * packet_width, tb.shadow[p], false);
-              }
-              tb.stats.rays_bounce_visibility += static_cast<uint64_t>(tb.queue.count);
-              timer.lap(Stage::intersect_bounce);
-              read_bounce_visibility(tb);
-            }
-            weight_queue<F.kinds, delta>(v.lights, e, c.rate_light, c.rate_bsdf, tb);
-            timer.lap(Stage::mis_weight);
-          }
-        }
-      }
+      if constexpr (F.light) run_light_samples<F>(c, tb, timer, e, s, d, packets, rec, tp);
+      if constexpr (F.bsdf) run_bsdf_samples<F>(c, tb, timer, e, s, d, packets, rec, tp, last);
       if (!paths) break;
       add_vertex_radiance(tb, vertex == 1);
       timer.lap(Stage::accumulate);
@@ -328,11 +356,11 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   timer.lap(Stage::accumulate);
 }
 
-// The registered pipelines of part Part (pipeline_part), into their slots of table (the
+// The registered pipelines of part Part (pipeline_part_of), into their slots of table (the
 // index order of registered_pipelines). Each src/render/pipelines/part_<k>.cpp
 // instantiates it for its k; tile_pipeline.cpp calls every part once.
 template <int Part, size_t I> void register_one(TileFn* table) {
-  constexpr bool mine = general_pipeline_only ? I == 0 && Part == 0 : pipeline_part[I] == Part;
+  constexpr bool mine = general_pipeline_only ? I == 0 && Part == 0 : pipeline_part_of(registered_pipelines[I]) == Part;
   if constexpr (mine) table[I] = &run_tile<registered_pipelines[I]>;
 }
 template <int Part, size_t... I> void register_indices(TileFn* table, std::index_sequence<I...>) {

@@ -38,9 +38,11 @@ static void build_alias(const std::vector<float>& p, std::vector<float>& prob, s
 }
 
 
-SceneViews build_views(const Scene& scene, LightPick pick) {
-  SceneViews out;
-  SceneViews& v = out;
+namespace {
+
+// The light table as the kernels read it (LightView: each source's shape and radiance, the
+// constants of its kind, the pick distribution and the light BVH), padded to its tier.
+void build_light_table(SceneViews& v, const Scene& scene, LightPick pick) {
   const auto& lights = scene.lights;
   const size_t n = lights.size();
   v.features = scene.features;
@@ -140,7 +142,11 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     v.light_bvh_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     L.bvh = v.light_bvh_view.get();
   }
+}
 
+// The geometry table (one row per geomID: GeomView::geom_kind and its fields) and the
+// flattened triangles.
+void build_geometry_table(SceneViews& v, const Scene& scene) {
   const int32_t default_material = static_cast<int32_t>(scene.materials.size());
   // Flattened triangles, gathered by the camera-hit stage at 9 * triangle in int32 lanes.
   size_t tris = 0;
@@ -191,6 +197,12 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   v.sphere_center.insert(v.sphere_center.end(), 4, 0.f);
   v.tri_pos.insert(v.tri_pos.end(), 9, 0.f);  // a spare triangle: never empty
   v.tri_light.push_back(-1);
+}
+
+// The material table (each material's reflectance, kind and BSDF parameters, its mix and
+// textures), the kinds of surface the geometry has, bump mapping, the textures, and the
+// geometry view's pointers into all of it.
+void build_material_table(SceneViews& v, const Scene& scene) {
   // A displacement texture whose texels are all equal moves the surface along its normal
   // without turning it (the offset surface's normal field is the surface's): no bump
   // (pbrt-v4's d dn/du term, from the interpolated vertex normals, is left out with it).
@@ -307,8 +319,12 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   G.ftex_value = v.ftex_value.data();
   G.ftex_w = v.ftex_w.data();
   G.ftex_h = v.ftex_h.data();
+}
 
+// The camera as the generate stage reads it, and the pixel footprint of bump mapping.
+void build_camera_view(SceneViews& v, const Scene& scene) {
   const Camera& c = scene.camera;
+  GeomView& G = v.geom;
   CameraView& cv = v.camera;
   for (int r = 0; r < 3; ++r)
     for (int k = 0; k < 4; ++k) cv.m[r][k] = c.world_from_camera[r][k];
@@ -344,6 +360,16 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
     G.cam_dy[i] = dya[i];
     G.cam_zrow[i] = za[i];
   }
+}
+
+}  // namespace
+
+SceneViews build_views(const Scene& scene, LightPick pick) {
+  SceneViews out;
+  build_light_table(out, scene, pick);
+  build_geometry_table(out, scene);
+  build_material_table(out, scene);
+  build_camera_view(out, scene);
   return out;
 }
 

@@ -52,6 +52,7 @@ inline constexpr float grazing_plane_ratio = 0.02f;
 inline constexpr float grazing_max_omega = 0.05f;
 
 struct PlanarLight {
+  static constexpr bool planar = true, at_infinity = false;
   // centre_weight: 1/3 for a triangle's centroid, 1/2 for a parallelogram's centre
   template <class T>
   static mask_t<T> solid_angle_safe(const LightGeom<T>& g, const Vec3<T>& x, T omega, float centre_weight) {
@@ -72,6 +73,7 @@ struct PlanarLight {
     const T cos_y_signed = -dot(wi, g.n);
     return sel(g.two_sided > T(0.f), abs(cos_y_signed), cos_y_signed);
   }
+  template <class T> static T emit_cos(const LightGeom<T>& g, const Vec3<T>&, const Vec3<T>& wi, T) { return emit_cos(g, wi); }
   // x is on the side the source emits to.
   template <class T> static mask_t<T> lit_from(const LightGeom<T>& g, const Vec3<T>& x) {
     return g.two_sided > T(0.f) || dot(x - g.p0, g.n) > T(0.f);

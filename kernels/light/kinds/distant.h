@@ -8,6 +8,7 @@ namespace tuile {
 
 template <> struct LightKindOps<LightKind::distant> {
   static constexpr LightKind kind = LightKind::distant;
+  static constexpr bool planar = false, at_infinity = true;
   // the distance of a point at infinity, as far as a ray can go
   static constexpr float infinite_distance = 3.0e38f;
   template <class T> static DeltaSample<T> sample_delta(const LightGeom<T>& g, const Vec3<T>&) {

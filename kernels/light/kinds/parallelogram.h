@@ -40,9 +40,6 @@ struct RectangleLight : PlanarLight {
   template <class T> static Vec3<T> area_point(const LightGeom<T>& g, T u1, T u2) {
     return g.p0 + g.ex * (g.len1 * u1) + g.ey * (g.len2 * u2);
   }
-  template <class T> static T emit_cos(const LightGeom<T>& g, const Vec3<T>&, const Vec3<T>& wi, T) {
-    return PlanarLight::emit_cos(g, wi);
-  }
 };
 
 template <> struct LightKindOps<LightKind::parallelogram> : PlanarLight {
@@ -92,9 +89,6 @@ template <> struct LightKindOps<LightKind::parallelogram> : PlanarLight {
   }
   template <class T> static Vec3<T> area_point(const LightGeom<T>& g, T u1, T u2) {
     return sel(g.rect > T(0.5f), RectangleLight::area_point(g, u1, u2), g.p0 + g.e1 * u1 + g.e2 * u2);
-  }
-  template <class T> static T emit_cos(const LightGeom<T>& g, const Vec3<T>&, const Vec3<T>& wi, T) {
-    return PlanarLight::emit_cos(g, wi);
   }
   static float power(const LightShape& l, float lum, float) { return PlanarLight::power(l, lum); }
   static bool bounds(const LightShape& l, double L, LightBounds& b) {

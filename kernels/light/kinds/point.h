@@ -6,6 +6,7 @@
 namespace tuile {
 
 struct PositionalLight {
+  static constexpr bool planar = false, at_infinity = false;
   // The direction from x to the source's position, its distance and 1/d^2.
   template <class T> static DeltaSample<T> towards(const LightGeom<T>& g, const Vec3<T>& x) {
     DeltaSample<T> s;

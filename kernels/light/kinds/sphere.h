@@ -9,6 +9,7 @@ namespace tuile {
 
 template <> struct LightKindOps<LightKind::sphere> {
   static constexpr LightKind kind = LightKind::sphere;
+  static constexpr bool planar = false, at_infinity = false;
 
   template <class T> static T radius(const LightGeom<T>& g) { return g.e1.x; }
   template <class T> static SolidAngleSample<T> sample_solid_angle(const LightGeom<T>& g, const Vec3<T>& x, T u1, T u2) {

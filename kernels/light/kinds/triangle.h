@@ -28,9 +28,6 @@ template <> struct LightKindOps<LightKind::triangle> : PlanarLight {
     sample_triangle_area(u1, u2, b1, b2);
     return g.p0 + g.e1 * b1 + g.e2 * b2;
   }
-  template <class T> static T emit_cos(const LightGeom<T>& g, const Vec3<T>&, const Vec3<T>& wi, T) {
-    return PlanarLight::emit_cos(g, wi);
-  }
   static float power(const LightShape& l, float lum, float) { return PlanarLight::power(l, lum); }
   static bool bounds(const LightShape& l, double L, LightBounds& b) {
     const vec3f corners[3] = {l.p0, l.p0 + l.e1, l.p0 + l.e2};

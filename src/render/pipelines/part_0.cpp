@@ -1,4 +1,4 @@
-// Part 0 of the registered tile pipelines (render/tile_pipeline.h: pipeline_part).
+// Part 0 of the registered tile pipelines (render/tile_pipeline.h: pipeline_part_of).
 #include "render/tile_run.h"
 
 namespace tuile {

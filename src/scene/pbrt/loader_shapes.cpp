@@ -96,6 +96,147 @@ void Loader::orient_by_normals(Mesh& m, const std::vector<float>& n_obj, const M
     if (flip[i]) std::swap(m.indices[3 * i + 1], m.indices[3 * i + 2]);
 }
 
+// trianglemesh, bilinearmesh (each patch two triangles: a parallelogram pair) and
+// loopsubdiv (its control mesh, with a warning): vertices, indices, uv and normals checked
+// against each other, positions transformed to world space.
+void Loader::mesh_shape(Lexer& lx, const Token& t, const std::string& type, Params& ps, const std::string& where) {
+  const bool bilinear = type == "bilinearmesh";
+  const size_t per = bilinear ? 4 : 3;
+  const Param* P = ps.get("P", "point3");
+  if (!P) lx.fail(t, type + " without \"point3 P\"", "a \"point3 P\" parameter");
+  const size_t nv = P->nums.size() / 3;
+  const Param* I = ps.get("indices", "integer");
+  if (!I && nv != per)
+    lx.fail(t, type + " without \"integer indices\"", "indices, or exactly " + std::to_string(per) + " vertices");
+  if (I && I->nums.size() % per != 0)
+    I->fail("\"integer indices\" has " + std::to_string(I->nums.size()) + " values", "a multiple of " + std::to_string(per));
+  if (I)
+    for (double v : I->nums)
+      if (v < 0 || v >= double(nv))
+        I->fail("index " + std::to_string(int64_t(v)) + " out of range", "an index below the vertex count " + std::to_string(nv));
+  const Param* uv = ps.get("uv", "point2|float");
+  if (uv && uv->nums.size() != 2 * nv)
+    uv->fail("\"uv\" has " + std::to_string(uv->nums.size() / 2) + " pairs for " + std::to_string(nv) + " vertices", "one uv pair per vertex");
+  const Param* N = ps.get("N", "normal3");
+  if (N && N->nums.size() != 3 * nv)
+    N->fail("\"N\" has " + std::to_string(N->nums.size() / 3) + " normals for " + std::to_string(nv) + " vertices", "one normal per vertex");
+  ps.get("S", "vector3");
+  ps.get("faceIndices", "integer");
+  if (type == "loopsubdiv") {
+    ps.get("levels", "integer");
+    warn("loopsubdiv", where + ": loopsubdiv is not subdivided: its control mesh is rendered");
+  }
+  const size_t mi = new_mesh(lx, t);
+  Mesh& m = meshes_[mi].mesh;
+  m.positions.assign(P->nums.begin(), P->nums.end());
+  transform_positions(gs_.ctm, m.positions.data(), nv);
+  if (uv) m.uvs.assign(uv->nums.begin(), uv->nums.end());
+  std::vector<uint32_t> idx;
+  if (I) idx.assign(I->nums.begin(), I->nums.end());
+  else
+    for (uint32_t i = 0; i < per; ++i) idx.push_back(i);
+  if (bilinear) {
+    // patch (p00, p10, p01, p11) -> triangles (p00 p10 p11), (p00 p11 p01): one parallelogram pair
+    for (size_t q = 0; q < idx.size(); q += 4) {
+      const uint32_t a = idx[q], b = idx[q + 1], c = idx[q + 2], e = idx[q + 3];
+      m.indices.insert(m.indices.end(), {a, b, e, a, e, c});
+    }
+  } else {
+    m.indices = std::move(idx);
+  }
+  if (N) {
+    const std::vector<float> n_obj(N->nums.begin(), N->nums.end());
+    orient_by_normals(m, n_obj, gs_.ctm, gs_.reverse);
+    set_shading_normals(m, n_obj, gs_.ctm, gs_.reverse);
+  }
+}
+
+// plymesh: the file is read (in parallel with the others) when the scene ends.
+void Loader::ply_shape(Lexer& lx, const Token& t, Params& ps) {
+  const Param* fp = ps.get("filename", "string");
+  if (!fp || fp->strs.size() != 1) lx.fail(t, "plymesh without a filename", "a \"string filename\" parameter");
+  PlyJob j;
+  j.path = resolve_path(lx.dir(), fp->strs[0]);
+  j.where_file = lx.file();
+  j.line = t.line;
+  j.col = t.col;
+  j.ctm = gs_.ctm;
+  j.ro = gs_.reverse;
+  j.mesh = new_mesh(lx, t);
+  plys_.push_back(std::move(j));
+}
+
+// sphere: a full sphere (partial ones with a warning), its radius scaled by the transform
+// (a sphere of the same volume under a non-uniform scale), emitting if an area light is on.
+void Loader::sphere_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where) {
+  const float r = ps.one_float("radius", 1);
+  if (!(r > 0)) lx.fail(t, "sphere radius " + std::to_string(r), "a positive radius");
+  const float zmin = ps.one_float("zmin", -r), zmax = ps.one_float("zmax", r), phimax = ps.one_float("phimax", 360);
+  if (zmin > -r || zmax < r || phimax < 360)
+    warn("partialsphere", where + ": partial spheres (zmin/zmax/phimax) are rendered as full spheres");
+  OwnedSphere os;
+  os.object = object_;
+  const Vec3d c = apply_point(gs_.ctm, {0, 0, 0});
+  const double sx = length(apply_vector(gs_.ctm, {1, 0, 0})), sy = length(apply_vector(gs_.ctm, {0, 1, 0})),
+               sz = length(apply_vector(gs_.ctm, {0, 0, 1}));
+  if (std::abs(sx - sy) > 1e-4 * sx || std::abs(sx - sz) > 1e-4 * sx)
+    warn("sphereellipsoid", where + ": a sphere under a non-uniform scale is rendered as a sphere of the same volume");
+  os.sphere.center = vec3f(float(c.x), float(c.y), float(c.z));
+  os.sphere.radius = float(r * std::cbrt(std::abs(gs_.ctm.det3())));
+  if (!(os.sphere.radius > 0) || !std::isfinite(os.sphere.radius))
+    lx.fail(t, "sphere with a degenerate transform", "a transform that keeps the sphere's size finite and non-zero");
+  os.sphere.material = gs_.material;
+  os.sphere.reverse_orientation = gs_.reverse != gs_.ctm.swaps_handedness();
+  if (gs_.has_area) {
+    if (object_ >= 0) {
+      warn("instarea", where + ": area lights inside object definitions are not supported: the shape does not emit");
+    } else {
+      Rgb L = gs_.area.L;
+      if (gs_.area.power > 0 && luminance(L) > 0) {
+        const double area = 4 * M_PI * double(os.sphere.radius) * os.sphere.radius;
+        L = mul(L, float(gs_.area.power / ((gs_.area.two_sided ? 2 : 1) * M_PI * area * luminance(L))));
+      }
+      os.sphere.emission = L;
+      if (gs_.area.two_sided) warn("twosidedsphere", where + ": two-sided sphere lights emit outwards only");
+    }
+  }
+  spheres_.push_back(os);
+}
+
+// disk: a 64-gon (or ring) of the disk's area in its plane z = height.
+void Loader::disk_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where) {
+  const float h = ps.one_float("height", 0), r = ps.one_float("radius", 1), ri = ps.one_float("innerradius", 0);
+  if (!(r > 0) || !(ri >= 0) || !(ri < r)) lx.fail(t, "disk radii out of range", "radius > innerradius >= 0");
+  if (ps.one_float("phimax", 360) < 360) warn("partialdisk", where + ": partial disks (phimax) are rendered as full disks");
+  const size_t mi = new_mesh(lx, t);
+  Mesh& m = meshes_[mi].mesh;
+  // pbrt's disk faces +z in object space and its orientation ignores the handedness of
+  // the transform (the normal is transformed, not recomputed), hence only ReverseOrientation.
+  m.reverse_orientation = gs_.reverse;
+  // Radii grown so that the 64-gon has the disk's area (emitted power is kept).
+  const double n = disk_segments, k = std::sqrt(2 * M_PI / (n * std::sin(2 * M_PI / n)));
+  const bool ring = ri > 0;
+  for (int i = 0; i < disk_segments; ++i) {
+    const double phi = 2 * M_PI * i / n, cx = std::cos(phi), sy = std::sin(phi);
+    m.positions.insert(m.positions.end(), {float(r * k * cx), float(r * k * sy), h});
+    m.uvs.insert(m.uvs.end(), {float(i / n), 0.f});
+    if (ring) {
+      m.positions.insert(m.positions.end(), {float(ri * k * cx), float(ri * k * sy), h});
+      m.uvs.insert(m.uvs.end(), {float(i / n), float(1 - ri / r)});
+    }
+  }
+  if (!ring) {
+    m.positions.insert(m.positions.end(), {0.f, 0.f, h});
+    m.uvs.insert(m.uvs.end(), {0.f, 1.f});
+  }
+  for (uint32_t i = 0; i < uint32_t(disk_segments); ++i) {
+    const uint32_t j = (i + 1) % disk_segments;
+    if (ring) m.indices.insert(m.indices.end(), {2 * i + 1, 2 * i, 2 * j, 2 * i + 1, 2 * j, 2 * j + 1});
+    else m.indices.insert(m.indices.end(), {uint32_t(disk_segments), i, j});
+  }
+  transform_positions(gs_.ctm, m.positions.data(), m.positions.size() / 3);
+}
+
 void Loader::shape(Lexer& lx, const Token& t, const std::string& type, Params& ps) {
   const std::string where = loc_str(lx, t);
   for (Param& p : ps.items)
@@ -104,131 +245,13 @@ void Loader::shape(Lexer& lx, const Token& t, const std::string& type, Params& p
       warn("shape:" + p.name, where + ": shape parameter \"" + p.name + "\" is not supported and was ignored");
     }
   if (type == "trianglemesh" || type == "bilinearmesh" || type == "loopsubdiv") {
-    const bool bilinear = type == "bilinearmesh";
-    const size_t per = bilinear ? 4 : 3;
-    const Param* P = ps.get("P", "point3");
-    if (!P) lx.fail(t, type + " without \"point3 P\"", "a \"point3 P\" parameter");
-    const size_t nv = P->nums.size() / 3;
-    const Param* I = ps.get("indices", "integer");
-    if (!I && nv != per)
-      lx.fail(t, type + " without \"integer indices\"", "indices, or exactly " + std::to_string(per) + " vertices");
-    if (I && I->nums.size() % per != 0)
-      I->fail("\"integer indices\" has " + std::to_string(I->nums.size()) + " values", "a multiple of " + std::to_string(per));
-    if (I)
-      for (double v : I->nums)
-        if (v < 0 || v >= double(nv))
-          I->fail("index " + std::to_string(int64_t(v)) + " out of range", "an index below the vertex count " + std::to_string(nv));
-    const Param* uv = ps.get("uv", "point2|float");
-    if (uv && uv->nums.size() != 2 * nv)
-      uv->fail("\"uv\" has " + std::to_string(uv->nums.size() / 2) + " pairs for " + std::to_string(nv) + " vertices", "one uv pair per vertex");
-    const Param* N = ps.get("N", "normal3");
-    if (N && N->nums.size() != 3 * nv)
-      N->fail("\"N\" has " + std::to_string(N->nums.size() / 3) + " normals for " + std::to_string(nv) + " vertices", "one normal per vertex");
-    ps.get("S", "vector3");
-    ps.get("faceIndices", "integer");
-    if (type == "loopsubdiv") {
-      ps.get("levels", "integer");
-      warn("loopsubdiv", where + ": loopsubdiv is not subdivided: its control mesh is rendered");
-    }
-    const size_t mi = new_mesh(lx, t);
-    Mesh& m = meshes_[mi].mesh;
-    m.positions.assign(P->nums.begin(), P->nums.end());
-    transform_positions(gs_.ctm, m.positions.data(), nv);
-    if (uv) m.uvs.assign(uv->nums.begin(), uv->nums.end());
-    std::vector<uint32_t> idx;
-    if (I) idx.assign(I->nums.begin(), I->nums.end());
-    else
-      for (uint32_t i = 0; i < per; ++i) idx.push_back(i);
-    if (bilinear) {
-      // patch (p00, p10, p01, p11) -> triangles (p00 p10 p11), (p00 p11 p01): one parallelogram pair
-      for (size_t q = 0; q < idx.size(); q += 4) {
-        const uint32_t a = idx[q], b = idx[q + 1], c = idx[q + 2], e = idx[q + 3];
-        m.indices.insert(m.indices.end(), {a, b, e, a, e, c});
-      }
-    } else {
-      m.indices = std::move(idx);
-    }
-    if (N) {
-      const std::vector<float> n_obj(N->nums.begin(), N->nums.end());
-      orient_by_normals(m, n_obj, gs_.ctm, gs_.reverse);
-      set_shading_normals(m, n_obj, gs_.ctm, gs_.reverse);
-    }
+    mesh_shape(lx, t, type, ps, where);
   } else if (type == "plymesh") {
-    const Param* fp = ps.get("filename", "string");
-    if (!fp || fp->strs.size() != 1) lx.fail(t, "plymesh without a filename", "a \"string filename\" parameter");
-    PlyJob j;
-    j.path = resolve_path(lx.dir(), fp->strs[0]);
-    j.where_file = lx.file();
-    j.line = t.line;
-    j.col = t.col;
-    j.ctm = gs_.ctm;
-    j.ro = gs_.reverse;
-    j.mesh = new_mesh(lx, t);
-    plys_.push_back(std::move(j));
+    ply_shape(lx, t, ps);
   } else if (type == "sphere") {
-    const float r = ps.one_float("radius", 1);
-    if (!(r > 0)) lx.fail(t, "sphere radius " + std::to_string(r), "a positive radius");
-    const float zmin = ps.one_float("zmin", -r), zmax = ps.one_float("zmax", r), phimax = ps.one_float("phimax", 360);
-    if (zmin > -r || zmax < r || phimax < 360)
-      warn("partialsphere", where + ": partial spheres (zmin/zmax/phimax) are rendered as full spheres");
-    OwnedSphere os;
-    os.object = object_;
-    const Vec3d c = apply_point(gs_.ctm, {0, 0, 0});
-    const double sx = length(apply_vector(gs_.ctm, {1, 0, 0})), sy = length(apply_vector(gs_.ctm, {0, 1, 0})),
-                 sz = length(apply_vector(gs_.ctm, {0, 0, 1}));
-    if (std::abs(sx - sy) > 1e-4 * sx || std::abs(sx - sz) > 1e-4 * sx)
-      warn("sphereellipsoid", where + ": a sphere under a non-uniform scale is rendered as a sphere of the same volume");
-    os.sphere.center = vec3f(float(c.x), float(c.y), float(c.z));
-    os.sphere.radius = float(r * std::cbrt(std::abs(gs_.ctm.det3())));
-    if (!(os.sphere.radius > 0) || !std::isfinite(os.sphere.radius))
-      lx.fail(t, "sphere with a degenerate transform", "a transform that keeps the sphere's size finite and non-zero");
-    os.sphere.material = gs_.material;
-    os.sphere.reverse_orientation = gs_.reverse != gs_.ctm.swaps_handedness();
-    if (gs_.has_area) {
-      if (object_ >= 0) {
-        warn("instarea", where + ": area lights inside object definitions are not supported: the shape does not emit");
-      } else {
-        Rgb L = gs_.area.L;
-        if (gs_.area.power > 0 && luminance(L) > 0) {
-          const double area = 4 * M_PI * double(os.sphere.radius) * os.sphere.radius;
-          L = mul(L, float(gs_.area.power / ((gs_.area.two_sided ? 2 : 1) * M_PI * area * luminance(L))));
-        }
-        os.sphere.emission = L;
-        if (gs_.area.two_sided) warn("twosidedsphere", where + ": two-sided sphere lights emit outwards only");
-      }
-    }
-    spheres_.push_back(os);
+    sphere_shape(lx, t, ps, where);
   } else if (type == "disk") {
-    const float h = ps.one_float("height", 0), r = ps.one_float("radius", 1), ri = ps.one_float("innerradius", 0);
-    if (!(r > 0) || !(ri >= 0) || !(ri < r)) lx.fail(t, "disk radii out of range", "radius > innerradius >= 0");
-    if (ps.one_float("phimax", 360) < 360) warn("partialdisk", where + ": partial disks (phimax) are rendered as full disks");
-    const size_t mi = new_mesh(lx, t);
-    Mesh& m = meshes_[mi].mesh;
-    // pbrt's disk faces +z in object space and its orientation ignores the handedness of
-    // the transform (the normal is transformed, not recomputed), hence only ReverseOrientation.
-    m.reverse_orientation = gs_.reverse;
-    // Radii grown so that the 64-gon has the disk's area (emitted power is kept).
-    const double n = disk_segments, k = std::sqrt(2 * M_PI / (n * std::sin(2 * M_PI / n)));
-    const bool ring = ri > 0;
-    for (int i = 0; i < disk_segments; ++i) {
-      const double phi = 2 * M_PI * i / n, cx = std::cos(phi), sy = std::sin(phi);
-      m.positions.insert(m.positions.end(), {float(r * k * cx), float(r * k * sy), h});
-      m.uvs.insert(m.uvs.end(), {float(i / n), 0.f});
-      if (ring) {
-        m.positions.insert(m.positions.end(), {float(ri * k * cx), float(ri * k * sy), h});
-        m.uvs.insert(m.uvs.end(), {float(i / n), float(1 - ri / r)});
-      }
-    }
-    if (!ring) {
-      m.positions.insert(m.positions.end(), {0.f, 0.f, h});
-      m.uvs.insert(m.uvs.end(), {0.f, 1.f});
-    }
-    for (uint32_t i = 0; i < uint32_t(disk_segments); ++i) {
-      const uint32_t j = (i + 1) % disk_segments;
-      if (ring) m.indices.insert(m.indices.end(), {2 * i + 1, 2 * i, 2 * j, 2 * i + 1, 2 * j, 2 * j + 1});
-      else m.indices.insert(m.indices.end(), {uint32_t(disk_segments), i, j});
-    }
-    transform_positions(gs_.ctm, m.positions.data(), m.positions.size() / 3);
+    disk_shape(lx, t, ps, where);
   } else if (type == "cylinder" || type == "curve" || type == "cone" || type == "paraboloid" || type == "hyperboloid") {
     ps.mark_all_used();
     warn("shape:" + type, where + ": shape \"" + type + "\" is not supported and was skipped");

@@ -179,6 +179,10 @@ class Loader {
   void area_light(Lexer& lx, const Token& t, const std::string& type, Params& ps);
   void light(Lexer& lx, const Token& t, const std::string& type, Params& ps);
   void shape(Lexer& lx, const Token& t, const std::string& type, Params& ps);
+  void mesh_shape(Lexer& lx, const Token& t, const std::string& type, Params& ps, const std::string& where);
+  void ply_shape(Lexer& lx, const Token& t, Params& ps);
+  void sphere_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where);
+  void disk_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where);
   size_t new_mesh(Lexer& lx, const Token& t);
   void set_emission(OwnedMesh& om, Lexer& lx, const Token& t);
   void orient_by_normals(Mesh& m, const std::vector<float>& n_obj, const Mat4& ctm, bool ro);
