@@ -5,6 +5,9 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <string_view>
 #include <type_traits>
 // GCC 12's AVX-512 intrinsic headers warn about their own _mm512_undefined_* values once
 // inlined (GCC bug 105593, fixed in GCC 13); silence that inside these headers only.
@@ -338,18 +341,54 @@ inline vmask is_finite(const vfloat& x) noexcept { return xsimd::abs(x) <= vfloa
 //   0 (default) the hardware estimate;
 //   1, -1       the hardware estimate times 1 + 2^-14, resp. 1 - 2^-14: another vendor's
 //               estimate at the far end of the documented error, both ways;
-//   2           exact IEEE division and square root (as builds without AVX-512).
+//   2           exact IEEE division and square root (as builds without AVX-512);
+//   3           one of 0, 1, -1, 2 chosen when the program starts, by the environment
+//               variable TUILE_ESTIMATE_MODE (hardware, plus, minus, exact; hardware when
+//               unset): the precision checks compile their sources once and run them three
+//               times (CMakeLists.txt: the tests estimates_plus/..., estimates_minus/..., estimates_exact/...),
+//               with the same arithmetic as the builds of 1, -1 and 2.
 #ifndef TUILE_ESTIMATES
 #define TUILE_ESTIMATES 0
 #endif
-static_assert(TUILE_ESTIMATES == 0 || TUILE_ESTIMATES == 1 || TUILE_ESTIMATES == -1 || TUILE_ESTIMATES == 2,
-              "TUILE_ESTIMATES is 0 (hardware), 1 or -1 (perturbed by +-2^-14) or 2 (exact)");
+static_assert(TUILE_ESTIMATES == 0 || TUILE_ESTIMATES == 1 || TUILE_ESTIMATES == -1 || TUILE_ESTIMATES == 2 ||
+                  TUILE_ESTIMATES == 3,
+              "TUILE_ESTIMATES is 0 (hardware), 1 or -1 (perturbed by +-2^-14), 2 (exact) or 3 (chosen at start-up)");
+#if TUILE_ESTIMATES == 3
+struct EstimateMode {
+  float scale = 1.f;   // what the hardware estimate is multiplied by
+  bool exact = false;  // exact IEEE division and square root instead
+};
+// Read once, at the first use. A value other than the four stops the program: a precision
+// check that ran with the wrong estimates would prove nothing.
+inline EstimateMode estimate_mode_from_environment() noexcept {
+  const char* s = std::getenv("TUILE_ESTIMATE_MODE");
+  const std::string_view m = s ? s : "hardware";
+  if (m == "hardware") return {};
+  if (m == "plus") return {1.f + 0x1p-14f, false};
+  if (m == "minus") return {1.f - 0x1p-14f, false};
+  if (m == "exact") return {1.f, true};
+  std::fprintf(stderr, "TUILE_ESTIMATE_MODE is hardware, plus, minus or exact, not '%s'\n", s);
+  std::abort();
+}
+inline const EstimateMode& estimate_mode() noexcept {
+  static const EstimateMode m = estimate_mode_from_environment();
+  return m;
+}
+#define TUILE_EXACT_AT_RUN_TIME(exact_value) \
+  if (estimate_mode().exact) return exact_value
+#else
+#define TUILE_EXACT_AT_RUN_TIME(exact_value)
+#endif
 #if defined(__AVX512F__) && TUILE_ESTIMATES != 2
 #define TUILE_HW_ESTIMATES 1
 inline constexpr float estimate_scale = TUILE_ESTIMATES == 1 ? 1.f + 0x1p-14f : TUILE_ESTIMATES == -1 ? 1.f - 0x1p-14f : 1.f;
 template <class T> inline T perturb_estimate(const T& r) noexcept {
+#if TUILE_ESTIMATES == 3
+  return r * T(estimate_mode().scale);
+#else
   if constexpr (TUILE_ESTIMATES == 0) return r;
   else return r * T(estimate_scale);
+#endif
 }
 #else
 #define TUILE_HW_ESTIMATES 0
@@ -357,6 +396,7 @@ template <class T> inline T perturb_estimate(const T& r) noexcept {
 
 inline float rcp_nr(float x) noexcept {
 #if TUILE_HW_ESTIMATES
+  TUILE_EXACT_AT_RUN_TIME(1.f / x);
   const float r = perturb_estimate(_mm_cvtss_f32(_mm_rcp14_ss(_mm_setzero_ps(), _mm_set_ss(x))));
   return r * mul_add(-x, r, 2.f);
 #else
@@ -365,6 +405,7 @@ inline float rcp_nr(float x) noexcept {
 }
 inline vfloat rcp_nr(const vfloat& x) noexcept {
 #if TUILE_HW_ESTIMATES
+  TUILE_EXACT_AT_RUN_TIME(vfloat(1.f) / x);
   const vfloat r = perturb_estimate(vfloat(_mm512_rcp14_ps(x)));
   return r * mul_add(-x, r, vfloat(2.f));
 #else
@@ -373,6 +414,7 @@ inline vfloat rcp_nr(const vfloat& x) noexcept {
 }
 inline float rsqrt_nr(float x) noexcept {
 #if TUILE_HW_ESTIMATES
+  TUILE_EXACT_AT_RUN_TIME(1.f / std::sqrt(x));
   const float r = perturb_estimate(_mm_cvtss_f32(_mm_rsqrt14_ss(_mm_setzero_ps(), _mm_set_ss(x))));
   return r * mul_add(-((0.5f * x) * r), r, 1.5f);  // no r * r: it overflows for x near the smallest floats
 #else
@@ -381,6 +423,7 @@ inline float rsqrt_nr(float x) noexcept {
 }
 inline vfloat rsqrt_nr(const vfloat& x) noexcept {
 #if TUILE_HW_ESTIMATES
+  TUILE_EXACT_AT_RUN_TIME(vfloat(1.f) / xsimd::sqrt(x));
   const vfloat r = perturb_estimate(vfloat(_mm512_rsqrt14_ps(x)));
   return r * mul_add(-((vfloat(0.5f) * x) * r), r, vfloat(1.5f));
 #else
