@@ -1,5 +1,5 @@
 // The one knob of the statistical tests' size: TUILE_TEST_SCALE (a CMake cache variable, 1
-// unless set). CI's sanitizer tree sets 16, where the instrumented renders run ten or more
+// unless set). CI's sanitizer tree sets 32, where the instrumented renders run ten or more
 // times slower; the native and portable trees keep 1, the full size.
 //
 // A test that uses it draws scaled(n) samples instead of n (or renders at a scaled
