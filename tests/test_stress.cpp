@@ -757,7 +757,8 @@ TEST(StressOnePixel, TenMillionSamplesMatchExactTo1e6) {
   add_source_quad(p, {0.195f, 1, 0.095f}, {0.01f, 0, 0}, {0, 0, 0.01f}, 2.f);
   finalize_scene(p.scene);
   const double exact = exact_image(p, 12)[0];
-  // Area sampling: its per-sample values carry no systematic float error. (The float
+  // Area sampling: its per-sample values carry little systematic float error (measured here:
+  // 8e-8 relative, at a standard error of 6.6e-9, so about one ulp of bias). (The float
   // solid-angle map of a rectangle is biased by about 1e-6 relative, measured: 3.8e-7 at
   // 2^20 samples, 1.2e-6 at 2^23; noted in docs/stress.md.)
   Est e = light_sa;
