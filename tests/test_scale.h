@@ -22,13 +22,15 @@ namespace tuile::test {
 inline constexpr uint32_t test_scale = TUILE_TEST_SCALE;
 static_assert(test_scale >= 1, "TUILE_TEST_SCALE is at least 1");
 
-// n samples (or passes, or pixels per side) divided by the knob, at least lo.
+// n samples (or passes, or pixels per side) divided by the knob, at least lo (a floor
+// where a heavy-tailed estimator needs that many for its standard error to be honest), and
+// never more than n.
 template <class T> constexpr T scaled(T n, T lo = T(1)) {
-  return std::max(lo, static_cast<T>(n / static_cast<T>(test_scale)));
+  return std::max(std::min(lo, n), static_cast<T>(n / static_cast<T>(test_scale)));
 }
-// How much a standard error grows when n becomes scaled(n): sqrt(n / scaled(n)).
-template <class T> inline double sigma_growth(T n) {
-  return std::sqrt(static_cast<double>(n) / static_cast<double>(scaled(n)));
+// How much a standard error grows when n becomes scaled(n, lo): sqrt(n / scaled(n, lo)).
+template <class T> inline double sigma_growth(T n, T lo = T(1)) {
+  return std::sqrt(static_cast<double>(n) / static_cast<double>(scaled(n, lo)));
 }
 
 }  // namespace tuile::test

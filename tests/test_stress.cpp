@@ -1372,10 +1372,17 @@ Cmp compare_const(const RenderResult& r, double exact) {
 // where the estimator is nearly noiseless; and the standard error below 2% (so that the
 // comparison means something) unless the strategy is light sampling of a lobe it cannot
 // find (printed only). 4 SE: a correct renderer fails one of the suite's ~60 such
-// comparisons with probability ~4e-3 over seeds; the seeds are fixed.
+// comparisons with probability ~4e-3 over seeds; the seeds are fixed. Under the knob
+// (tests/test_scale.h) BSDF sampling and MIS fall to no fewer than 128 per pixel (8 x 8
+// pixels: 8192 samples per image) and the 2% bound grows with their standard error; light
+// sampling of a rough lobe keeps its full count: its rare large samples (a light point
+// near the lobe's peak) leave its sample variance too small below that (z -4.1 and -5.4
+// measured at 128 per pixel, alpha 0.3 and 1).
 void expect_furnace(const Scene& s, double exact, double rel_tol, uint32_t spp, bool light_blind, const std::string& what) {
   for (const Est& e : {light_sa, bsdf_only, mis_sa, mis_one}) {
-    const RenderOptions o = options(e, spp, 71);
+    const uint32_t lo = e.strategy == Strategy::light ? spp : 128u;
+    const double se_bound = 0.02 * sigma_growth(spp, lo);
+    const RenderOptions o = options(e, scaled(spp, lo), 71);
     const RenderResult r = render_scene(s, o);
     const std::string w = what + " " + name_of(o);
     expect_clean(r, w);
@@ -1383,7 +1390,7 @@ void expect_furnace(const Scene& s, double exact, double rel_tol, uint32_t spp, 
     std::printf("[ material furnace ] %s: %s se/exact %.2g\n", w.c_str(), show(c).c_str(), c.se / exact);
     if (light_blind && e.strategy == Strategy::light) continue;
     EXPECT_TRUE(std::fabs(c.z()) < 4.0 || std::fabs(c.rel()) < rel_tol) << w << ": " << show(c);
-    EXPECT_LT(c.se, 0.02 * exact) << w << ": " << show(c);
+    EXPECT_LT(c.se, se_bound * exact) << w << ": " << show(c);
   }
 }
 
@@ -1552,7 +1559,8 @@ TEST(StressMaterials, IndexMatchedGlassIsInvisible) {
 // MIS (power multi-sample, balance multi-sample, balance one-sample) must agree with MIS
 // (power, solid angle), per channel over the image and per band of 4 rows, within 4
 // combined standard errors (5 strategies x 4 materials x 15 comparisons: a correct renderer
-// fails one with probability ~2e-2 over seeds; the seeds are fixed). It catches a lobe
+// fails one with probability ~2e-2 over seeds; the seeds are fixed; under the knob, at
+// least 64 per pixel: 4096 samples per band). It catches a lobe
 // whose pdf and f disagree at grazing angles (G1 of a grazing wo, visible normals sampled
 // below the horizon), and a MIS weight computed from the wrong pdf.
 TEST(StressMaterials, GrazingLightAndViewOnGlossySurfaces) {
@@ -1589,7 +1597,8 @@ TEST(StressMaterials, GrazingLightAndViewOnGlossySurfaces) {
       finalize_scene(s);
       ASSERT_EQ(s.lights.size(), 1u);
       const std::string mat = std::string(kind == 0 ? "conductor" : "coated diffuse") + " alpha " + std::to_string(a);
-      const RenderOptions ref_o = options(mis_sa, 256, 75);
+      const uint32_t spp = scaled(256u, 64u);
+      const RenderOptions ref_o = options(mis_sa, spp, 75);
       const RenderResult ref = render_scene(s, ref_o);
       expect_clean(ref, mat + " " + name_of(ref_o));
       const std::vector<float> ref_var = ref.film.variance_of_mean();
@@ -1597,7 +1606,7 @@ TEST(StressMaterials, GrazingLightAndViewOnGlossySurfaces) {
       for (float v : ref.mean) total += v;
       EXPECT_GT(total, 0.0) << mat;
       for (const Est& e : {light_sa, light_area, bsdf_only, mis_area, mis_one}) {
-        const RenderOptions o = options(e, 256, 76);
+        const RenderOptions o = options(e, spp, 76);
         const RenderResult r = render_scene(s, o);
         const std::string what = mat + " " + name_of(o);
         expect_clean(r, what);
@@ -1904,7 +1913,8 @@ TEST(StressPaths, RussianRouletteEndsPathsAtDepth100000) {
 // leaving it must cancel, and Russian roulette must divide the eta scale out (pbrt-v4)
 // rather than end paths inside the glass, where radiance is eta^2 larger. Depth 1000, so
 // Russian roulette ends the paths; the independent sampler, so the per-pixel variances
-// are honest: the image mean within 5 standard errors. (Fails: rays leaving the sphere
+// are honest: the image mean within 5 standard errors (under the knob, at least 64 per
+// pixel, and the SE bound grows with the SE). (Fails: rays leaving the sphere
 // meet it again at their origin, docs/stress.md "Paths at their limits".)
 TEST(StressPaths, GlassSphereInAFurnaceChangesNothing) {
   const float E = 1.f, a = 0.5f;
@@ -1912,14 +1922,14 @@ TEST(StressPaths, GlassSphereInAFurnaceChangesNothing) {
   const Scene s = path_furnace(diffuse_material(Rgb{a, a, a}), E, &glass);
   const double want = E / (1 - a);
   for (const Est& e : {mis_sa, bsdf_only}) {
-    const RenderOptions o = path_options(e, 1000, 512, 83);
+    const RenderOptions o = path_options(e, 1000, scaled(512u, 64u), 83);
     const RenderResult r = render_scene(s, o);
     const std::string what = name_of(o);
     expect_clean(r, what);
     const Cmp c = compare_uniform(r, want);
     std::printf("[ glass furnace ] %s: %s\n", what.c_str(), show(c).c_str());
     EXPECT_LT(std::fabs(c.z()), 5.0) << what << ": " << show(c);
-    EXPECT_LT(c.se, 0.002 * want) << what;  // a bias of 1% is 5 SE
+    EXPECT_LT(c.se, 0.002 * sigma_growth(512u, 64u) * want) << what;  // a bias of 1% is 5 SE
     EXPECT_LT(vertices_per_sample(r.stats), 50.0) << what;
   }
 }
