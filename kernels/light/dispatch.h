@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "light/kinds/distant.h"
+#include "light/kinds/infinite.h"
 #include "light/kinds/parallelogram.h"
 #include "light/kinds/point.h"
 #include "light/kinds/sphere.h"
@@ -30,7 +31,7 @@ template <unsigned Kinds, LightKind K, class T, class F> inline void visit_light
 }
 
 // The lanes' kinds are g.type. Kinds: the groups a pipeline can meet (kind_area,
-// kind_delta); with kind_rects every source is a rectangle and f runs once, with
+// kind_delta, kind_sky); with kind_rects every source is a rectangle and f runs once, with
 // RectangleLight over every lane (no test of the kind).
 template <unsigned Kinds, class T, class F> inline void for_each_light_kind(const LightGeom<T>& g, F&& f) {
   if constexpr ((Kinds & kind_rects) != 0) {
@@ -57,9 +58,10 @@ template <unsigned Kinds, class T, class F> inline void for_each_light_shape(con
     visit_light_kind<Kinds, LightKind::point, T>(g.type, f);
     visit_light_kind<Kinds, LightKind::spot, T>(g.type, f);
     visit_light_kind<Kinds, LightKind::distant, T>(g.type, f);
+    visit_light_kind<Kinds, LightKind::infinite, T>(g.type, f);
   }
 }
-static_assert(light_kind_count == 6, "for_each_light_shape names every kind");
+static_assert(light_kind_count == 7, "for_each_light_shape names every kind");
 
 // Each kind's code agrees with the list about what it is.
 template <int... K> constexpr bool kinds_agree(std::integer_sequence<int, K...>) {
@@ -78,11 +80,12 @@ template <class F> inline decltype(auto) with_light_kind(LightKind k, F&& f) {
     case LightKind::sphere: return f(LightKindOps<LightKind::sphere>{});
     case LightKind::point: return f(LightKindOps<LightKind::point>{});
     case LightKind::spot: return f(LightKindOps<LightKind::spot>{});
-    case LightKind::distant: break;
+    case LightKind::distant: return f(LightKindOps<LightKind::distant>{});
+    case LightKind::infinite: break;
   }
-  return f(LightKindOps<LightKind::distant>{});
+  return f(LightKindOps<LightKind::infinite>{});
 }
-static_assert(light_kind_count == 6, "with_light_kind names every kind");
+static_assert(light_kind_count == 7, "with_light_kind names every kind");
 
 // A source's power (lum: its radiance's luminance; scene_radius: of the scene's bounding
 // sphere, for sources at infinity).

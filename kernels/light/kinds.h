@@ -21,29 +21,36 @@ enum class LightKind : int32_t {
   point = 3,          // position p0, intensity in the radiance
   spot = 4,           // position p0, axis e1 (unit), cos of the cone's falloff start / end in e2.x / e2.y
   distant = 5,        // towards the light is e1 (unit), irradiance in the radiance
+  infinite = 6,       // the sky: radiance from every direction at infinity (constant: the radiance)
 };
-inline constexpr int light_kind_count = 6;
+inline constexpr int light_kind_count = 7;
 
 // Which kinds of source a pipeline can meet (wave/features.h), as bits: the code of the
 // other kinds is removed at compile time. Each kind belongs to one group (kind_area: it
-// has a surface and a density; kind_delta: it is sampled by a single direction).
+// has a surface and a density; kind_delta: it is sampled by a single direction; kind_sky:
+// a density over the directions at infinity, found by the rays that escape the scene).
 // kind_rects (with kind_area alone): every source is a rectangle, so the light stages run
 // Urena's map without dispatching on the kind of source (the same values as kind_area).
-inline constexpr unsigned kind_area = 1, kind_delta = 2, kind_all = 3, kind_rects = 4;
+// kind_finite: every group but the sky (the pipelines of scenes without one).
+inline constexpr unsigned kind_area = 1, kind_delta = 2, kind_rects = 4, kind_sky = 8;
+inline constexpr unsigned kind_finite = kind_area | kind_delta, kind_all = kind_area | kind_delta | kind_sky;
 
 struct LightKindInfo {
   const char* name;
-  unsigned group;    // kind_area or kind_delta
+  unsigned group;    // kind_area, kind_delta or kind_sky
   bool planar;       // emits from a plane, on the side of cross(e1, e2) unless two-sided
   bool at_infinity;  // its directions come from infinitely far away (no position)
 };
 inline constexpr LightKindInfo light_kind_info[light_kind_count] = {
     {"triangle", kind_area, true, false}, {"parallelogram", kind_area, true, false}, {"sphere", kind_area, false, false},
     {"point", kind_delta, false, false},  {"spot", kind_delta, false, false},         {"distant", kind_delta, false, true},
+    {"infinite", kind_sky, false, true},
 };
 constexpr const LightKindInfo& kind_info(LightKind k) { return light_kind_info[static_cast<int>(k)]; }
 constexpr bool is_delta(LightKind k) { return kind_info(k).group == kind_delta; }
 constexpr bool is_planar(LightKind k) { return kind_info(k).planar; }
+// A light at infinity with a density over directions: seen by rays that leave the scene.
+constexpr bool is_sky(LightKind k) { return kind_info(k).group == kind_sky; }
 
 // A source's shape as the scene states it (its radiance and where it came from are the
 // scene's: Light in src/scene/scene.h).

@@ -45,6 +45,15 @@ inline T pdf_light_point_sa(LightPoint mode, const LightGeom<T>& g, const Vec3<T
   return finite_or_zero(pdf);
 }
 
+// The density of the direction wi towards a light at infinity under its own sampling
+// (sample_light_point), not including the pick pdf: what a ray that escaped the scene
+// along wi is weighted against (wave/escaped.h). 0 for every other kind.
+template <unsigned Kinds = kind_all, class T> inline T pdf_sky_direction(const LightGeom<T>& g, const Vec3<T>& wi) {
+  T pdf(0.f);
+  for_each_light_kind<Kinds & kind_sky>(g, [&](auto ops, const mask_t<T>& m) { pdf = sel(m, ops.pdf_direction(g, wi), pdf); });
+  return finite_or_zero(pdf);
+}
+
 // Solid angle a source subtends from x, as the density uses it (0 for delta sources).
 template <unsigned Kinds = kind_all, class T> inline T light_solid_angle(const LightGeom<T>& g, const Vec3<T>& x) {
   T omega(0.f);
@@ -82,7 +91,8 @@ inline void take_area_point(const LightGeom<T>& g, const Vec3<T>& x, const Vec3<
 // spherical maps run first: each kind's fallback rule (its SolidAngleSample's safe) decides
 // which lanes keep them, and only the lanes that fall back draw a point by area. The pdf is
 // always the one of the strategy that produced the sample, as pdf_light_point_sa evaluates
-// it. Delta sources give their one direction.
+// it (pdf_sky_direction for the sky, whatever the mode). Delta sources give their one
+// direction.
 template <unsigned Kinds = kind_all, class T>
 inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T>& g, const Vec3<T>& x, T u1,
                                               T u2) {
@@ -116,6 +126,15 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
       }
     });
     if (any(by_area)) take_area_point<Kinds>(g, x, y, by_area, wi, dist, pdf, valid);
+  }
+  if constexpr ((Kinds & kind_sky) != 0) {  // a direction at infinity, with its density
+    for_each_light_kind<kind_sky>(g, [&](auto ops, const mask_t<T>& m) {
+      const SkySample<T> d = ops.sample_direction(g, u1, u2);
+      wi = sel(m, d.wi, wi);
+      dist = sel(m, T(LightKindOps<LightKind::distant>::infinite_distance), dist);
+      pdf = sel(m, d.pdf, pdf);
+      valid = sel_mask(m, d.pdf > T(0.f), valid);
+    });
   }
   if constexpr ((Kinds & kind_delta) != 0) {
     for_each_light_kind<kind_delta>(g, [&](auto ops, const mask_t<T>& m) {

@@ -42,6 +42,10 @@ struct LightView {
   // the light BVH (light/bvh.h) when sources are picked with it (--light-pick bvh); then
   // pick_pdf and the alias table are not read for picks
   const LightBvhView* bvh = nullptr;
+  // the sources of the kind_sky group (light/kinds/infinite.h), which the rays that escape
+  // the scene see (wave/escaped.h): their indices in this table
+  int32_t sky_count = 0;
+  const int32_t* sky_light = nullptr;
 };
 
 // How a light table is read per lane: tier_gather (any size), tier_small (tables padded to

@@ -96,6 +96,16 @@ template <class T> inline T pdf_cosine_hemisphere(const T& cos_theta) noexcept {
   return max(cos_theta, T(0.f)) * T(inv_pi_f);
 }
 
+// Uniform direction on the unit sphere (z = 1 - 2 u1, phi = 2 pi u2); density 1 / (4 pi).
+template <class T> inline Vec3<T> sample_uniform_sphere(const T& u1, const T& u2) noexcept {
+  const T z = T(1.f) - T(2.f) * u1;
+  const T r = sampling_detail::safe_sqrt(T(1.f) - z * z);
+  T s, c;
+  lane_math::sincos_2pi(u2, s, c);
+  return {r * c, r * s, z};
+}
+inline constexpr float inv_4pi_f = 0.0795774715459476678844f;
+
 // ---------------------------------------------------------------------------------------
 // 2. Uniform point on a triangle p0 + b1 e1 + b2 e2 (Heitz 2019: area-preserving, keeps
 // stratification with little distortion). pdf_area = 1 / area.

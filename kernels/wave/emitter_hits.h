@@ -9,6 +9,7 @@
 // the shading points' radiance.
 #pragma once
 #include "light/bvh.h"
+#include "wave/escaped.h"
 #include "wave/surface_hits.h"
 
 namespace tuile {
@@ -74,15 +75,9 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
   const T dist = load<T>(tb.queue.dist + j);
   T Le_r, Le_g, Le_b;
   const T pdf_l = light_pdf_of_hit<T, Kinds>(L, est, tb, load_i32<T>(tb.queue.point + j), idx, x, wi, dist, Le_r, Le_g, Le_b);
-  T w(1.f);
-  if (est.strategy == Strategy::mis) {
-    const T q_b = T(rate_bsdf) * load<T>(tb.queue.pdf + j);
-    w = mis_weight(est.heuristic, q_b, T(rate_light) * pdf_l, est.mis);
-  } else if (est.strategy == Strategy::light || est.strategy == Strategy::ris) {
-    // the general pipeline traces BSDF rays even when they must not count; resampled
-    // importance sampling (ris.h) covers every direction but the delta lobes'
-    w = T(0.f);
-  }
+  // (the general pipeline traces BSDF rays even when they must not count; resampled
+  // importance sampling, ris.h, covers every direction but the delta lobes')
+  T w = bsdf_technique_weight<T>(est, rate_light, rate_bsdf, load<T>(tb.queue.pdf + j), pdf_l);
   if constexpr (Delta) w = sel(f_mask_from_i(load_i32<T>(tb.queue.delta + j) != i32_t<T>(0)), T(1.f), w);
   const T factor = sel(live, w / T(rate_bsdf), T(0.f));
   store(tb.tech.cr + j, load<T>(tb.queue.beta_r + j) * Le_r * factor);

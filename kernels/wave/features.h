@@ -15,7 +15,8 @@
 namespace tuile {
 
 struct Features {
-  unsigned kinds = kind_all;   // kinds of source the pipeline can meet (kind_area, kind_delta, kind_rects)
+  unsigned kinds = kind_all;   // kinds of source the pipeline can meet (kind_area, kind_delta, kind_sky, kind_rects);
+                               // with kind_sky the escaped-ray stage runs (wave/escaped.h)
   bool light = true;           // the light-sampling technique's stages run
   bool bsdf = true;            // the BSDF-sampling technique's stages run
   bool pick = true;            // each lane picks a source (else every lane samples one given source)
@@ -40,6 +41,7 @@ inline std::string features_name(const Features& f) {
   std::string name = std::string(kinds) + "/" + technique;
   if (f.light) name += f.pick ? "/pick" : "/single";
   if (f.bsdfs != bsdf_diffuse) name += "/materials";
+  if ((f.kinds & kind_sky) != 0) name += "/sky";
   return name;
 }
 

@@ -22,6 +22,7 @@
 #pragma once
 #include "wave/accumulate.h"
 #include "wave/emitter_hits.h"
+#include "wave/escaped.h"
 #include "wave/sample_lights.h"
 
 namespace tuile {
@@ -128,6 +129,43 @@ TUILE_FLATTEN inline void ris_bsdf_lanes(const GeomView& G, const LightView& L, 
   ris_offer(tb, k, ok, w, load<T>(tb.tech.u3 + k), target, c_r, c_g, c_b, o, d, t * T(1.f - 1.f / 4096.f));
 }
 
+// A BSDF candidate for points [k, k + width) that reached no emitter (traced against the
+// emitters alone) is a candidate on the sky, whose shadow ray decides whether anything of
+// the scene lies in between. The scene's skies are one table entry (finalize_scene adds
+// constant skies into one), so each lane offers at most one candidate here and one
+// resampling number serves it.
+template <class T, unsigned Bsdfs = bsdf_diffuse> inline void ris_sky_lanes(const LightView& L, const Estimator& est, TileBuffers& tb, int k) {
+  const RayHit16& r = tb.bounce[k / packet_width];
+  const int l = k % packet_width;
+  auto missed = f_mask_from_i(load_i32<T>(tb.tech.valid + k) != i32_t<T>(0) &&
+                              load_i32<T>(reinterpret_cast<const int32_t*>(r.geomID + l)) < i32_t<T>(0));
+  if constexpr ((Bsdfs & bsdf_delta_capable) != 0)  // a delta lobe's direction is not a candidate
+    missed = missed && f_mask_from_i(load_i32<T>(tb.tech.delta + k) == i32_t<T>(0));
+  if (!any(missed)) return;
+  const int32_t sky = L.sky_light[0];
+  const Vec3<T> x = load3<T>(tb.points.px + k, tb.points.py + k, tb.points.pz + k);
+  const Vec3<T> n = load3<T>(tb.points.nx + k, tb.points.ny + k, tb.points.nz + k);
+  const Vec3<T> o = load3<T>(r.ray.org_x + l, r.ray.org_y + l, r.ray.org_z + l);
+  const Vec3<T> d = load3<T>(r.ray.dir_x + l, r.ray.dir_y + l, r.ray.dir_z + l);
+  const T pdf_l = sky_pick_pmf<T>(L, x, n, sky) * pdf_sky_direction<kind_sky>(broadcast_light<T>(L, sky), d);
+  const T pdf_b = load<T>(tb.tech.pdf + k);
+  T Le_r, Le_g, Le_b;
+  sky_radiance<T>(L, sky, d, Le_r, Le_g, Le_b);
+  // f cos = throughput times pdf
+  const T c_r = load<T>(tb.tech.beta_r + k) * pdf_b * Le_r;
+  const T c_g = load<T>(tb.tech.beta_g + k) * pdf_b * Le_g;
+  const T c_b = load<T>(tb.tech.beta_b + k) * pdf_b * Le_b;
+  const T target = luminance(c_r, c_g, c_b);
+  const T denom = T(static_cast<float>(est.ris_light)) * pdf_l + T(static_cast<float>(est.ris_bsdf)) * pdf_b;
+  auto ok = missed && pdf_b > T(0.f) && target > T(0.f) && is_finite(target);
+  const T w = target / sel(ok, denom, T(1.f));
+  const auto fin = is_finite(w);
+  if (any(ok && !fin)) tb.stats.rejected_bsdf += static_cast<uint64_t>(count(ok && !fin));
+  ok = ok && fin;
+  ris_offer(tb, k, ok, w, load<T>(tb.tech.u3 + k), target, c_r, c_g, c_b, o, d,
+            T(LightKindOps<LightKind::distant>::infinite_distance));
+}
+
 // The kept candidates' shadow rays and contributions (f Le cos / p-hat times the sum of
 // weights), for the shadow query and accumulate_shadow.
 template <class T> inline void ris_finish_lanes(TileBuffers& tb, int k) {
@@ -169,6 +207,9 @@ inline void ris_bsdf_candidates(const GeomView& G, const LightView& L, const Est
   point_pairs(est, tb, sample, lobe_pair, padded, tb.tech.u2, tb.tech.u3);
   // one batch at a time: a batch reads the hits of one packet (as queue_emitter_lanes)
   for (int k = 0; k < padded; k += simd_width) ris_bsdf_lanes<vfloat, Kinds, Bsdfs>(G, L, est, tb, k);
+  if constexpr ((Kinds & kind_sky) != 0)
+    if (L.sky_count > 0)
+      for (int k = 0; k < padded; k += simd_width) ris_sky_lanes<vfloat, Bsdfs>(L, est, tb, k);
 }
 
 template <class T = vfloat> inline void ris_finish(TileBuffers& tb) {

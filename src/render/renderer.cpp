@@ -34,7 +34,15 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   opt_.est.aov_mis_weight = opt_.est.aov_mis_weight || opt_.aov_mis_weight;
   *views_ = build_views(scene, opt_.est.pick);
   views_->camera.filter = build_filter(opt_.filter, views_->filter_table);  // the pixel filter's tables, once
-  if (opt_.bounce == BounceTrace::automatic) {
+  // a bounce ray traced against the emitters alone cannot tell the sky from the rest of the
+  // scene: where there is a sky, every bounce ray looks for its nearest hit in the scene
+  const bool sky = (scene.features & feat_sky) != 0;
+  if (sky && opt_.bounce == BounceTrace::emitters)
+    throw std::invalid_argument("--bounce emitters: the scene has a sky (LightSource \"infinite\"), which only rays traced "
+                                "against the whole scene can find; use --bounce scene or auto");
+  if (sky) {
+    bounce_against_emitters_ = false;
+  } else if (opt_.bounce == BounceTrace::automatic) {
     size_t all = scene.spheres.size(), emitting = 0;
     for (const Mesh& m : scene.meshes) {
       all += m.triangle_count();

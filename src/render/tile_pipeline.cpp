@@ -37,9 +37,7 @@ Features pipeline_features(const SceneViews& v, const Estimator& est, bool gener
   const bool area = v.has_area(), delta = v.has_delta();
   const bool materials = v.has_materials();
   PipelineFacts x;
-  x.area = area;
-  x.delta = delta;
-  x.rects = v.all_rects();
+  x.scene = v.features;
   x.lights = std::min(v.lights.count, 2);
   x.materials = materials;
   x.delta_surfaces = (v.bsdf_kinds & bsdf_delta_capable) != 0;
@@ -48,6 +46,7 @@ Features pipeline_features(const SceneViews& v, const Estimator& est, bool gener
   x.paths = est.max_depth > 1;
   const Features f = features_for(x);
   why = std::string(area ? "area lights" : "no area light") + ", " + (delta ? "delta lights" : "no delta light") + ", " +
+        ((v.features & feat_sky) ? "a sky (the general pipeline), " : "") +
         std::to_string(v.lights.count) + " light(s), pick " + (f.pick ? "per lane" : "none") + ", strategy " +
         (est.strategy == Strategy::mis     ? "mis"
          : est.strategy == Strategy::light ? "light"
@@ -62,7 +61,7 @@ PipelineEntry pick_pipeline(const SceneViews& v, const Estimator& est, bool gene
   const Features f = pipeline_features(v, est, general, why);
   for (size_t i = 0; i < pipeline_count; ++i)
     if (registered_pipelines[i] == f) {
-      std::string name = general ? std::string("general") : features_name(f);
+      std::string name = general || f == general_features ? std::string("general") : features_name(f);
       if (general_pipeline_only && i != 0) name += " (run by the general pipeline: TUILE_PIPELINES=general)";
       return {name, registered_functions()[i]};
     }

@@ -12,6 +12,7 @@
 #include "render/film.h"
 #include "render/profile.h"
 #include "render/views.h"
+#include "scene/scene.h"
 #include "sample/layout.h"
 #include "wave/features.h"
 #include "wave/tile.h"
@@ -51,55 +52,67 @@ struct PipelineEntry {
   TileFn fn;
 };
 
-// What pipeline_features reads of a scene and an estimator: the facts a pipeline is chosen by.
+// What a pipeline is chosen by. The scene's part is its feature bits as finalize_scene
+// states them (SceneFeature, src/scene/scene.h: the one list of what a scene can have),
+// the kinds of surface its geometry has and how many sources; the estimator's part is the
+// strategy, the pick and the depth.
 struct PipelineFacts {
-  bool area = false, delta = false;  // the scene has area sources, delta sources
-  bool rects = false;                // every source is a rectangle (SceneViews::all_rects)
-  int lights = 0;                    // how many sources: 0, 1, or 2 for more
-  bool materials = false;            // surfaces other than diffuse
-  bool delta_surfaces = false;       // some surface can have a delta lobe (bsdf_delta_capable)
+  uint32_t scene = 0;            // SceneFeature bits
+  int lights = 0;                // how many sources: 0, 1, or 2 for more
+  bool materials = false;        // surfaces other than diffuse (SceneViews::has_materials)
+  bool delta_surfaces = false;   // some surface can have a delta lobe (bsdf_delta_capable)
   Strategy strategy = Strategy::mis;
   bool pick_all = false;  // --light-pick all
   bool paths = false;     // max depth > 1
+  constexpr bool has(uint32_t bit) const { return (scene & bit) != 0; }
 };
+
+// The scene bits a pipeline is chosen by (the others, such as textures or spheres, are read
+// at run time): a new bit here adds the pipelines features_for gives it, by itself.
+inline constexpr uint32_t pipeline_scene_bits[] = {feat_area_lights, feat_delta_lights, feat_rect_lights_only, feat_sky};
 
 // The features of the pipeline for those facts: the stages and lookups they need, and no
 // others.
 constexpr Features features_for(const PipelineFacts& x) {
+  const bool area = x.has(feat_area_lights), delta = x.has(feat_delta_lights);
+  // A sky (and the escaped-ray stage it needs) runs in the general pipeline alone: no
+  // specialisation for it has been measured to pay yet, and each would add compile time.
+  if (x.has(feat_sky)) return general_features;
   Features f;
-  f.light = x.lights > 0 && (x.strategy != Strategy::bsdf || x.delta);
+  f.light = x.lights > 0 && (x.strategy != Strategy::bsdf || delta);
   const bool ris = x.strategy == Strategy::ris && x.lights > 0;
   // a specular surface needs its BSDF samples whatever the strategy: no light sample finds
   // the light it reflects (sample_bsdf traces only those under --strategy light)
-  f.bsdf = x.area && (x.strategy != Strategy::light || x.delta_surfaces);
+  f.bsdf = area && (x.strategy != Strategy::light || x.delta_surfaces);
   f.pick = f.light && x.lights > 1 && !x.pick_all;
-  f.emitter_lookup = x.area;  // only area sources are seen by camera and bounce rays
-  f.kinds = !x.area && !x.delta ? kind_all
-            : !x.area           ? kind_delta
-            : x.delta           ? kind_all
-            : x.rects           ? kind_area | kind_rects
-                                : kind_area;
+  f.emitter_lookup = area;  // only area sources are seen by camera and bounce rays
+  f.kinds = !area && !delta             ? kind_finite
+            : !area                     ? kind_delta
+            : delta                     ? kind_finite
+            : x.has(feat_rect_lights_only) ? kind_area | kind_rects
+                                        : kind_area;
   f.bsdfs = x.materials ? bsdf_all : bsdf_diffuse;
-  if (x.materials) f.kinds = kind_all;  // one pipeline per technique for every other surface
-  if (x.paths && (x.area || x.delta)) {
+  if (x.materials) f.kinds = kind_finite;  // one pipeline per technique for every other surface
+  if (x.paths && (area || delta)) {
     // paths go on along a BSDF sample at every vertex, and their bounce rays look up the
     // emitters they reach whatever the sources
     f.bsdf = true;
     f.emitter_lookup = true;
-    if (!x.area) f.kinds = kind_all;
+    if (!area) f.kinds = kind_finite;
   }
   if (ris) {  // the BSDF candidates and the last BSDF sample run on every scene with lights
     f.bsdf = true;
     f.emitter_lookup = true;
-    if (!x.area) f.kinds = kind_all;
+    if (!area) f.kinds = kind_finite;
   }
-  if (!f.light && !f.bsdf) f = Features{kind_all, false, false, false, false, bsdf_diffuse};
+  if (!f.light && !f.bsdf) f = Features{kind_finite, false, false, false, false, bsdf_diffuse};
   return f;
 }
 
 // The registry: every feature set some scene and estimator can need, derived from every
-// consistent combination of the facts (general_features first). A new fact or feature bit
-// adds its pipelines here by itself; a combination features_for cannot produce gets none.
+// combination of the scene bits a pipeline is chosen by (pipeline_scene_bits) and the other
+// facts (general_features first). A new fact or feature bit adds its pipelines here by
+// itself; a combination features_for cannot produce gets none.
 struct PipelineRegistry {
   Features f[64] = {};
   size_t count = 0;
@@ -112,19 +125,23 @@ constexpr PipelineRegistry derive_pipelines() {
     r.f[r.count++] = f;
   };
   add(general_features);
-  for (int area = 0; area < 2; ++area)
-    for (int delta = 0; delta < 2; ++delta)
-      for (int lights = 0; lights < 3; ++lights) {
-        if ((area || delta) != (lights > 0) || (area && delta && lights < 2)) continue;
-        for (int rects = 0; rects <= area; ++rects)
-          for (int materials = 0; materials < 2; ++materials)
-            for (int delta_surfaces = 0; delta_surfaces <= materials; ++delta_surfaces)
-              for (Strategy st : {Strategy::light, Strategy::bsdf, Strategy::mis, Strategy::ris})
-                for (int pick_all = 0; pick_all < 2; ++pick_all)
-                  for (int paths = 0; paths < 2; ++paths)
-                    add(features_for({area != 0, delta != 0, rects != 0, lights, materials != 0, delta_surfaces != 0, st,
-                                      pick_all != 0, paths != 0}));
-      }
+  constexpr size_t nbits = std::size(pipeline_scene_bits);
+  for (uint32_t subset = 0; subset < 1u << nbits; ++subset) {
+    uint32_t scene = 0;
+    for (size_t b = 0; b < nbits; ++b)
+      if (subset & 1u << b) scene |= pipeline_scene_bits[b];
+    // a scene has as many sources as kinds of source at least
+    const int groups = ((scene & feat_area_lights) != 0) + ((scene & feat_delta_lights) != 0) + ((scene & feat_sky) != 0);
+    for (int lights = 0; lights < 3; ++lights) {
+      if ((groups > 0) != (lights > 0) || groups > lights) continue;
+      for (int materials = 0; materials < 2; ++materials)
+        for (int delta_surfaces = 0; delta_surfaces <= materials; ++delta_surfaces)
+          for (Strategy st : {Strategy::light, Strategy::bsdf, Strategy::mis, Strategy::ris})
+            for (int pick_all = 0; pick_all < 2; ++pick_all)
+              for (int paths = 0; paths < 2; ++paths)
+                add(features_for({scene, lights, materials != 0, delta_surfaces != 0, st, pick_all != 0, paths != 0}));
+    }
+  }
   return r;
 }
 inline constexpr PipelineRegistry pipeline_registry = derive_pipelines();

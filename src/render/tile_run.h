@@ -1,5 +1,6 @@
-// run_tile: one tile's stages back to back (generate, trace camera rays, camera hits,
-// sample lights, trace shadow rays, sample the BSDF, trace bounce rays, MIS weight,
+// run_tile: one tile's stages back to back (generate, trace camera rays, camera hits and
+// the camera rays that escaped, sample lights, trace shadow rays, sample the BSDF, trace
+// bounce rays, MIS weight of the emitters hit and of the sky the escaped rays see,
 // accumulate), a template over Features. Included only by the translation units in
 // src/render/pipelines/, each of which instantiates a share of the registered pipelines
 // (register_pipeline_part), so that both cores of a build compile them. Internal to src/render.
@@ -17,6 +18,7 @@
 
 #include "wave/accumulate.h"
 #include "wave/emitter_hits.h"
+#include "wave/escaped.h"
 #include "wave/generate.h"
 #include "wave/path.h"
 #include "wave/ris.h"
@@ -265,6 +267,10 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
         read_bounce_visibility(tb);
       }
       weight_queue<F.kinds, delta>(v.lights, e, c.rate_light, c.rate_bsdf, tb);
+      // the rays that left the scene see the sky (traced against the whole scene: a scene
+      // with a sky never traces its bounce rays against the emitters alone)
+      if constexpr ((F.kinds & kind_sky) != 0)
+        escaped_bounce<vfloat, delta>(v.lights, e, c.rate_light, c.rate_bsdf, tb, continuation && e.one_sample());
       timer.lap(Stage::mis_weight);
     }
   }
@@ -306,6 +312,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     timer.lap(Stage::intersect_camera);
     camera_hits<F.emitter_lookup, vfloat, F.bsdfs != bsdf_diffuse>(v.geom, v.lights, est, s, layout.technique_choice(),
                                                                    lanes, tb);
+    if constexpr ((F.kinds & kind_sky) != 0) escaped_camera(v.lights, tb, lanes);  // the sky, seen directly
     timer.lap(Stage::camera_hits);
     // Direct lighting is the first vertex; paths (max_depth > 1) go on from the last BSDF
     // sample of each vertex, compacted (bounce_hits), until no path is left or the depth

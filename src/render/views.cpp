@@ -78,13 +78,13 @@ void build_light_table(SceneViews& v, const Scene& scene, LightPick pick) {
   v.pick_pdf.assign(n, 0.f);
   if (n > 0) {
     std::vector<double> weight(n, 1.0);
-    if (pick == LightPick::area) {
+    if (pick == LightPick::area) {  // the sources without a surface (delta, sky) weigh the mean area
       double mean_area = 0;
       int na = 0;
       for (const Light& l : lights)
-        if (!is_delta(l.type)) mean_area += l.area, ++na;
+        if (l.area > 0) mean_area += l.area, ++na;
       mean_area = na ? mean_area / na : 1.0;
-      for (size_t i = 0; i < n; ++i) weight[i] = is_delta(lights[i].type) ? mean_area : lights[i].area;
+      for (size_t i = 0; i < n; ++i) weight[i] = lights[i].area > 0 ? lights[i].area : mean_area;
     } else if (pick == LightPick::power) {
       for (size_t i = 0; i < n; ++i) weight[i] = std::max(0.f, lights[i].power);
     }
@@ -135,6 +135,10 @@ void build_light_table(SceneViews& v, const Scene& scene, LightPick pick) {
   L.pick_pdf = v.pick_pdf.data();
   L.alias_prob = v.alias_prob.data();
   L.alias_idx = v.alias_idx.data();
+  for (size_t i = 0; i < n; ++i)
+    if (is_sky(lights[i].type)) v.sky_light.push_back(static_cast<int32_t>(i));
+  L.sky_count = static_cast<int32_t>(v.sky_light.size());
+  L.sky_light = v.sky_light.data();
   if (pick == LightPick::bvh && n > 1) {
     const auto t0 = std::chrono::steady_clock::now();
     v.light_bvh = std::make_unique<LightBvh>(build_light_bvh(lights));

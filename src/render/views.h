@@ -25,6 +25,7 @@ struct SceneViews {
   std::vector<float> len1, len2, inv_len1, inv_len2, rect, exx, exy, exz, eyx, eyy, eyz;
   std::vector<float> pick_pdf, alias_prob;
   std::vector<int32_t> alias_idx;
+  std::vector<int32_t> sky_light;  // LightView::sky_light
   LightView lights;
   // --light-pick bvh with two sources or more: the light BVH and its view (lights.bvh; on
   // the heap, so that moving the views keeps the pointer), its build time

@@ -192,13 +192,24 @@ void validate_scene(Scene& scene) {
   if (!(c.fov_deg > 0 && c.fov_deg < 180)) throw SceneError(scene.source + ": error: camera fov must be in (0, 180)");
 }
 
-// The light table: the delta lights the loader gave, an area light per emissive triangle
-// (or parallelogram, where two triangles of a mesh form one) and per emissive sphere, each
+// The light table: the delta lights the loader gave, its skies (constant ones added into
+// one: the same density, their radiances sum), an area light per emissive triangle (or
+// parallelogram, where two triangles of a mesh form one) and per emissive sphere, each
 // with its kind's power (light/kinds/).
 void derive_lights(Scene& scene) {
   std::vector<Light> lights;
-  for (const Light& l : scene.lights)
+  int sky = -1;
+  for (const Light& l : scene.lights) {
     if (is_delta(l.type)) lights.push_back(l);
+    if (!is_sky(l.type)) continue;
+    if (sky < 0) {
+      sky = static_cast<int>(lights.size());
+      lights.push_back(l);
+    } else {
+      Rgb& L = lights[static_cast<size_t>(sky)].radiance;
+      L = {L.r + l.radiance.r, L.g + l.radiance.g, L.b + l.radiance.b};
+    }
+  }
   for (size_t mi = 0; mi < scene.meshes.size(); ++mi) {
     Mesh& m = scene.meshes[mi];
     m.prim_light.clear();
@@ -268,10 +279,11 @@ void derive_lights(Scene& scene) {
 // The scene's feature bits (SceneFeature), which pick its tile pipeline.
 void detect_features(Scene& scene) {
   uint32_t f = 0;
-  bool any_area = false, any_delta = false;
-  for (const Light& l : scene.lights) (is_delta(l.type) ? any_delta : any_area) = true;
+  bool any_area = false, any_delta = false, any_sky = false;
+  for (const Light& l : scene.lights) (is_delta(l.type) ? any_delta : is_sky(l.type) ? any_sky : any_area) = true;
   if (any_area) f |= feat_area_lights | feat_visible_emitters;
   if (any_delta) f |= feat_delta_lights;
+  if (any_sky) f |= feat_sky;
   if (scene.lights.size() == 1) f |= feat_single_light;
   for (const Material& mt : scene.materials)
     if (mt.texture >= 0) f |= feat_textures;

@@ -114,7 +114,7 @@ struct Sphere {
 // A light source: its kind and shape (light/kinds.h: the one list of kinds, whose code is
 // in light/kinds/<name>.h) and what the scene knows of it.
 struct Light : LightShape {
-  Rgb radiance;       // L for area lights, I (W/sr) for point and spot, E (irradiance) for distant
+  Rgb radiance;       // L for area lights and skies, I (W/sr) for point and spot, E (irradiance) for distant
   float power = 0;    // emitted power (LightKindOps<kind>::power; luminance of radiance times pi A for one-sided area lights)
   int mesh = -1, prim = -1;  // where it came from (-1 for spheres/delta lights)
   int sphere = -1;
@@ -141,10 +141,11 @@ enum SceneFeature : uint32_t {
   feat_spheres = 1u << 4,
   feat_visible_emitters = 1u << 5,
   feat_rect_lights_only = 1u << 6,  // every source is a rectangle (Urena's map, no dispatch on kind)
+  feat_sky = 1u << 7,               // a light at infinity with a density (LightSource "infinite"): escaped rays see it
 };
 // Their names (`tuile info`), bit i named by entry i.
 inline constexpr const char* scene_feature_names[] = {"area-lights", "delta-lights",     "single-light",    "textures",
-                                                      "spheres",     "visible-emitters", "rect-lights-only"};
+                                                      "spheres",     "visible-emitters", "rect-lights-only", "sky"};
 
 struct Scene {
   std::string source;  // file name or "built-in:NAME"
@@ -154,7 +155,7 @@ struct Scene {
   std::vector<Material> materials;  // meshes with material -1 use a default grey 0.5
   std::vector<Texture> textures;
   std::vector<FloatTexture> float_textures;
-  std::vector<Light> lights;        // delta lights are added by loaders; area lights by finalize_scene
+  std::vector<Light> lights;        // delta lights and skies are added by loaders; area lights by finalize_scene
   std::vector<std::string> warnings;  // approximations made at load, one per kind
   // Settings from the file (pbrt Sampler/Film/Integrator); the command line overrides them.
   int file_spp = 0;

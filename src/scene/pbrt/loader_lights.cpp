@@ -1,6 +1,7 @@
 // The pbrt-v4 reader's lights: AreaLightSource (diffuse, kept in the graphics state for
-// the shapes that follow) and LightSource point, spot and distant (pbrt-v4's power and
-// illuminance normalisations); other light types are ignored with a warning.
+// the shapes that follow) and LightSource point, spot, distant and infinite with a constant
+// L (pbrt-v4's power and illuminance normalisations); other light types, and infinite
+// lights with an image, are ignored with a warning.
 #include <cmath>
 #include <string>
 
@@ -34,12 +35,17 @@ void Loader::light(Lexer& lx, const Token& t, const std::string& type, Params& p
     warn("instlight", where + ": light sources inside object definitions are not supported and were ignored");
     return;
   }
-  if (type != "point" && type != "spot" && type != "distant") {
+  if (type != "point" && type != "spot" && type != "distant" && type != "infinite") {
     ps.mark_all_used();
     warn("light:" + type, where + ": LightSource \"" + type + "\" is not supported and was ignored");
     return;
   }
-  const char* what = type == "distant" ? "L" : "I";
+  if (type == "infinite" && (ps.get("filename", "string") || ps.get("portal", "point3"))) {
+    ps.mark_all_used();
+    warn("light:infinite-map", where + ": LightSource \"infinite\" with an image (\"filename\") is not supported and was ignored");
+    return;
+  }
+  const char* what = type == "distant" || type == "infinite" ? "L" : "I";
   Rgb c{1, 1, 1};
   if (!ps.spectrum(what, true, c) && ps.get(what, "spectrum")) warn("namedspectrum", where + ": named spectra are not supported; white used");
   const float s = ps.one_float("scale", 1);
@@ -71,6 +77,12 @@ void Loader::light(Lexer& lx, const Token& t, const std::string& type, Params& p
     l.e1 = vec3f(float(axis.x), float(axis.y), float(axis.z));
     l.e2 = vec3f(cos_start, cos_end, 0);
     l.power = k_e * luminance(l.radiance);
+  } else if (type == "infinite") {
+    // pbrt-v4's UniformInfiniteLight: radiance L scale, or, given "illuminance" E, the
+    // radiance whose upper hemisphere gives a horizontal surface E (pi L)
+    l.type = LightKind::infinite;
+    const float e = ps.one_float("illuminance", -1);
+    l.radiance = mul(c, s * (e > 0 && lum > 0 ? e / (float(M_PI) * lum) : 1.f));
   } else {
     l.type = LightKind::distant;
     const float e = ps.one_float("illuminance", -1);
