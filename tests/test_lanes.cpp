@@ -31,7 +31,7 @@ namespace {
 // A scene with every light type: triangles, parallelograms (rectangle and sheared),
 // a sphere, point, spot and distant lights. Extras (for the camera-hit stage): a
 // textured wall, a plain sphere and a two-sided emitter.
-Scene all_lights_scene(bool extras = false) {
+Scene all_lights_scene(bool extras = false, bool sky = false) {
   Scene s;
   s.source = "test:all-lights";
   s.materials.push_back(diffuse_material(Rgb{0.7f, 0.5f, 0.3f}, -1));
@@ -71,6 +71,12 @@ Scene all_lights_scene(bool extras = false) {
   dist.e1 = normalize(vec3f{0.3f, 1, 0.2f});
   dist.radiance = {1, 1, 1};
   s.lights.push_back(dist);
+  if (sky) {  // a constant sky (light/kinds/infinite.h)
+    Light inf;
+    inf.type = LightKind::infinite;
+    inf.radiance = {0.3f, 0.5f, 0.7f};
+    s.lights.push_back(inf);
+  }
   if (extras) {
     Texture tex;
     tex.name = "checker";
@@ -352,8 +358,8 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
 }
 
 TEST(Lanes, StagesEqualScalar) {
-  Scene s = all_lights_scene();
-  ASSERT_EQ(s.lights.size(), 7u);
+  Scene s = all_lights_scene(false, true);  // every kind of source, the sky too
+  ASSERT_EQ(s.lights.size(), 8u);
   std::mt19937 rng(3);
   for (LightPick pick : {LightPick::all, LightPick::uniform, LightPick::area, LightPick::power, LightPick::bvh}) {
     SceneViews views = build_views(s, pick);
@@ -938,6 +944,74 @@ TEST(Lanes, EmitterQueueEqualScalar) {
     EXPECT_GT(two_sided_hits, 5);  // backs of the two-sided source were seen
   }
   }
+}
+
+// The escaped-ray stage (wave/escaped.h): camera and bounce rays that leave the scene see
+// the sky, MIS-weighted against light sampling of it; every lane equals the scalar
+// reference, with every pick (the BVH's pmf reads the point) and the MIS-weight AOV.
+TEST(Lanes, EscapedRaysEqualScalar) {
+  Scene s = all_lights_scene(true, true);
+  Accel accel(s);
+  std::mt19937 rng(9);
+  int escaped = 0;
+  for (LightPick pick : {LightPick::power, LightPick::uniform, LightPick::bvh})
+    for (Strategy strategy : {Strategy::mis, Strategy::bsdf, Strategy::light})
+      for (MisMode mode : {MisMode::multi, MisMode::one})
+        for (int count : {200, 13}) {
+          SceneViews views = build_views(s, pick);
+          ASSERT_EQ(views.lights.sky_count, 1);
+          Estimator est;
+          est.pick = pick;
+          est.strategy = strategy;
+          est.mode = mode;
+          est.heuristic = mode == MisMode::one ? Heuristic::balance : Heuristic::power;
+          est.aov_mis_weight = true;
+          auto a = std::make_unique<TileBuffers>();
+          fill_shading_points(*a, rng, count);
+          for (int k = 0; k < max_tile_lanes; ++k) {  // on the floor, facing up: half the rays escape
+            a->points.py[k] = 0.f;
+            a->points.nx[k] = a->points.nz[k] = 0.f;
+            a->points.ny[k] = 1.f;
+            a->points.choose_light[k] = k % 3 == 0 ? 1.f : 0.f;
+          }
+          sample_bsdf(views.geom, est, 0, SampleLayout{}.bsdf(0), SampleLayout{}.bsdf_lobe(0), *a);
+          const int padded = packet_padded(count);
+          for (int p = 0; p < padded / packet_width; ++p) accel.intersect16(a->tech.valid + p * packet_width, a->bounce[p], false);
+          // the same rays as camera rays
+          for (int p = 0; p < padded / packet_width; ++p) a->cam[p] = a->bounce[p];
+          std::copy_n(a->tech.valid, padded, a->lanes.cam_valid);
+          std::fill_n(a->lanes.Lr, max_tile_lanes, 0.f);
+          std::fill_n(a->lanes.Lg, max_tile_lanes, 0.f);
+          std::fill_n(a->lanes.Lb, max_tile_lanes, 0.f);
+          std::fill_n(a->lanes.wsum, max_tile_lanes, 0.f);
+          std::fill_n(a->lanes.wcnt, max_tile_lanes, 0.f);
+          std::fill_n(a->radiance.r, max_tile_lanes, 0.f);
+          std::fill_n(a->radiance.g, max_tile_lanes, 0.f);
+          std::fill_n(a->radiance.b, max_tile_lanes, 0.f);
+          for (int k = 0; k < max_tile_lanes; ++k) a->points.lane[k] = k;
+          auto b = std::make_unique<TileBuffers>(*a);
+          const bool chosen_only = mode == MisMode::one;
+          escaped_camera<vfloat>(views.lights, *a, count);
+          escaped_camera<float>(views.lights, *b, count);
+          escaped_bounce<vfloat, true>(views.lights, est, 1.f, 1.f, *a, chosen_only);
+          escaped_bounce<float, true>(views.lights, est, 1.f, 1.f, *b, chosen_only);
+          auto name = [&] { return describe(est) + " count " + std::to_string(count); };
+          expect_same_floats(a->lanes.Lr, b->lanes.Lr, count, name);
+          expect_same_floats(a->lanes.Lb, b->lanes.Lb, count, name);
+          expect_same_floats(a->radiance.r, b->radiance.r, count, name);
+          expect_same_floats(a->radiance.g, b->radiance.g, count, name);
+          expect_same_floats(a->radiance.b, b->radiance.b, count, name);
+          expect_same_floats(a->lanes.wsum, b->lanes.wsum, count, name);
+          expect_same_floats(a->lanes.wcnt, b->lanes.wcnt, count, name);
+          EXPECT_EQ(a->stats.rejected_bsdf, b->stats.rejected_bsdf) << name();
+          // a camera ray that escaped sees the sky's radiance; one that hit sees none of it
+          for (int k = 0; k < count; ++k) {
+            const bool out = b->tech.valid[k] && static_cast<int32_t>(b->bounce[k / packet_width].geomID[k % packet_width]) < 0;
+            escaped += out;
+            EXPECT_EQ(b->lanes.Lg[k], out ? 0.5f : 0.f) << name() << " lane " << k;
+          }
+        }
+  EXPECT_GT(escaped, 500);
 }
 
 // Film accumulation into the tile's double sums, with non-finite samples and padding.
