@@ -95,53 +95,25 @@ inline void add_seen_emission(const LightView& L, const i32_t<T>& light, const V
   }
 }
 
-// Lanes [i, i + width) of the camera packets: the hits among the first `lanes` become
-// shading points n, n + 1, ... in lane order (n is advanced). A hit with a degenerate
-// normal or distance is rejected (counted, no shading point).
-// Bounce (paths): lanes [i, i + width) of the bounce packets, one per shading point of
-// the vertex before (`lanes` of them), become the next vertex's shading points, compacted
-// in place (n <= i: every point is read before a store can reach it). Only the traced
-// rays (tech.valid: Russian roulette has cleared the paths it ended) that hit something
-// go on; they keep their tile lane, pixel, throughput and eta scale; the emission they
-// reached was counted by the vertex before (emitter hits, with its MIS weight).
-template <class T, bool Emitters, bool Materials = false, bool Bounce = false>
-TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int i, int lanes,
-                                           int& n) {
-  const RayHit16& p = Bounce ? tb.bounce[i / packet_width] : tb.cam[i / packet_width];
-  const int l = i % packet_width;
-  const i32_t<T> index = i32_t<T>(i) + lane_iota_i32<T>();
-  const i32_t<T> lane = Bounce ? load_i32<T>(tb.points.lane + i) : index;
-  const i32_t<T> pixel_id = load_i32<T>(reinterpret_cast<const int32_t*>((Bounce ? tb.points.pixel : tb.lanes.pixel) + i));
-  const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(p.geomID + l));
-  auto hit = f_mask_from_i(geom >= i32_t<T>(0) && index < i32_t<T>(lanes));  // invalid_id reads as -1
-  T beta_r(1.f), beta_g(1.f), beta_b(1.f), eta_scale(1.f);
-  if constexpr (Bounce) {
-    hit = hit && f_mask_from_i(load_i32<T>(tb.tech.valid + i) != i32_t<T>(0));
-    beta_r = load<T>(tb.path.throughput_r + i);
-    beta_g = load<T>(tb.path.throughput_g + i);
-    beta_b = load<T>(tb.path.throughput_b + i);
-    eta_scale = load<T>(tb.path.eta_scale + i);
-  }
+// Where the lanes' rays hit (lanes `ok` of packet p from lane l; keep = lane_bits(ok)): the
+// point and its per-axis error bound by the geometry table's kind of each hit, and what the
+// rest of the stage reads of it. This is where a new kind of geometry computes its point.
+// The hit point and its error bound (pbrt-v4): for triangles from the barycentrics,
+// err_i = gamma(7) sum_k |b_k v_k,i|, so an axis-aligned plane at any distance keeps an
+// exact coordinate; for spheres reprojected onto the surface (see below).
+template <class T> struct HitGeometry {
+  Vec3<T> x, err;
+  mask_t<T> triangle, sphere;  // the lanes' kinds
+  i32_t<T> tri;                // the flattened triangle (0 where the lane hit another kind)
+  bool one_geom, one_tri;      // every lane hit geometry g0 (triangle t0): broadcasts, not gathers
+  int32_t g0, t0;
+};
+template <class T>
+TUILE_FLATTEN inline HitGeometry<T> hit_geometry_lanes(const GeomView& G, const RayHit16& p, int l, const mask_t<T>& ok,
+                                                       uint32_t keep, const i32_t<T>& geom, const Vec3<T>& o,
+                                                       const Vec3<T>& d, const T& t) {
+  HitGeometry<T> h;
   const i32_t<T> gi = max(geom, i32_t<T>(0));
-  const T t = load<T>(p.ray.tfar + l);
-  const Vec3<T> o = load3<T>(p.ray.org_x + l, p.ray.org_y + l, p.ray.org_z + l);
-  const Vec3<T> d = load3<T>(p.ray.dir_x + l, p.ray.dir_y + l, p.ray.dir_z + l);
-  Vec3<T> ng = load3<T>(p.Ng_x + l, p.Ng_y + l, p.Ng_z + l);
-  const T len2 = dot(ng, ng);
-  const auto ok = hit && len2 > T(0.f) && is_finite(len2) && is_finite(t);
-  (Bounce ? tb.stats.rejected_bsdf : tb.stats.rejected_camera) += static_cast<uint64_t>(std::popcount(lane_bits(hit && !ok)));
-  const uint32_t keep = lane_bits(ok);
-  if constexpr (!Bounce) store(tb.lanes.shade_of + i, expand_index<T>(n, keep));
-  if (!keep) return;
-  ng = ng * rsqrt_nr(sel(ok, len2, T(1.f)));
-  // face the viewer: diffuse reflection on both sides. 0 - n, not -n: xsimd 8 negates
-  // AVX-512 lanes as 0 - x, so this keeps +0 components in every build and the reference.
-  const auto back = dot(ng, d) > T(0.f);
-  ng = sel(back, Vec3<T>(T(0.f), T(0.f), T(0.f)) - ng, ng);
-
-  // The hit point and its error bound (pbrt-v4): for triangles from the barycentrics,
-  // err_i = gamma(7) sum_k |b_k v_k,i|, so an axis-aligned plane at any distance keeps
-  // an exact coordinate; for spheres reprojected onto the surface, err = gamma(5) |x|.
   const i32_t<T> prim = load_i32<T>(reinterpret_cast<const int32_t*>(p.primID + l));
   // Coherent camera rays often hit one geometry, even one triangle, in every lane: then
   // broadcasts of the first hit's data replace the gathers (same values). Lanes without
@@ -193,10 +165,70 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     x = sel(sphere, xs, x);
     err = sel(sphere, Vec3<T>{k * (abs(xs.x) + r), k * (abs(xs.y) + r), k * (abs(xs.z) + r)}, err);
   }
+  h.x = x;
+  h.err = err;
+  h.triangle = f_mask_from_i(tri_i);
+  h.sphere = sphere;
+  h.tri = tri;
+  h.one_geom = one_geom;
+  h.one_tri = one_tri;
+  h.g0 = g0;
+  h.t0 = t0;
+  return h;
+}
+
+// Lanes [i, i + width) of the camera packets: the hits among the first `lanes` become
+// shading points n, n + 1, ... in lane order (n is advanced). A hit with a degenerate
+// normal or distance is rejected (counted, no shading point).
+// Bounce (paths): lanes [i, i + width) of the bounce packets, one per shading point of
+// the vertex before (`lanes` of them), become the next vertex's shading points, compacted
+// in place (n <= i: every point is read before a store can reach it). Only the traced
+// rays (tech.valid: Russian roulette has cleared the paths it ended) that hit something
+// go on; they keep their tile lane, pixel, throughput and eta scale; the emission they
+// reached was counted by the vertex before (emitter hits, with its MIS weight).
+template <class T, bool Emitters, bool Materials = false, bool Bounce = false>
+TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int i, int lanes,
+                                           int& n) {
+  const RayHit16& p = Bounce ? tb.bounce[i / packet_width] : tb.cam[i / packet_width];
+  const int l = i % packet_width;
+  const i32_t<T> index = i32_t<T>(i) + lane_iota_i32<T>();
+  const i32_t<T> lane = Bounce ? load_i32<T>(tb.points.lane + i) : index;
+  const i32_t<T> pixel_id = load_i32<T>(reinterpret_cast<const int32_t*>((Bounce ? tb.points.pixel : tb.lanes.pixel) + i));
+  const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(p.geomID + l));
+  auto hit = f_mask_from_i(geom >= i32_t<T>(0) && index < i32_t<T>(lanes));  // invalid_id reads as -1
+  T beta_r(1.f), beta_g(1.f), beta_b(1.f), eta_scale(1.f);
+  if constexpr (Bounce) {
+    hit = hit && f_mask_from_i(load_i32<T>(tb.tech.valid + i) != i32_t<T>(0));
+    beta_r = load<T>(tb.path.throughput_r + i);
+    beta_g = load<T>(tb.path.throughput_g + i);
+    beta_b = load<T>(tb.path.throughput_b + i);
+    eta_scale = load<T>(tb.path.eta_scale + i);
+  }
+  const i32_t<T> gi = max(geom, i32_t<T>(0));
+  const T t = load<T>(p.ray.tfar + l);
+  const Vec3<T> o = load3<T>(p.ray.org_x + l, p.ray.org_y + l, p.ray.org_z + l);
+  const Vec3<T> d = load3<T>(p.ray.dir_x + l, p.ray.dir_y + l, p.ray.dir_z + l);
+  Vec3<T> ng = load3<T>(p.Ng_x + l, p.Ng_y + l, p.Ng_z + l);
+  const T len2 = dot(ng, ng);
+  const auto ok = hit && len2 > T(0.f) && is_finite(len2) && is_finite(t);
+  (Bounce ? tb.stats.rejected_bsdf : tb.stats.rejected_camera) += static_cast<uint64_t>(std::popcount(lane_bits(hit && !ok)));
+  const uint32_t keep = lane_bits(ok);
+  if constexpr (!Bounce) store(tb.lanes.shade_of + i, expand_index<T>(n, keep));
+  if (!keep) return;
+  ng = ng * rsqrt_nr(sel(ok, len2, T(1.f)));
+  // face the viewer: diffuse reflection on both sides. 0 - n, not -n: xsimd 8 negates
+  // AVX-512 lanes as 0 - x, so this keeps +0 components in every build and the reference.
+  const auto back = dot(ng, d) > T(0.f);
+  ng = sel(back, Vec3<T>(T(0.f), T(0.f), T(0.f)) - ng, ng);
+
+  const HitGeometry<T> h = hit_geometry_lanes<T>(G, p, l, ok, keep, geom, o, d, t);
+  const Vec3<T>& x = h.x;
+  const bool one_geom = h.one_geom, one_tri = h.one_tri;
+  const int32_t g0 = h.g0, t0 = h.t0;
 
   if constexpr (Emitters && !Bounce) {
-    i32_t<T> light = sel(tri_i, one_tri ? i32_t<T>(G.tri_light[t0]) : gather(G.tri_light, tri), i32_t<T>(-1));
-    if (any(sphere)) light = sel(i_mask_from_f(sphere), gather(G.geom_light, gi), light);
+    i32_t<T> light = sel(i_mask_from_f(h.triangle), one_tri ? i32_t<T>(G.tri_light[t0]) : gather(G.tri_light, h.tri), i32_t<T>(-1));
+    if (any(h.sphere)) light = sel(i_mask_from_f(h.sphere), gather(G.geom_light, gi), light);
     add_seen_emission<T>(L, light, o, d, i, tb);
   }
 
@@ -225,9 +257,9 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   }
   if (G.shading_normals || G.has_rough_tex) {  // for the scalar passes (apply_shading_normals, roughness)
     compress_store(tb.points.geom + n, geom, keep);
-    compress_store(tb.points.prim + n, prim, keep);
-    compress_store(tb.points.bu + n, b1, keep);
-    compress_store(tb.points.bv + n, b2, keep);
+    compress_store(tb.points.prim + n, load_i32<T>(reinterpret_cast<const int32_t*>(p.primID + l)), keep);
+    compress_store(tb.points.bu + n, load<T>(p.u + l), keep);
+    compress_store(tb.points.bv + n, load<T>(p.v + l), keep);
   }
   if (G.has_textures) list_textured_points(G, p, l, keep, n, tb);
 
@@ -238,7 +270,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   compress_store(tb.points.nx + n, ng.x, keep);
   compress_store(tb.points.ny + n, ng.y, keep);
   compress_store(tb.points.nz + n, ng.z, keep);
-  compress_store(tb.points.eps + n, offset_along_normal(err, ng), keep);
+  compress_store(tb.points.eps + n, offset_along_normal(h.err, ng), keep);
   compress_store(tb.points.ar + n, ar, keep);
   compress_store(tb.points.ag + n, ag, keep);
   compress_store(tb.points.ab + n, ab, keep);
