@@ -88,6 +88,28 @@ TUILE_FLATTEN inline void ris_light_lanes(const GeomView& G, const LightView& L,
   ris_offer(tb, k, ok, w, load<T>(tb.tech.u1 + k), target, c_r, c_g, c_b, s.org, s.dir, s.tfar);
 }
 
+// Offers the BSDF samples of lanes cand, each of which found a source (radiance Le, and
+// pdf_l the light technique's density of the direction), to the reservoirs (u3:
+// resampling); the shadow ray goes from o along d and stops at tfar.
+template <class T>
+inline void ris_offer_bsdf_lanes(const Estimator& est, TileBuffers& tb, int k, const mask_t<T>& cand, const T& pdf_l,
+                                 const T& Le_r, const T& Le_g, const T& Le_b, const Vec3<T>& o, const Vec3<T>& d,
+                                 const T& tfar) {
+  const T pdf_b = load<T>(tb.tech.pdf + k);
+  // f cos = throughput times pdf
+  const T c_r = load<T>(tb.tech.beta_r + k) * pdf_b * Le_r;
+  const T c_g = load<T>(tb.tech.beta_g + k) * pdf_b * Le_g;
+  const T c_b = load<T>(tb.tech.beta_b + k) * pdf_b * Le_b;
+  const T target = luminance(c_r, c_g, c_b);
+  const T denom = T(static_cast<float>(est.ris_light)) * pdf_l + T(static_cast<float>(est.ris_bsdf)) * pdf_b;
+  auto ok = cand && pdf_b > T(0.f) && target > T(0.f) && is_finite(target);
+  const T w = target / sel(ok, denom, T(1.f));
+  const auto fin = is_finite(w);
+  if (any(ok && !fin)) tb.stats.rejected_bsdf += static_cast<uint64_t>(count(ok && !fin));
+  ok = ok && fin;
+  ris_offer(tb, k, ok, w, load<T>(tb.tech.u3 + k), target, c_r, c_g, c_b, o, d, tfar);
+}
+
 // A BSDF candidate for points [k, k + width), after its ray was traced against the
 // emitters (u3: resampling). T: at most a packet's width (the lanes read one packet's hits).
 template <class T, unsigned Kinds = kind_all, unsigned Bsdfs = bsdf_diffuse>
@@ -112,21 +134,9 @@ TUILE_FLATTEN inline void ris_bsdf_lanes(const GeomView& G, const LightView& L, 
   const T dist = t + load<T>(tb.points.eps + k) * abs(dot(n, d));
   T Le_r, Le_g, Le_b;
   const T pdf_l = light_pdf_of_hit<T, Kinds>(L, est, tb, to_i32(T(static_cast<float>(k)) + lane_iota<T>()), li, x, d, dist, Le_r, Le_g, Le_b);
-  const T pdf_b = load<T>(tb.tech.pdf + k);
-  // f cos = throughput times pdf
-  const T c_r = load<T>(tb.tech.beta_r + k) * pdf_b * Le_r;
-  const T c_g = load<T>(tb.tech.beta_g + k) * pdf_b * Le_g;
-  const T c_b = load<T>(tb.tech.beta_b + k) * pdf_b * Le_b;
-  const T target = luminance(c_r, c_g, c_b);
-  const T denom = T(static_cast<float>(est.ris_light)) * pdf_l + T(static_cast<float>(est.ris_bsdf)) * pdf_b;
-  auto ok = front && pdf_b > T(0.f) && target > T(0.f) && is_finite(target);
-  const T w = target / sel(ok, denom, T(1.f));
-  const auto fin = is_finite(w);
-  if (any(ok && !fin)) tb.stats.rejected_bsdf += static_cast<uint64_t>(count(ok && !fin));
-  ok = ok && fin;
   // the visibility ray: the bounce ray itself, stopping 2^-12 of the distance short of
   // the emitter as shadow rays do
-  ris_offer(tb, k, ok, w, load<T>(tb.tech.u3 + k), target, c_r, c_g, c_b, o, d, t * T(1.f - 1.f / 4096.f));
+  ris_offer_bsdf_lanes<T>(est, tb, k, front, pdf_l, Le_r, Le_g, Le_b, o, d, t * T(1.f - 1.f / 4096.f));
 }
 
 // A BSDF candidate for points [k, k + width) that reached no emitter (traced against the
@@ -148,22 +158,9 @@ template <class T, unsigned Bsdfs = bsdf_diffuse> inline void ris_sky_lanes(cons
   const Vec3<T> o = load3<T>(r.ray.org_x + l, r.ray.org_y + l, r.ray.org_z + l);
   const Vec3<T> d = load3<T>(r.ray.dir_x + l, r.ray.dir_y + l, r.ray.dir_z + l);
   const T pdf_l = sky_pick_pmf<T>(L, x, n, sky) * pdf_sky_direction<kind_sky>(broadcast_light<T>(L, sky), d);
-  const T pdf_b = load<T>(tb.tech.pdf + k);
   T Le_r, Le_g, Le_b;
   sky_radiance<T>(L, sky, d, Le_r, Le_g, Le_b);
-  // f cos = throughput times pdf
-  const T c_r = load<T>(tb.tech.beta_r + k) * pdf_b * Le_r;
-  const T c_g = load<T>(tb.tech.beta_g + k) * pdf_b * Le_g;
-  const T c_b = load<T>(tb.tech.beta_b + k) * pdf_b * Le_b;
-  const T target = luminance(c_r, c_g, c_b);
-  const T denom = T(static_cast<float>(est.ris_light)) * pdf_l + T(static_cast<float>(est.ris_bsdf)) * pdf_b;
-  auto ok = missed && pdf_b > T(0.f) && target > T(0.f) && is_finite(target);
-  const T w = target / sel(ok, denom, T(1.f));
-  const auto fin = is_finite(w);
-  if (any(ok && !fin)) tb.stats.rejected_bsdf += static_cast<uint64_t>(count(ok && !fin));
-  ok = ok && fin;
-  ris_offer(tb, k, ok, w, load<T>(tb.tech.u3 + k), target, c_r, c_g, c_b, o, d,
-            T(LightKindOps<LightKind::distant>::infinite_distance));
+  ris_offer_bsdf_lanes<T>(est, tb, k, missed, pdf_l, Le_r, Le_g, Le_b, o, d, T(LightKindOps<LightKind::distant>::infinite_distance));
 }
 
 // The kept candidates' shadow rays and contributions (f Le cos / p-hat times the sum of
