@@ -290,9 +290,10 @@ TEST(Sky, PipelineAndBounceRays) {
   o.bounce = BounceTrace::emitters;
   try {
     Renderer bad(s, accel, o);
-    ADD_FAILURE() << "--bounce emitters with a sky was accepted";
+    ADD_FAILURE() << "--bounce-rays emitters with a sky was accepted";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("sky"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--bounce-rays scene"), std::string::npos) << e.what();
   }
   for (const Features& f : registered_pipelines)
     if (!(f == general_features)) {

@@ -38,8 +38,8 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   // scene: where there is a sky, every bounce ray looks for its nearest hit in the scene
   const bool sky = (scene.features & feat_sky) != 0;
   if (sky && opt_.bounce == BounceTrace::emitters)
-    throw std::invalid_argument("--bounce emitters: the scene has a sky (LightSource \"infinite\"), which only rays traced "
-                                "against the whole scene can find; use --bounce scene or auto");
+    throw std::invalid_argument("--bounce-rays emitters: the scene has a sky (LightSource \"infinite\"), which only rays "
+                                "traced against the whole scene can find; use --bounce-rays scene or auto");
   if (sky) {
     bounce_against_emitters_ = false;
   } else if (opt_.bounce == BounceTrace::automatic) {
