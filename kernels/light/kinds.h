@@ -21,7 +21,7 @@ enum class LightKind : int32_t {
   point = 3,          // position p0, intensity in the radiance
   spot = 4,           // position p0, axis e1 (unit), cos of the cone's falloff start / end in e2.x / e2.y
   distant = 5,        // towards the light is e1 (unit), irradiance in the radiance
-  infinite = 6,       // the sky: radiance from every direction at infinity (constant: the radiance)
+  infinite = 6,       // the sky: radiance from every direction at infinity; its frame's axes e1 (x), e2 (y), p0 (z)
 };
 inline constexpr int light_kind_count = 7;
 

@@ -71,6 +71,7 @@ template <class T> struct LightPointSample {
   Vec3<T> wi;
   T dist, pdf_sa, scale;
   mask_t<T> valid, is_delta;
+  i32_t<T> sky_texel;  // a sky with a map: the texel drawn (its radiance's factor); -1 otherwise
 };
 
 // The lanes of by_area take the point y drawn by area: its direction and distance from x
@@ -99,6 +100,7 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
   LightPointSample<T> s;
   s.is_delta = T(0.f) > T(1.f);
   s.scale = T(1.f);
+  s.sky_texel = i32_t<T>(-1);
   Vec3<T> wi(T(0.f), T(0.f), T(1.f));
   T dist(0.f), pdf(0.f);
   auto valid = s.is_delta;
@@ -134,6 +136,7 @@ inline LightPointSample<T> sample_light_point(LightPoint mode, const LightGeom<T
       dist = sel(m, T(LightKindOps<LightKind::distant>::infinite_distance), dist);
       pdf = sel(m, d.pdf, pdf);
       valid = sel_mask(m, d.pdf > T(0.f), valid);
+      s.sky_texel = sel(i_mask_from_f(m), d.texel, s.sky_texel);
     });
   }
   if constexpr ((Kinds & kind_delta) != 0) {

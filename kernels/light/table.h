@@ -6,6 +6,7 @@
 
 #include "lanes/vec.h"
 #include "light/kinds.h"
+#include "light/sky_map.h"
 #include "sample/spherical.h"
 
 namespace tuile {
@@ -46,6 +47,12 @@ struct LightView {
   // the scene see (wave/escaped.h): their indices in this table
   int32_t sky_count = 0;
   const int32_t* sky_light = nullptr;
+  // the environment maps of the skies (a sky entry's p0.x is its map's index, -1 for a
+  // constant sky) and which of their distributions the light technique samples
+  // (sky_dist_compensated where BSDF sampling covers every direction: set per estimator)
+  const SkyMapView* sky_maps = nullptr;
+  int32_t sky_map_count = 0;
+  int sky_dist = sky_dist_full;
 };
 
 // How a light table is read per lane: tier_gather (any size), tier_small (tables padded to
@@ -76,7 +83,19 @@ template <class T> struct LightGeom {
   T area, two_sided;
   T len1, len2, inv_len1, inv_len2, rect;  // light_geom_derive
   Vec3<T> ex, ey;                          // e1 * inv_len1, e2 * inv_len2 (light_geom_derive)
+  // the table's environment maps and the distribution sampled (LightView's): a sky's map
+  // is sky_maps[p0.x] (none where p0.x < 0), its frame e1, e2, n (light/kinds/infinite.h)
+  const SkyMapView* sky_maps = nullptr;
+  int32_t sky_map_count = 0;
+  int sky_dist = sky_dist_full;
 };
+
+// The sky maps of the table, for a LightGeom read from it.
+template <class T> inline void attach_sky_maps(const LightView& L, LightGeom<T>& g) {
+  g.sky_maps = L.sky_maps;
+  g.sky_map_count = L.sky_map_count;
+  g.sky_dist = L.sky_dist;
+}
 
 // The unit edges of a source's LightGeom from its edges and inverse lengths: the bits the
 // table's ex, ey hold (light_geom_derive, build_views).
@@ -107,6 +126,7 @@ template <int Tier = tier_gather, class I> inline auto gather_light(const LightV
   g.area = lget<Tier>(L.area, idx);
   g.rect = lget<Tier>(L.rect, idx);
   derive_unit_edges(g);
+  attach_sky_maps(L, g);
   return g;
 }
 
@@ -161,6 +181,7 @@ template <class T> inline LightGeom<T> broadcast_light(const LightView& L, int32
   g.rect = T(L.rect[i]);
   g.ex = {T(L.exx[i]), T(L.exy[i]), T(L.exz[i])};
   g.ey = {T(L.eyx[i]), T(L.eyy[i]), T(L.eyz[i])};
+  attach_sky_maps(L, g);
   return g;
 }
 

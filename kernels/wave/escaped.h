@@ -50,11 +50,16 @@ template <class T> inline T sky_pick_pmf(const LightView& L, const Vec3<T>& x, c
   return AliasPicker{L}.template pmf<tier_gather>(ctx, sky);
 }
 
-// The radiance of sky entry i along d (a constant sky: its table radiance).
-template <class T> inline void sky_radiance(const LightView& L, int32_t i, const Vec3<T>&, T& r, T& g, T& b) {
+// The radiance of sky entry i along the world direction d: its table radiance, times the
+// texel of its environment map along d where it has one (light/kinds/infinite.h).
+template <class T> inline void sky_radiance(const LightView& L, int32_t i, const Vec3<T>& d, T& r, T& g, T& b) {
   r = T(L.Lr[i]);
   g = T(L.Lg[i]);
   b = T(L.Lb[i]);
+  if (L.sky_map_count == 0) return;
+  using Sky = LightKindOps<LightKind::infinite>;
+  const LightGeom<T> geo = broadcast_light<T>(L, i);
+  Sky::apply_texel(geo, Sky::texel_along(geo, d), r, g, b);
 }
 
 // Lanes [i, i + width) of the camera packets: those among the first `lanes` whose ray was

@@ -90,11 +90,12 @@ TUILE_FLATTEN inline void ris_light_lanes(const GeomView& G, const LightView& L,
 
 // Offers the BSDF samples of lanes cand, each of which found a source (radiance Le, and
 // pdf_l the light technique's density of the direction), to the reservoirs (u3:
-// resampling); the shadow ray goes from o along d and stops at tfar.
+// resampling, or u where given); the shadow ray goes from o along d and stops at tfar.
+// Returns the weight offered (0 in the lanes that offered nothing).
 template <class T>
-inline void ris_offer_bsdf_lanes(const Estimator& est, TileBuffers& tb, int k, const mask_t<T>& cand, const T& pdf_l,
-                                 const T& Le_r, const T& Le_g, const T& Le_b, const Vec3<T>& o, const Vec3<T>& d,
-                                 const T& tfar) {
+inline T ris_offer_bsdf_lanes(const Estimator& est, TileBuffers& tb, int k, const mask_t<T>& cand, const T& pdf_l,
+                              const T& Le_r, const T& Le_g, const T& Le_b, const Vec3<T>& o, const Vec3<T>& d,
+                              const T& tfar, const T* u = nullptr) {
   const T pdf_b = load<T>(tb.tech.pdf + k);
   // f cos = throughput times pdf
   const T c_r = load<T>(tb.tech.beta_r + k) * pdf_b * Le_r;
@@ -107,7 +108,8 @@ inline void ris_offer_bsdf_lanes(const Estimator& est, TileBuffers& tb, int k, c
   const auto fin = is_finite(w);
   if (any(ok && !fin)) tb.stats.rejected_bsdf += static_cast<uint64_t>(count(ok && !fin));
   ok = ok && fin;
-  ris_offer(tb, k, ok, w, load<T>(tb.tech.u3 + k), target, c_r, c_g, c_b, o, d, tfar);
+  ris_offer(tb, k, ok, w, u ? *u : load<T>(tb.tech.u3 + k), target, c_r, c_g, c_b, o, d, tfar);
+  return sel(ok, w, T(0.f));
 }
 
 // A BSDF candidate for points [k, k + width), after its ray was traced against the
@@ -140,10 +142,11 @@ TUILE_FLATTEN inline void ris_bsdf_lanes(const GeomView& G, const LightView& L, 
 }
 
 // A BSDF candidate for points [k, k + width) that reached no emitter (traced against the
-// emitters alone) is a candidate on the sky, whose shadow ray decides whether anything of
-// the scene lies in between. The scene's skies are one table entry (finalize_scene adds
-// constant skies into one), so each lane offers at most one candidate here and one
-// resampling number serves it.
+// emitters alone) is a candidate on each sky, whose shadow ray decides
+// whether anything of the scene lies in between. Each sky is a source of its own (a light
+// candidate from one sky counts its radiance and its density alone), so the direction is
+// offered once per sky; the offers after the first reuse the resampling number, rescaled
+// to the part of [0, 1) the previous offer's choice left (uniform again given that choice).
 template <class T, unsigned Bsdfs = bsdf_diffuse> inline void ris_sky_lanes(const LightView& L, const Estimator& est, TileBuffers& tb, int k) {
   const RayHit16& r = tb.bounce[k / packet_width];
   const int l = k % packet_width;
@@ -152,15 +155,26 @@ template <class T, unsigned Bsdfs = bsdf_diffuse> inline void ris_sky_lanes(cons
   if constexpr ((Bsdfs & bsdf_delta_capable) != 0)  // a delta lobe's direction is not a candidate
     missed = missed && f_mask_from_i(load_i32<T>(tb.tech.delta + k) == i32_t<T>(0));
   if (!any(missed)) return;
-  const int32_t sky = L.sky_light[0];
   const Vec3<T> x = load3<T>(tb.points.px + k, tb.points.py + k, tb.points.pz + k);
   const Vec3<T> n = load3<T>(tb.points.nx + k, tb.points.ny + k, tb.points.nz + k);
   const Vec3<T> o = load3<T>(r.ray.org_x + l, r.ray.org_y + l, r.ray.org_z + l);
   const Vec3<T> d = load3<T>(r.ray.dir_x + l, r.ray.dir_y + l, r.ray.dir_z + l);
-  const T pdf_l = sky_pick_pmf<T>(L, x, n, sky) * pdf_sky_direction<kind_sky>(broadcast_light<T>(L, sky), d);
-  T Le_r, Le_g, Le_b;
-  sky_radiance<T>(L, sky, d, Le_r, Le_g, Le_b);
-  ris_offer_bsdf_lanes<T>(est, tb, k, missed, pdf_l, Le_r, Le_g, Le_b, o, d, T(LightKindOps<LightKind::distant>::infinite_distance));
+  T u = load<T>(tb.tech.u3 + k);
+  for (int s = 0; s < L.sky_count; ++s) {
+    const int32_t sky = L.sky_light[s];
+    const T pdf_l = sky_pick_pmf<T>(L, x, n, sky) * pdf_sky_direction<kind_sky>(broadcast_light<T>(L, sky), d);
+    T Le_r, Le_g, Le_b;
+    sky_radiance<T>(L, sky, d, Le_r, Le_g, Le_b);
+    const T w = ris_offer_bsdf_lanes<T>(est, tb, k, missed, pdf_l, Le_r, Le_g, Le_b, o, d,
+                                        T(LightKindOps<LightKind::distant>::infinite_distance), &u);
+    if (s + 1 == L.sky_count) break;
+    // the offer was taken where u < p = w / wsum: u / p or (u - p) / (1 - p) is uniform again
+    const T wsum = load<T>(tb.ris.wsum + k);
+    const T p = sel(wsum > T(0.f), w / sel(wsum > T(0.f), wsum, T(1.f)), T(0.f));
+    const auto took = u < p;
+    u = sel(took, u / sel(took, p, T(1.f)), (u - p) / sel(p < T(1.f), T(1.f) - p, T(1.f)));
+    u = min(max(u, T(0.f)), T(0x1.fffffep-1f));
+  }
 }
 
 // The kept candidates' shadow rays and contributions (f Le cos / p-hat times the sum of

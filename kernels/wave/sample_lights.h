@@ -89,6 +89,8 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
   }
   const LightPointSample<T> s =
       sample_light_point<Kinds>(est.point, g, x, load<T>(tb.tech.u2 + k), load<T>(tb.tech.u3 + k));
+  if constexpr ((Kinds & kind_sky) != 0)  // a sky's map: the radiance of the texel drawn
+    LightKindOps<LightKind::infinite>::apply_texel(g, s.sky_texel, out.Le_r, out.Le_g, out.Le_b);
 
   // the shading normal where the scene has them (vertex normals, bump maps: the BSDF's
   // frame and the cosine), the geometric one n for offsets and which side wi leaves by

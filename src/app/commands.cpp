@@ -61,13 +61,33 @@ int run_info(const RenderFlags& f) {
   const RenderOptions& opt = p.opt;
   const Accel& accel = *p.accel;
   const double load = p.load_seconds, bvh = p.bvh_seconds;
-  size_t area = 0, delta = 0;
-  for (const Light& l : scene.lights) (is_delta(l.type) ? delta : area)++;
+  size_t area = 0, delta = 0, skies = 0;
+  for (const Light& l : scene.lights) (is_delta(l.type) ? delta : is_sky(l.type) ? skies : area)++;
   std::printf("scene: %s\n", scene.source.c_str());
   std::printf("resolution: %dx%d\n", scene.camera.width, scene.camera.height);
   std::printf("triangles: %zu\nspheres: %zu\nmeshes: %zu\nmaterials: %zu\ntextures: %zu\n", scene.triangle_count(),
               scene.spheres.size(), scene.meshes.size(), scene.materials.size(), scene.textures.size());
-  std::printf("lights: %zu (area sources %zu, delta %zu)\n", scene.lights.size(), area, delta);
+  std::printf("lights: %zu (area sources %zu, delta %zu, skies %zu)\n", scene.lights.size(), area, delta, skies);
+  // each sky: its map (file, size, power) and how its light samples are drawn
+  {
+    const Estimator& e = opt.est;
+    const bool compensated = (e.strategy == Strategy::mis && e.bsdf_samples > 0) || (e.strategy == Strategy::ris && e.ris_bsdf > 0);
+    for (const Light& l : scene.lights) {
+      if (!is_sky(l.type)) continue;
+      if (l.sky_map < 0) {
+        std::printf("sky: constant, radiance (%g, %g, %g), power %.4g; sampled %s\n", l.radiance.r, l.radiance.g, l.radiance.b,
+                    l.power,
+                    compensated ? "by the BSDF technique alone (MIS: a constant sky's compensated density is 0)"
+                                : "uniformly over the sphere");
+        continue;
+      }
+      const SkyMap& m = scene.sky_maps[static_cast<size_t>(l.sky_map)];
+      std::printf("sky: map %s, %dx%d texels (equal-area octahedral, nearest texel), scale %g, mean texel (%.4g, %.4g, %.4g), "
+                  "power %.4g; sampled by a piecewise-constant 2-D distribution over its texels%s\n",
+                  m.file.c_str(), m.res, m.res, l.radiance.r, m.mean[0], m.mean[1], m.mean[2], l.power,
+                  compensated ? ", MIS-compensated (max(value - mean, 0))" : " (their mean channel)");
+    }
+  }
   std::printf("features:");
   for (size_t i = 0; i < std::size(scene_feature_names); ++i)
     if (scene.features & (1u << i)) std::printf(" %s", scene_feature_names[i]);

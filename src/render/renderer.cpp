@@ -33,6 +33,11 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   validate(opt_);
   opt_.est.aov_mis_weight = opt_.est.aov_mis_weight || opt_.aov_mis_weight;
   *views_ = build_views(scene, opt_.est.pick);
+  // the skies' maps are sampled by their compensated distributions where BSDF sampling
+  // covers every direction beside the light technique (light/sky_map.h)
+  const Estimator& e = opt_.est;
+  const bool bsdf_covers = (e.strategy == Strategy::mis && e.bsdf_samples > 0) || (e.strategy == Strategy::ris && e.ris_bsdf > 0);
+  views_->lights.sky_dist = bsdf_covers ? sky_dist_compensated : sky_dist_full;
   views_->camera.filter = build_filter(opt_.filter, views_->filter_table);  // the pixel filter's tables, once
   // a bounce ray traced against the emitters alone cannot tell the sky from the rest of the
   // scene: where there is a sky, every bounce ray looks for its nearest hit in the scene

@@ -49,7 +49,11 @@ void build_light_table(SceneViews& v, const Scene& scene, LightPick pick) {
   v.lights.any_two_sided = false;
   for (const Light& l : lights) {
     v.type.push_back(static_cast<int32_t>(l.type));
-    v.p0x.push_back(l.p0.x); v.p0y.push_back(l.p0.y); v.p0z.push_back(l.p0.z);
+    if (is_sky(l.type)) {  // a sky's table row: p0.x its map (-1: none), n its frame's z axis (light/kinds/infinite.h)
+      v.p0x.push_back(static_cast<float>(l.sky_map)); v.p0y.push_back(0.f); v.p0z.push_back(0.f);
+    } else {
+      v.p0x.push_back(l.p0.x); v.p0y.push_back(l.p0.y); v.p0z.push_back(l.p0.z);
+    }
     v.e1x.push_back(l.e1.x); v.e1y.push_back(l.e1.y); v.e1z.push_back(l.e1.z);
     v.e2x.push_back(l.e2.x); v.e2y.push_back(l.e2.y); v.e2z.push_back(l.e2.z);
     v.Lr.push_back(l.radiance.r); v.Lg.push_back(l.radiance.g); v.Lb.push_back(l.radiance.b);
@@ -72,6 +76,7 @@ void build_light_table(SceneViews& v, const Scene& scene, LightPick pick) {
     vec3f nn{0, 0, 0};
     if (g.rect > 0.5f) nn = cross(g.ex, g.ey);
     else if (is_planar(l.type)) nn = normalize(cross(l.e1, l.e2));
+    else if (is_sky(l.type)) nn = l.p0;
     v.nx.push_back(nn.x); v.ny.push_back(nn.y); v.nz.push_back(nn.z);
   }
   // pick distribution
@@ -139,6 +144,18 @@ void build_light_table(SceneViews& v, const Scene& scene, LightPick pick) {
     if (is_sky(lights[i].type)) v.sky_light.push_back(static_cast<int32_t>(i));
   L.sky_count = static_cast<int32_t>(v.sky_light.size());
   L.sky_light = v.sky_light.data();
+  for (const SkyMap& m : scene.sky_maps) {
+    SkyMapView mv;
+    mv.res = m.res;
+    mv.r = m.r.data();
+    mv.g = m.g.data();
+    mv.b = m.b.data();
+    for (int d = 0; d < 2; ++d)
+      mv.dist[d] = {m.dist[d].func.data(), m.dist[d].cond_cdf.data(), m.dist[d].marg_cdf.data(), m.dist[d].inv_mean};
+    v.sky_maps.push_back(mv);
+  }
+  L.sky_maps = v.sky_maps.data();
+  L.sky_map_count = static_cast<int32_t>(v.sky_maps.size());
   if (pick == LightPick::bvh && n > 1) {
     const auto t0 = std::chrono::steady_clock::now();
     v.light_bvh = std::make_unique<LightBvh>(build_light_bvh(lights));

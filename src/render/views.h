@@ -26,6 +26,7 @@ struct SceneViews {
   std::vector<float> pick_pdf, alias_prob;
   std::vector<int32_t> alias_idx;
   std::vector<int32_t> sky_light;  // LightView::sky_light
+  std::vector<SkyMapView> sky_maps;  // LightView::sky_maps (pointing into Scene::sky_maps)
   LightView lights;
   // --light-pick bvh with two sources or more: the light BVH and its view (lights.bvh; on
   // the heap, so that moving the views keeps the pointer), its build time

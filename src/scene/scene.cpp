@@ -34,7 +34,6 @@ size_t Scene::triangle_count() const {
   return n;
 }
 
-static float luminance(const Rgb& c) { return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b; }
 
 static vec3f vertex(const Mesh& m, uint32_t i) {
   return {m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]};
@@ -202,6 +201,12 @@ void derive_lights(Scene& scene) {
   for (const Light& l : scene.lights) {
     if (is_delta(l.type)) lights.push_back(l);
     if (!is_sky(l.type)) continue;
+    if (l.sky_map >= 0) {  // a map: a source of its own
+      if (static_cast<size_t>(l.sky_map) >= scene.sky_maps.size())
+        throw SceneError(scene.source + ": error: a sky refers to a missing environment map");
+      lights.push_back(l);
+      continue;
+    }
     if (sky < 0) {
       sky = static_cast<int>(lights.size());
       lights.push_back(l);
@@ -271,7 +276,12 @@ void derive_lights(Scene& scene) {
   for (Light& l : lights) {
     for (float v : {l.radiance.r, l.radiance.g, l.radiance.b})
       if (!std::isfinite(v) || v < 0) throw SceneError(scene.source + ": error: light intensity must be finite and >= 0");
-    l.power = light_power(l, luminance(l.radiance), radius);
+    Rgb L = l.radiance;
+    if (l.sky_map >= 0) {  // a map's power: its mean texel times the radiance's scale
+      const double* m = scene.sky_maps[static_cast<size_t>(l.sky_map)].mean;
+      L = {L.r * static_cast<float>(m[0]), L.g * static_cast<float>(m[1]), L.b * static_cast<float>(m[2])};
+    }
+    l.power = light_power(l, luminance(L), radius);
   }
   scene.lights = std::move(lights);
 }

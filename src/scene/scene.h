@@ -20,6 +20,8 @@ struct Rgb {
   float r = 0, g = 0, b = 0;
   bool any_positive() const { return r > 0 || g > 0 || b > 0; }
 };
+// Linear sRGB luminance (Rec. 709 Y).
+inline float luminance(const Rgb& c) { return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b; }
 
 // An error that names where it came from (scene file and line, or the option).
 struct SceneError : std::runtime_error {
@@ -111,6 +113,21 @@ struct Sphere {
   bool emissive() const { return emission.any_positive(); }
 };
 
+// An environment map (LightSource "infinite" with "filename"): pbrt-v4's equal-area
+// octahedral square (light/sky_map.h), res x res linear RGB texels, with the two sampling
+// distributions the kernels read (src/scene/sky_map.cpp builds them).
+struct SkyMap {
+  std::string file;                // as the scene names it (for messages and `tuile info`)
+  int res = 0;
+  std::vector<float> r, g, b;      // res * res each, row-major, top row first
+  struct Dist {
+    std::vector<float> func, cond_cdf, marg_cdf;  // SkyDistView's tables
+    float inv_mean = 0;
+  } dist[2];                       // sky_dist_full, sky_dist_compensated
+  double mean[3] = {0, 0, 0};      // the texels' mean per channel (the power's)
+  bool constant = false;           // every texel the same (the compensated distribution is uniform)
+};
+
 // A light source: its kind and shape (light/kinds.h: the one list of kinds, whose code is
 // in light/kinds/<name>.h) and what the scene knows of it.
 struct Light : LightShape {
@@ -118,6 +135,7 @@ struct Light : LightShape {
   float power = 0;    // emitted power (LightKindOps<kind>::power; luminance of radiance times pi A for one-sided area lights)
   int mesh = -1, prim = -1;  // where it came from (-1 for spheres/delta lights)
   int sphere = -1;
+  int sky_map = -1;   // a sky with an environment map: its index in Scene::sky_maps
 };
 
 // pbrt-v4's perspective camera: world_from_camera is affine (3 rows of 4).
@@ -156,6 +174,7 @@ struct Scene {
   std::vector<Texture> textures;
   std::vector<FloatTexture> float_textures;
   std::vector<Light> lights;        // delta lights and skies are added by loaders; area lights by finalize_scene
+  std::vector<SkyMap> sky_maps;     // the skies' environment maps (Light::sky_map)
   std::vector<std::string> warnings;  // approximations made at load, one per kind
   // Settings from the file (pbrt Sampler/Film/Integrator); the command line overrides them.
   int file_spp = 0;

@@ -1,13 +1,14 @@
 // The pbrt-v4 reader's lights: AreaLightSource (diffuse, kept in the graphics state for
-// the shapes that follow) and LightSource point, spot, distant and infinite with a constant
-// L (pbrt-v4's power and illuminance normalisations); other light types, and infinite
-// lights with an image, are ignored with a warning.
+// the shapes that follow) and LightSource point, spot, distant and infinite (a constant L
+// or an environment map, src/scene/sky_map.h; pbrt-v4's power and illuminance
+// normalisations); other light types are ignored with a warning.
 #include <cmath>
 #include <string>
 
 #include "lexer.h"
 #include "loader_state.h"
 #include "params.h"
+#include "scene/sky_map.h"
 #include "util.h"
 
 namespace tuile::pbrt {
@@ -40,10 +41,13 @@ void Loader::light(Lexer& lx, const Token& t, const std::string& type, Params& p
     warn("light:" + type, where + ": LightSource \"" + type + "\" is not supported and was ignored");
     return;
   }
-  if (type == "infinite" && (ps.get("filename", "string") || ps.get("portal", "point3"))) {
-    ps.mark_all_used();
-    warn("light:infinite-map", where + ": LightSource \"infinite\" with an image (\"filename\") is not supported and was ignored");
-    return;
+  if (type == "infinite") {
+    const Param* fp = ps.get("filename", "string");
+    if (fp && fp->strs.size() == 1) {
+      infinite_map(lx, t, resolve_path(lx.dir(), fp->strs[0]), ps);
+      return;
+    }
+    if (fp) fp->fail("\"filename\" of an infinite light must be one string", "one file name");
   }
   const char* what = type == "distant" || type == "infinite" ? "L" : "I";
   Rgb c{1, 1, 1};
@@ -92,6 +96,57 @@ void Loader::light(Lexer& lx, const Token& t, const std::string& type, Params& p
     l.e1 = vec3f(float(w.x), float(w.y), float(w.z));
   }
   warn_unused(ps, "LightSource \"" + type + "\"", lx, t);
+  scene.lights.push_back(l);
+}
+
+// LightSource "infinite" with "filename": pbrt-v4's ImageInfiniteLight. The map's frame is
+// the transform in force (its +z the map's centre), its radiance the texels times "scale"
+// (or scaled so that its upper hemisphere gives "illuminance" to a surface facing +z of
+// the frame, as pbrt-v4 normalises).
+void Loader::infinite_map(Lexer& lx, const Token& t, const std::string& path, Params& ps) {
+  const std::string where = loc_str(lx, t);
+  if (ps.get("L", "rgb") || ps.get("L", "spectrum") || ps.get("L", "blackbody"))
+    lx.fail(t, "an infinite light with both \"L\" and \"filename\"", "one of them (pbrt-v4 reads either)");
+  const float s = ps.one_float("scale", 1);
+  if (!(s >= 0) || !std::isfinite(s)) ps.get("scale", "float")->fail("negative or non-finite light scale", "a scale >= 0");
+  const float e = ps.one_float("illuminance", -1);
+  if (std::isnan(e) || std::isinf(e)) ps.get("illuminance", "float")->fail("non-finite illuminance", "a finite illuminance");
+  if (const Param* portal = ps.get("portal", "point3")) {
+    (void)portal;
+    warn("light:infinite-portal", where + ": the \"portal\" of an infinite light is not used: its map is sampled over the "
+                                  "whole sphere (unbiased, noisier where the portal is small)");
+  }
+  RgbImage img;
+  std::string reason;
+  if (!read_rgb_image(path, img, reason)) lx.fail(t, "cannot read the infinite light's image \"" + path + "\": " + reason, "");
+  SkyMap map;
+  if (!make_sky_map(path, img, map, reason)) lx.fail(t, "infinite light's image \"" + path + "\": " + reason, "");
+  float k = s;
+  if (e > 0) {
+    const double ez = sky_map_upper_illuminance(map);
+    if (ez > 0) k *= static_cast<float>(e / ez);
+  }
+  // the frame: the transform's axes, made orthonormal (keeping a reflection's handedness)
+  const Vec3d cx = apply_vector(gs_.ctm, {1, 0, 0}), cy = apply_vector(gs_.ctm, {0, 1, 0}), cz = apply_vector(gs_.ctm, {0, 0, 1});
+  const double lx_ = length(cx), ly_ = length(cy), lz_ = length(cz);
+  if (!(lx_ > 0 && ly_ > 0 && lz_ > 0)) lx.fail(t, "the transform of an infinite light is singular", "a rotation");
+  const Vec3d ex = normalized(cx);
+  const Vec3d ey = normalized(sub(cy, {ex.x * dot(cy, ex), ex.y * dot(cy, ex), ex.z * dot(cy, ex)}));
+  Vec3d ez = cross(ex, ey);
+  if (dot(ez, cz) < 0) ez = {-ez.x, -ez.y, -ez.z};
+  const double tol = 1e-3 * std::max(lx_, std::max(ly_, lz_));
+  if (std::abs(lx_ - ly_) > tol || std::abs(lx_ - lz_) > tol || std::abs(dot(cx, cy)) > tol * lx_ ||
+      std::abs(dot(cx, cz)) > tol * lx_ || std::abs(dot(cy, cz)) > tol * ly_)
+    warn("light:infinite-frame", where + ": the transform of an infinite light scales or shears: only its rotation is used");
+  warn_unused(ps, "LightSource \"infinite\"", lx, t);
+  Light l;
+  l.type = LightKind::infinite;
+  l.radiance = {k, k, k};
+  l.e1 = vec3f(float(ex.x), float(ex.y), float(ex.z));
+  l.e2 = vec3f(float(ey.x), float(ey.y), float(ey.z));
+  l.p0 = vec3f(float(ez.x), float(ez.y), float(ez.z));
+  l.sky_map = static_cast<int>(scene.sky_maps.size());
+  scene.sky_maps.push_back(std::move(map));
   scene.lights.push_back(l);
 }
 

@@ -178,6 +178,7 @@ class Loader {
   void make_mix(Lexer& lx, const Token& t, Params& ps, const std::string& where, Material& m, int index);
   void area_light(Lexer& lx, const Token& t, const std::string& type, Params& ps);
   void light(Lexer& lx, const Token& t, const std::string& type, Params& ps);
+  void infinite_map(Lexer& lx, const Token& t, const std::string& path, Params& ps);
   void shape(Lexer& lx, const Token& t, const std::string& type, Params& ps);
   void mesh_shape(Lexer& lx, const Token& t, const std::string& type, Params& ps, const std::string& where);
   void ply_shape(Lexer& lx, const Token& t, Params& ps);

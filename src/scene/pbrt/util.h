@@ -87,8 +87,6 @@ inline Vec3d apply_normal_inv(const Mat4& inv, Vec3d n) {
 // Transforms packed xyz floats in place (identity is skipped).
 void transform_positions(const Mat4& t, float* xyz, size_t count);
 
-// Linear sRGB luminance (Rec. 709 Y).
-inline float luminance(const Rgb& c) { return 0.2126f * c.r + 0.7152f * c.g + 0.0722f * c.b; }
 
 // Colour from spectra, normalised like pbrt-v4: an emission spectrum to luminance 1.
 Rgb blackbody_rgb(double kelvin);
