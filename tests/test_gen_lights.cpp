@@ -35,7 +35,7 @@ std::string slurp(const fs::path& p) {
   return std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
 }
 
-double luminance(const tuile::Rgb& c) { return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b; }
+double luminance_d(const tuile::Rgb& c) { return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b; }
 
 }  // namespace
 
@@ -70,7 +70,7 @@ TEST(GenLights, ThousandOneSidedSourcesFacingIn) {
     for (const auto& p : {l.p0, l.p0 + l.e1, l.p0 + l.e2}) {
       EXPECT_TRUE(p.x > -4 && p.x < 4 && p.y > 0 && p.y < 3 && p.z > -6 && p.z < 6);
     }
-    const double y = luminance(l.radiance);
+    const double y = luminance_d(l.radiance);
     lo = std::min(lo, y);
     hi = std::max(hi, y);
     power += l.power;

@@ -22,6 +22,7 @@
 #include "wave/emitter_hits.h"
 #include "wave/ris.h"
 #include "render/render.h"
+#include "scene/sky_map.h"
 #include "render_util.h"
 
 using namespace tuile;
@@ -71,11 +72,27 @@ Scene all_lights_scene(bool extras = false, bool sky = false) {
   dist.e1 = normalize(vec3f{0.3f, 1, 0.2f});
   dist.radiance = {1, 1, 1};
   s.lights.push_back(dist);
-  if (sky) {  // a constant sky (light/kinds/infinite.h)
+  if (sky) {  // a constant sky and one with a map in a turned frame (light/kinds/infinite.h)
     Light inf;
     inf.type = LightKind::infinite;
     inf.radiance = {0.3f, 0.5f, 0.7f};
     s.lights.push_back(inf);
+    RgbImage img;
+    img.width = img.height = 8;
+    for (int t = 0; t < 64; ++t)
+      for (int c = 0; c < 3; ++c) img.rgb.push_back(static_cast<float>((t * 7 + c * 3) % 11) * (t == 19 ? 30.f : 0.1f));
+    SkyMap map;
+    std::string why;
+    if (!make_sky_map("lanes", img, map, why)) throw std::runtime_error(why);
+    s.sky_maps.push_back(std::move(map));
+    Light env;
+    env.type = LightKind::infinite;
+    env.radiance = {0.5f, 0.5f, 0.5f};
+    env.sky_map = 0;
+    env.e1 = normalize(vec3f{1, 0.2f, 0});
+    env.e2 = normalize(cross(vec3f{0, 0, 1}, env.e1));
+    env.p0 = cross(env.e1, env.e2);
+    s.lights.push_back(env);
   }
   if (extras) {
     Texture tex;
@@ -358,8 +375,8 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
 }
 
 TEST(Lanes, StagesEqualScalar) {
-  Scene s = all_lights_scene(false, true);  // every kind of source, the sky too
-  ASSERT_EQ(s.lights.size(), 8u);
+  Scene s = all_lights_scene(false, true);  // every kind of source, a constant sky and a map too
+  ASSERT_EQ(s.lights.size(), 9u);
   std::mt19937 rng(3);
   for (LightPick pick : {LightPick::all, LightPick::uniform, LightPick::area, LightPick::power, LightPick::bvh}) {
     SceneViews views = build_views(s, pick);
@@ -382,7 +399,9 @@ TEST(Lanes, StagesEqualScalar) {
           auto d = std::make_unique<TileBuffers>(*a);
           const int n = 208;  // whole packets
           views.lights.tier = tier;
-          auto name = [&] { return describe(est) + " tier " + std::to_string(tier); };
+          // the maps' compensated distribution under MIS, their full one otherwise
+          views.lights.sky_dist = strategy == Strategy::mis ? sky_dist_compensated : sky_dist_full;
+          auto name = [&] { return describe(est) + " tier " + std::to_string(tier) + " sky dist " + std::to_string(views.lights.sky_dist); };
           // light sampling stage
           LightPass pass;
           pass.fixed_light = pick == LightPick::all ? 2 : -1;
@@ -959,7 +978,8 @@ TEST(Lanes, EscapedRaysEqualScalar) {
       for (MisMode mode : {MisMode::multi, MisMode::one})
         for (int count : {200, 13}) {
           SceneViews views = build_views(s, pick);
-          ASSERT_EQ(views.lights.sky_count, 1);
+          ASSERT_EQ(views.lights.sky_count, 2);  // the constant sky and the map
+          views.lights.sky_dist = strategy == Strategy::mis ? sky_dist_compensated : sky_dist_full;
           Estimator est;
           est.pick = pick;
           est.strategy = strategy;
@@ -1008,7 +1028,18 @@ TEST(Lanes, EscapedRaysEqualScalar) {
           for (int k = 0; k < count; ++k) {
             const bool out = b->tech.valid[k] && static_cast<int32_t>(b->bounce[k / packet_width].geomID[k % packet_width]) < 0;
             escaped += out;
-            EXPECT_EQ(b->lanes.Lg[k], out ? 0.5f : 0.f) << name() << " lane " << k;
+            // the constant sky's 0.5 and the map's texel along the ray (in the map's frame,
+            // nearest texel), times its 0.5
+            float want = 0.f;
+            if (out) {
+              const Light& env = *std::find_if(s.lights.begin(), s.lights.end(), [](const Light& l) { return l.sky_map >= 0; });
+              const vec3f d{b->bounce[k / packet_width].ray.dir_x[k % packet_width], b->bounce[k / packet_width].ray.dir_y[k % packet_width],
+                            b->bounce[k / packet_width].ray.dir_z[k % packet_width]};
+              float pu, pv;
+              equal_area_sphere_to_square(vec3f{dot(d, env.e1), dot(d, env.e2), dot(d, env.p0)}, pu, pv);
+              want = 0.5f + 0.5f * s.sky_maps[0].g[static_cast<size_t>(sky_texel(8, pu, pv))];
+            }
+            EXPECT_EQ(b->lanes.Lg[k], want) << name() << " lane " << k;
           }
         }
   EXPECT_GT(escaped, 500);

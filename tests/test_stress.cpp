@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <random>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -27,6 +28,7 @@
 #include "bsdf/dielectric.h"
 #include "wave/generate.h"
 #include "wave/sample_lights.h"
+#include "scene/sky_map.h"
 #include "scene/pbrt.h"
 #include "render_util.h"
 
@@ -1986,4 +1988,152 @@ TEST(StressPaths, ThroughputUnderflowEndsPaths) {
       EXPECT_LT(vertices_per_sample(r.stats), 5.0) << what;
       EXPECT_GE(vertices_per_sample(r.stats), 0.9) << what;  // the second vertex is there
     }
+}
+
+// ---- the sky's maps (light/sky_map.h) at their extremes ---------------------------------
+namespace {
+
+// A floor of albedo 0.5 facing +y, seen from above, under the map file `name` turned so
+// that the map's +z is the world's +y ("Rotate -90 1 0 0").
+Scene floor_under_map(const fs::path& dir, const std::string& name) {
+  Scene s = load_pbrt_string(
+      "LookAt 0 3 0  0.2 0 0.1  0 0 1\nCamera \"perspective\" \"float fov\" 30\n"
+      "Film \"rgb\" \"integer xresolution\" 16 \"integer yresolution\" 16\nWorldBegin\n"
+      "Material \"diffuse\" \"rgb reflectance\" [0.5 0.5 0.5]\n"
+      "Shape \"trianglemesh\" \"point3 P\" [-1000 0 -1000  -1000 0 1000  1000 0 1000  1000 0 -1000] \"integer indices\" [0 1 2 0 2 3]\n"
+      "AttributeBegin\nRotate -90 1 0 0\nLightSource \"infinite\" \"string filename\" \"" + name + "\"\nAttributeEnd\n",
+      "stress-sky.pbrt", dir.string());
+  finalize_scene(s);
+  return s;
+}
+
+// The floor's exact radiance under that map: 0.5 / pi times each texel's radiance times
+// the integral of the cosine over its cell (8 x 8 points per texel), channel c.
+double floor_under_map_exact(const RgbImage& img, int c) {
+  const int res = img.width, q = 8;
+  double e = 0;
+  for (int y = 0; y < res; ++y)
+    for (int x = 0; x < res; ++x) {
+      double cs = 0;
+      for (int j = 0; j < q; ++j)
+        for (int i = 0; i < q; ++i)
+          cs += std::max(0.f, equal_area_square_to_sphere((x + (i + 0.5f) / q) / res, (y + (j + 0.5f) / q) / res).z);
+      e += img.rgb[(static_cast<size_t>(y) * res + x) * 3 + c] * cs * 4 * M_PI / (static_cast<double>(res) * res * q * q);
+    }
+  return 0.5 / M_PI * e;
+}
+
+RgbImage flat_image(int res, Rgb c) {
+  RgbImage img;
+  img.width = img.height = res;
+  img.rgb.resize(static_cast<size_t>(res) * res * 3);
+  for (size_t t = 0; t < img.rgb.size(); t += 3) {
+    img.rgb[t] = c.r;
+    img.rgb[t + 1] = c.g;
+    img.rgb[t + 2] = c.b;
+  }
+  return img;
+}
+
+}  // namespace
+
+// A sun of 10^6 in one texel of a sky of 10^-3: light sampling and MIS (compensated: the
+// sun alone is above the mean) both within 4 standard errors of the exact floor, and
+// nothing rejected as non-finite.
+TEST(StressSky, SunOfAMillionInOneTexel) {
+  const fs::path dir = fs::temp_directory_path() / ("tuile_stress_sky_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  RgbImage img = flat_image(32, {1e-3f, 1e-3f, 1e-3f});
+  const size_t sun = static_cast<size_t>(12 * 32 + 14);  // a texel of the upper hemisphere
+  ASSERT_GT(equal_area_square_to_sphere(14.5f / 32, 12.5f / 32).z, 0.3f);
+  for (int c = 0; c < 3; ++c) img.rgb[3 * sun + static_cast<size_t>(c)] = 1e6f;
+  write_pfm((dir / "sun.pfm").string(), img);
+  const Scene s = floor_under_map(dir, "sun.pfm");
+  const double want = floor_under_map_exact(img, 0);
+  for (Strategy st : {Strategy::light, Strategy::mis}) {
+    RenderOptions o;
+    o.est.strategy = st;
+    o.est.max_depth = 1;
+    o.est.sampler = SamplerKind::independent;
+    o.est.spp = scaled(64u, 16u);
+    o.est.seed = 8;
+    o.threads = 2;
+    const RenderResult r = render_scene(s, o);
+    std::vector<double> exact(r.mean.size() / 3, want);
+    const double z = z_of_mean(r, exact);
+    std::printf("[ stress sky sun ] strategy %d: z %.2f\n", static_cast<int>(st), z);
+    EXPECT_LT(std::fabs(z), 4.0) << static_cast<int>(st);
+    EXPECT_EQ(r.stats.rejected_light + r.stats.rejected_bsdf, 0u);
+  }
+  fs::remove_all(dir);
+}
+
+// A map of one texel is a constant sky: BSDF sampling gives the floor albedo times it to
+// rounding, light sampling within 4 standard errors.
+TEST(StressSky, OneTexelMap) {
+  const fs::path dir = fs::temp_directory_path() / ("tuile_stress_sky1_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  write_pfm((dir / "one.pfm").string(), flat_image(1, {2, 3, 4}));
+  const Scene s = floor_under_map(dir, "one.pfm");
+  ASSERT_EQ(s.sky_maps[0].res, 1);
+  for (Strategy st : {Strategy::bsdf, Strategy::light}) {
+    RenderOptions o;
+    o.est.strategy = st;
+    o.est.max_depth = 1;
+    o.est.sampler = SamplerKind::independent;
+    o.est.spp = 16;
+    o.threads = 2;
+    const RenderResult r = render_scene(s, o);
+    if (st == Strategy::bsdf) {
+      for (size_t i = 0; i < r.mean.size(); i += 3) ASSERT_NEAR(r.mean[i + 2], 0.5f * 4.f, 2e-5f);
+    } else {
+      std::vector<double> exact(r.mean.size() / 3, 0.5 * 2.0);
+      EXPECT_LT(std::fabs(z_of_mean(r, exact)), 4.0);
+    }
+  }
+  fs::remove_all(dir);
+}
+
+// An 8192 x 8192 map (1024 x 1024 under the sanitizers' knob): its distributions build, and
+// 100000 sampled directions have the density looked up for them but where rounding puts
+// them on a texel's edge (fewer than 0.1%).
+TEST(StressSky, LargeMap) {
+  const int res = static_cast<int>(scaled(8192u, 1024u));
+  RgbImage img;
+  img.width = img.height = res;
+  img.rgb.resize(static_cast<size_t>(res) * res * 3);
+  for (int y = 0; y < res; ++y)
+    for (int x = 0; x < res; ++x) {
+      float* p = &img.rgb[(static_cast<size_t>(y) * res + x) * 3];
+      p[0] = p[1] = p[2] = 0.1f + static_cast<float>((x * 31 + y * 17) % 97) * (y % 512 == 7 ? 100.f : 0.01f);
+    }
+  SkyMap m;
+  std::string why;
+  ASSERT_TRUE(make_sky_map("large", img, m, why)) << why;
+  img.rgb = {};
+  SkyMapView v;
+  v.res = m.res;
+  v.r = m.r.data();
+  v.g = m.g.data();
+  v.b = m.b.data();
+  for (int d = 0; d < 2; ++d) v.dist[d] = {m.dist[d].func.data(), m.dist[d].cond_cdf.data(), m.dist[d].marg_cdf.data(), m.dist[d].inv_mean};
+  LightGeom<float> g;
+  g.type = static_cast<int32_t>(LightKind::infinite);
+  g.p0 = {0, 0, 0};
+  g.e1 = {1, 0, 0};
+  g.e2 = {0, 1, 0};
+  g.n = {0, 0, 1};
+  g.sky_maps = &v;
+  g.sky_map_count = 1;
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  int off = 0;
+  const int n = 100000;
+  for (int k = 0; k < n; ++k) {
+    const SkySample<float> s = LightKindOps<LightKind::infinite>::sample_direction(g, U(rng), U(rng));
+    ASSERT_GT(s.pdf, 0.f);
+    const float p = LightKindOps<LightKind::infinite>::pdf_direction(g, s.wi);
+    off += std::fabs(p - s.pdf) > 1e-5f * s.pdf;
+  }
+  EXPECT_LT(off, n / 1000);
 }

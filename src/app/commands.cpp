@@ -14,12 +14,14 @@
 #include <thread>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 
 #include "accel/embree.h"
 #include "app/prepare.h"
 #include "scene/image_io.h"
+#include "scene/sky_map.h"
 #include "render/filter_table.h"
 #include "render/render.h"
 #include "measure/roofline.h"
@@ -371,6 +373,38 @@ int run_profile(const ProfileFlags& f) {
     js << "\n],\"displayTimeUnit\":\"ms\"}\n";
     std::printf("trace: %zu events -> %s\n", prof.events.size(), f.trace.c_str());
   }
+  return 0;
+}
+
+}  // namespace tuile
+
+namespace tuile {
+
+void add_envmap_flags(CLI::App& app, EnvmapFlags& f) {
+  app.add_option("input", f.in, "latitude-longitude map (2:1; theta from +z at the top row, phi from +x towards +y)")->required();
+  app.add_option("output", f.out, "the equal-area square: .exr (float RGB) or .pfm")->required();
+  app.add_option("--resolution", f.resolution, "texels per side (default: the input's width)")->check(CLI::Range(0, 16384));
+  app.add_option("--samples", f.samples, "bilinear lookups per side of each texel, averaged (default 4)")->check(CLI::Range(1, 16));
+}
+
+int run_envmap(const EnvmapFlags& f) {
+  RgbImage in;
+  std::string reason;
+  if (!read_rgb_image(f.in, in, reason)) throw std::runtime_error(f.in + ": cannot read the map: " + reason);
+  for (float v : in.rgb)
+    if (!std::isfinite(v)) throw std::runtime_error(f.in + ": the map has a NaN or infinite texel");
+  if (in.width != 2 * in.height)
+    std::fprintf(stderr, "tuile: warning: %s is %dx%d, not 2:1: read as latitude-longitude all the same\n", f.in.c_str(),
+                 in.width, in.height);
+  const int res = f.resolution > 0 ? f.resolution : in.width;
+  if (res > 16384) throw std::invalid_argument("--resolution: at most 16384 texels per side (the input is " + std::to_string(in.width) + " wide)");
+  const RgbImage out = latlong_to_equal_area(in, res, f.samples);
+  const std::string ext = std::filesystem::path(f.out).extension().string();
+  if (ext == ".pfm" || ext == ".PFM") write_pfm(f.out, out);
+  else if (ext == ".exr" || ext == ".EXR") write_exr(f.out, out.width, out.height, out.rgb);
+  else throw std::invalid_argument(f.out + ": the output must be .exr or .pfm");
+  std::printf("tuile: %s (%dx%d latitude-longitude) -> %s (%dx%d equal-area octahedral)\n", f.in.c_str(), in.width, in.height,
+              f.out.c_str(), res, res);
   return 0;
 }
 

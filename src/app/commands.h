@@ -35,7 +35,16 @@ struct DiffFlags {
   double tolerance = 0;  // largest relative difference still accepted (0: bit-identical only)
 };
 
+// tuile envmap IN OUT: a latitude-longitude map to pbrt-v4's equal-area square (imgtool
+// makeequiarea's job).
+struct EnvmapFlags {
+  std::string in, out;
+  int resolution = 0;  // texels per side (0: the input's width, as imgtool)
+  int samples = 4;     // per side of each texel
+};
+
 void add_figures_flags(CLI::App& app, FiguresFlags& f);
+void add_envmap_flags(CLI::App& app, EnvmapFlags& f);
 void add_diff_flags(CLI::App& app, DiffFlags& f);
 void add_bench_flags(CLI::App& app, BenchFlags& f);
 void add_profile_flags(CLI::App& app, ProfileFlags& f);
@@ -48,5 +57,6 @@ int run_profile(const ProfileFlags& f);
 int run_converge(const ConvergeFlags& f);  // src/measure/converge.cpp
 int run_figures(const FiguresFlags& f);    // src/measure/figures.cpp
 int run_diff(const DiffFlags& f);          // src/measure/image_diff.cpp
+int run_envmap(const EnvmapFlags& f);      // src/app/commands.cpp
 
 }  // namespace tuile

@@ -1,4 +1,4 @@
-// tuile: one binary, subcommands render | info | bench | profile | converge | figures | diff.
+// tuile: one binary, subcommands render | info | bench | profile | converge | figures | diff | envmap.
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -59,6 +59,11 @@ int main(int argc, char** argv) {
   CLI::App* diff = app.add_subcommand("diff", "compare two EXR images: identical bits, or by how much they differ");
   add_diff_flags(*diff, df);
 
+  EnvmapFlags ef;
+  CLI::App* envmap = app.add_subcommand(
+      "envmap", "convert a latitude-longitude environment map (HDR, EXR, PFM, PNG) to the equal-area square of pbrt-v4's infinite lights");
+  add_envmap_flags(*envmap, ef);
+
   for (int i = 0; i < argc; ++i) {  // the command line, shell-quoted, for the EXR header
     std::string a = argv[i];
     const bool plain = !a.empty() && a.find_first_of(" \t\n'\"\\$`*?[]{}()<>|&;#~") == std::string::npos;
@@ -86,6 +91,7 @@ int main(int argc, char** argv) {
     if (*converge) return run_converge(cf);
     if (*figures) return run_figures(ff);
     if (*diff) return run_diff(df);
+    if (*envmap) return run_envmap(ef);
   } catch (const SceneError& e) {
     if (launcher_rank() == 0) std::cerr << "tuile: " << e.what() << "\n";
     return 1;
