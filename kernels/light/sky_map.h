@@ -75,11 +75,13 @@ template <class T> inline void equal_area_sphere_to_square(const Vec3<T>& d, T& 
 }
 
 // The texel (row-major index) holding the point (pu, pv) of the square, nearest lookup: the
-// texel whose cell contains it (the closed edge 1 belongs to the last texel).
+// texel whose cell contains it (the closed edge 1 belongs to the last texel). Any input,
+// NaN included, gives a texel of the map (the clamp compares, so NaN goes to 0).
 template <class T> inline i32_t<T> sky_texel(int32_t res, const T& pu, const T& pv) {
   const T n = T(static_cast<float>(res)), last = T(static_cast<float>(res - 1));
-  const i32_t<T> ix = to_i32(max(min(pu * n, last), T(0.f)));
-  const i32_t<T> iy = to_i32(max(min(pv * n, last), T(0.f)));
+  const T x = pu * n, y = pv * n;
+  const i32_t<T> ix = to_i32(sel(x > T(0.f), sel(x < last, x, last), T(0.f)));
+  const i32_t<T> iy = to_i32(sel(y > T(0.f), sel(y < last, y, last), T(0.f)));
   return iy * i32_t<T>(res) + ix;
 }
 
