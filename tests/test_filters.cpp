@@ -24,6 +24,10 @@
 #include "render_util.h"
 #include "sample/filter.h"
 #include "scene/pbrt.h"
+#include "chi2.h"
+
+using tuile::test::Chi2;
+using tuile::test::chi2_test;
 
 namespace tuile {
 namespace {
@@ -34,40 +38,6 @@ struct Rng {
   float uf() { return static_cast<float>(g() >> 40) * 0x1p-24f; }  // [0, 1), the samplers' grid
 };
 
-// Chi-square with cells pooled below 5 expected (as tests/test_sampling.cpp); p-value by
-// Wilson-Hilferty.
-struct Chi2 {
-  double chi2 = 0, p = 0;
-  int dof = 0;
-};
-Chi2 chi2_test(const std::vector<double>& obs, const std::vector<double>& expd) {
-  std::vector<size_t> idx(obs.size());
-  for (size_t i = 0; i < idx.size(); ++i) idx[i] = i;
-  std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return expd[a] < expd[b]; });
-  Chi2 r;
-  double po = 0, pe = 0;
-  int cells = 0;
-  for (size_t k : idx) {
-    po += obs[k];
-    pe += expd[k];
-    if (pe >= 5) {
-      r.chi2 += (po - pe) * (po - pe) / pe;
-      ++cells;
-      po = pe = 0;
-    }
-  }
-  if (pe > 0) {
-    r.chi2 += (po - pe) * (po - pe) / pe;
-    ++cells;
-  } else if (po > 0) {
-    r.chi2 = INFINITY;
-  }
-  r.dof = cells - 1;
-  const double k = r.dof;
-  const double z = (std::cbrt(r.chi2 / k) - (1.0 - 2.0 / (9.0 * k))) / std::sqrt(2.0 / (9.0 * k));
-  r.p = 0.5 * std::erfc(z / std::sqrt(2.0));
-  return r;
-}
 
 // The one-dimensional factor of the filter on axis d (separable filters: f = f1(x) f1(y)).
 double f1(const FilterView& v, int d, double x) {

@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -27,6 +28,7 @@
 
 #include "light/dispatch.h"
 #include "render/render.h"
+#include "chi2.h"
 #include "render_util.h"
 #include "scene/image_io.h"
 #include "scene/pbrt.h"
@@ -103,39 +105,6 @@ Rgb busy_texel(int x, int y, int n) {
   return {band * (0.2f + u) + 40.f * blob, band * (0.3f + 0.5f * v) + 20.f * blob, 0.5f * band + 5.f * blob};
 }
 
-struct SkyChi2 {
-  double chi2 = 0, p = 1;
-  int dof = 0;
-};
-// Cells pooled to expected counts of 5 (pbrt-v4's approach), Wilson-Hilferty p-value.
-SkyChi2 sky_chi2(const std::vector<double>& obs, const std::vector<double>& expd) {
-  std::vector<size_t> idx(obs.size());
-  for (size_t i = 0; i < idx.size(); ++i) idx[i] = i;
-  std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return expd[a] < expd[b]; });
-  SkyChi2 r;
-  double po = 0, pe = 0;
-  int cells = 0;
-  for (size_t k : idx) {
-    po += obs[k];
-    pe += expd[k];
-    if (pe >= 5) {
-      r.chi2 += (po - pe) * (po - pe) / pe;
-      ++cells;
-      po = pe = 0;
-    }
-  }
-  if (pe > 0) {
-    r.chi2 += (po - pe) * (po - pe) / pe;
-    ++cells;
-  } else if (po > 0) {
-    r.chi2 = INFINITY;
-  }
-  r.dof = cells - 1;
-  const double k = r.dof;
-  const double z = (std::cbrt(r.chi2 / k) - (1.0 - 2.0 / (9.0 * k))) / std::sqrt(2.0 / (9.0 * k));
-  r.p = 0.5 * std::erfc(z / std::sqrt(2.0));
-  return r;
-}
 
 }  // namespace
 
@@ -212,7 +181,7 @@ TEST(SkyMap, DistributionsIntegrateSampleAndAgree) {
     EXPECT_LT(mismatched, samples / 1000) << "dist " << dist;
     for (int t = 0; t < res * res; ++t)
       expd[static_cast<size_t>(t)] = samples * m.dist[dist].func[static_cast<size_t>(t)] * m.dist[dist].inv_mean / (res * res);
-    const SkyChi2 c = sky_chi2(obs, expd);
+    const Chi2 c = chi2_test(obs, expd);
     std::printf("[ sky map ] dist %d: chi2 %.1f dof %d p %.3g, %d of %d pdf mismatches\n", dist, c.chi2, c.dof, c.p, mismatched, samples);
     EXPECT_GT(c.p, 1e-3) << "dist " << dist;
   }
@@ -582,5 +551,44 @@ TEST(SkyMap, IlluminanceAndScale) {
   // the illuminance of a constant map of 1 over the hemisphere is pi
   SkyMap flat = map_of(image_of(64, 64, [](int, int) { return Rgb{1, 1, 1}; }));
   EXPECT_NEAR(sky_map_upper_illuminance(flat), 3.14159265, 1e-2);  // texel centres: 0.1% off at 64 x 64
+  fs::remove_all(dir);
+}
+
+// The same bits whatever the threads and the tile size (which change the lanes' order and
+// the packets' make-up), for paths under a map beside a sun, with MIS (compensated) and
+// RIS, and the sphere lit through its bounces.
+TEST(SkyMap, BitsAcrossThreadsAndTiles) {
+  const fs::path dir = scratch();
+  const int res = 16;
+  write_pfm((dir / "busy.pfm").string(), image_of(res, res, [&](int x, int y) { return busy_texel(x, y, res); }));
+  Scene s = load_pbrt_string(
+      "LookAt 0 2.5 -5  0 1.2 0  0 1 0\nCamera \"perspective\" \"float fov\" 60\n"
+      "Film \"rgb\" \"integer xresolution\" 24 \"integer yresolution\" 20\nWorldBegin\n"
+      "Material \"diffuse\" \"rgb reflectance\" [0.6 0.5 0.4]\n"
+      "Shape \"trianglemesh\" \"point3 P\" [-100 0 -100  -100 0 100  100 0 100  100 0 -100] \"integer indices\" [0 1 2 0 2 3]\n"
+      "Material \"conductor\" \"float roughness\" 0.2\n"
+      "AttributeBegin\nTranslate 0 1 0\nShape \"sphere\" \"float radius\" 1\nAttributeEnd\n"
+      "LightSource \"distant\" \"point3 from\" [1 3 -1] \"point3 to\" [0 0 0] \"rgb L\" [2 2 2]\n" +
+          std::string(sky_rotation) + "LightSource \"infinite\" \"string filename\" \"busy.pfm\"\nAttributeEnd\n",
+      "bits.pbrt", dir.string());
+  finalize_scene(s);
+  for (Strategy st : {Strategy::mis, Strategy::ris}) {
+    RenderOptions o;
+    o.est.strategy = st;
+    o.est.max_depth = 4;
+    o.est.spp = 4;
+    o.threads = 1;
+    o.tile = 16;
+    const std::vector<float> ref = render_scene(s, o).mean;
+    for (const auto& [threads, tile] : {std::pair{2, 16}, std::pair{2, 8}, std::pair{1, 7}}) {
+      RenderOptions x = o;
+      x.threads = threads;
+      x.tile = tile;
+      const std::vector<float> m = render_scene(s, x).mean;
+      ASSERT_EQ(m.size(), ref.size());
+      EXPECT_EQ(std::memcmp(m.data(), ref.data(), m.size() * sizeof(float)), 0)
+          << "strategy " << static_cast<int>(st) << " threads " << threads << " tile " << tile;
+    }
+  }
   fs::remove_all(dir);
 }

@@ -30,6 +30,10 @@
 #else
 #define TUILE_FLATTEN [[gnu::flatten]]
 #endif
+// A function the flattened stages call instead of inlining: long, rarely taken paths (an
+// environment map's binary searches), whose copies in every flattened stage and lane type
+// cost compile time and code size for nothing.
+#define TUILE_OUT_OF_LINE [[gnu::noinline]]
 
 namespace tuile {
 

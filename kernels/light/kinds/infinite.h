@@ -11,7 +11,8 @@
 // 4 pi * pi r^2 L over the disc of the scene's bounding sphere (a map's mean texel in L);
 // not in the light BVH (its pickers give it its power's share, as a distant source's).
 // Table fields: p0.x the map's index in LightView::sky_maps (-1: constant), e1, e2, n the
-// light frame's x, y, z axes in the world (orthonormal).
+// light frame's x, y, z axes in the world (orthonormal). The sky's functions are out of
+// line (TUILE_OUT_OF_LINE): the flattened stages call them once per batch.
 #pragma once
 #include "light/kinds/common.h"
 #include "light/sky_map.h"
@@ -45,7 +46,7 @@ template <> struct LightKindOps<LightKind::infinite> {
   // A constant sky's density: uniform, or none where the compensated distributions are asked for.
   static float constant_pdf(int dist) { return dist == sky_dist_compensated ? 0.f : inv_4pi_f; }
 
-  template <class T> static SkySample<T> sample_direction(const LightGeom<T>& g, const T& u1, const T& u2) {
+  template <class T> TUILE_OUT_OF_LINE static SkySample<T> sample_direction(const LightGeom<T>& g, const T& u1, const T& u2) {
     SkySample<T> s{sample_uniform_sphere(u1, u2), T(constant_pdf(g.sky_dist)), i32_t<T>(-1)};
     for_each_map(g, [&](const SkyMapView& map, const mask_t<T>& m) {
       const SkyMapSample<T> ms = sample_sky_map(map, g.sky_dist, u1, u2);
@@ -57,7 +58,7 @@ template <> struct LightKindOps<LightKind::infinite> {
     return s;
   }
   // The texel of each map lane along the world direction wi (-1 for constant skies).
-  template <class T> static i32_t<T> texel_along(const LightGeom<T>& g, const Vec3<T>& wi) {
+  template <class T> TUILE_OUT_OF_LINE static i32_t<T> texel_along(const LightGeom<T>& g, const Vec3<T>& wi) {
     i32_t<T> texel(-1);
     for_each_map(g, [&](const SkyMapView& map, const mask_t<T>& m) {
       T pu, pv;
@@ -67,7 +68,7 @@ template <> struct LightKindOps<LightKind::infinite> {
     return texel;
   }
   // The density sample_direction gives the direction wi.
-  template <class T> static T pdf_direction(const LightGeom<T>& g, const Vec3<T>& wi) {
+  template <class T> TUILE_OUT_OF_LINE static T pdf_direction(const LightGeom<T>& g, const Vec3<T>& wi) {
     T pdf(constant_pdf(g.sky_dist));
     for_each_map(g, [&](const SkyMapView& map, const mask_t<T>& m) {
       T pu, pv;
@@ -78,7 +79,7 @@ template <> struct LightKindOps<LightKind::infinite> {
   }
   // The radiance (r, gr, b: the table's on entry) times the texel of the map lanes (texel
   // from sample_direction or texel_along; lanes with texel -1 keep theirs).
-  template <class T> static void apply_texel(const LightGeom<T>& g, const i32_t<T>& texel, T& r, T& gr, T& b) {
+  template <class T> TUILE_OUT_OF_LINE static void apply_texel(const LightGeom<T>& g, const i32_t<T>& texel, T& r, T& gr, T& b) {
     for_each_map(g, [&](const SkyMapView& map, const mask_t<T>& in_map) {
       const auto mi = i_mask_from_f(in_map) && texel >= i32_t<T>(0);
       const mask_t<T> m = f_mask_from_i(mi);
