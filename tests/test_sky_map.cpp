@@ -73,16 +73,6 @@ SkyMap map_of(const RgbImage& img) {
   return m;
 }
 
-SkyMapView view_of(const SkyMap& m) {
-  SkyMapView v;
-  v.res = m.res;
-  v.r = m.r.data();
-  v.g = m.g.data();
-  v.b = m.b.data();
-  for (int d = 0; d < 2; ++d) v.dist[d] = {m.dist[d].func.data(), m.dist[d].cond_cdf.data(), m.dist[d].marg_cdf.data(), m.dist[d].inv_mean};
-  return v;
-}
-
 // A sky's LightGeom in the identity frame reading map view (distribution dist).
 LightGeom<float> sky_geom(const SkyMapView& view, int dist) {
   LightGeom<float> g;
@@ -155,7 +145,7 @@ TEST(SkyMap, EqualAreaSquareRoundTrip) {
 TEST(SkyMap, DistributionsIntegrateSampleAndAgree) {
   const int res = 32;
   const SkyMap m = map_of(image_of(res, res, [&](int x, int y) { return busy_texel(x, y, res); }));
-  const SkyMapView view = view_of(m);
+  const SkyMapView view = sky_map_view(m);
   for (int dist : {sky_dist_full, sky_dist_compensated}) {
     const LightGeom<float> g = sky_geom(view, dist);
     const int q = 4 * res;
@@ -198,7 +188,7 @@ TEST(SkyMap, DistributionsIntegrateSampleAndAgree) {
 TEST(SkyMap, OneBrightTexelAndAllZeros) {
   const int res = 16;
   const SkyMap one = map_of(image_of(res, res, [](int x, int y) { return x == 11 && y == 3 ? Rgb{5, 6, 7} : Rgb{0, 0, 0}; }));
-  const SkyMapView v1 = view_of(one);
+  const SkyMapView v1 = sky_map_view(one);
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> U(0.f, 1.f);
   for (int dist : {sky_dist_full, sky_dist_compensated}) {
@@ -211,7 +201,7 @@ TEST(SkyMap, OneBrightTexelAndAllZeros) {
   }
   const SkyMap zero = map_of(image_of(res, res, [](int, int) { return Rgb{0, 0, 0}; }));
   EXPECT_EQ(zero.mean[0] + zero.mean[1] + zero.mean[2], 0.0);
-  const SkyMapView v0 = view_of(zero);
+  const SkyMapView v0 = sky_map_view(zero);
   const LightGeom<float> g = sky_geom(v0, sky_dist_full);
   for (int s = 0; s < 200; ++s) {
     const SkySample<float> d = Sky::sample_direction(g, U(rng), U(rng));

@@ -2111,12 +2111,7 @@ TEST(StressSky, LargeMap) {
   std::string why;
   ASSERT_TRUE(make_sky_map("large", img, m, why)) << why;
   img.rgb = {};
-  SkyMapView v;
-  v.res = m.res;
-  v.r = m.r.data();
-  v.g = m.g.data();
-  v.b = m.b.data();
-  for (int d = 0; d < 2; ++d) v.dist[d] = {m.dist[d].func.data(), m.dist[d].cond_cdf.data(), m.dist[d].marg_cdf.data(), m.dist[d].inv_mean};
+  const SkyMapView v = sky_map_view(m);
   LightGeom<float> g;
   g.type = static_cast<int32_t>(LightKind::infinite);
   g.p0 = {0, 0, 0};

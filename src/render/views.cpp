@@ -1,6 +1,7 @@
 // build_views: the scene as the kernels read it (SoA light table with its pick
 // distribution and alias table, flattened triangles, per-geometry lookups, camera).
 #include "render/views.h"
+#include "scene/sky_map.h"
 
 #include <algorithm>
 #include <chrono>
@@ -144,16 +145,7 @@ void build_light_table(SceneViews& v, const Scene& scene, LightPick pick) {
     if (is_sky(lights[i].type)) v.sky_light.push_back(static_cast<int32_t>(i));
   L.sky_count = static_cast<int32_t>(v.sky_light.size());
   L.sky_light = v.sky_light.data();
-  for (const SkyMap& m : scene.sky_maps) {
-    SkyMapView mv;
-    mv.res = m.res;
-    mv.r = m.r.data();
-    mv.g = m.g.data();
-    mv.b = m.b.data();
-    for (int d = 0; d < 2; ++d)
-      mv.dist[d] = {m.dist[d].func.data(), m.dist[d].cond_cdf.data(), m.dist[d].marg_cdf.data(), m.dist[d].inv_mean};
-    v.sky_maps.push_back(mv);
-  }
+  for (const SkyMap& m : scene.sky_maps) v.sky_maps.push_back(sky_map_view(m));
   L.sky_maps = v.sky_maps.data();
   L.sky_map_count = static_cast<int32_t>(v.sky_maps.size());
   if (pick == LightPick::bvh && n > 1) {

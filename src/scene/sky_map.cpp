@@ -231,6 +231,17 @@ void build_sky_distributions(SkyMap& m) {
   build_dist(std::move(comp), m.res, m.dist[sky_dist_compensated]);
 }
 
+SkyMapView sky_map_view(const SkyMap& m) {
+  SkyMapView v;
+  v.res = m.res;
+  v.r = m.r.data();
+  v.g = m.g.data();
+  v.b = m.b.data();
+  for (int d = 0; d < 2; ++d)
+    v.dist[d] = {m.dist[d].func.data(), m.dist[d].cond_cdf.data(), m.dist[d].marg_cdf.data(), m.dist[d].inv_mean};
+  return v;
+}
+
 double sky_map_upper_illuminance(const SkyMap& m) {
   double e = 0;
   const int n = m.res;

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "light/sky_map.h"
 #include "scene/scene.h"
 
 namespace tuile {
@@ -29,6 +30,9 @@ bool make_sky_map(const std::string& name, const RgbImage& img, SkyMap& out, std
 
 // Fills out.dist (both distributions), out.mean and out.constant from the texels.
 void build_sky_distributions(SkyMap& out);
+
+// The map as the kernels read it (pointing into m, which must outlive it).
+SkyMapView sky_map_view(const SkyMap& m);
 
 // The illuminance the map gives a surface facing +z of its frame: the integral of its
 // luminance times cos over the upper hemisphere (pbrt-v4's normalisation for "illuminance").
