@@ -8,7 +8,9 @@
 
 namespace tuile {
 
-enum class Heuristic : int { balance = 0, power = 1, cutoff = 2, maximum = 3 };
+// optimal: Kondapaneni et al. 2019's weights (wave/optimal_mis.h): the balance heuristic
+// plus a per-pixel control variate at the first vertex, the power heuristic after it.
+enum class Heuristic : int { balance = 0, power = 1, cutoff = 2, maximum = 3, optimal = 4 };
 
 struct MisParams {
   float beta = 2.f;   // power heuristic exponent
@@ -59,6 +61,8 @@ template <class T> inline T mis_weight(Heuristic h, T q_self, T q_other, const M
     case Heuristic::power: return mis_weight<Heuristic::power>(q_self, q_other, p);
     case Heuristic::cutoff: return mis_weight<Heuristic::cutoff>(q_self, q_other, p);
     case Heuristic::maximum: return mis_weight<Heuristic::maximum>(q_self, q_other, p);
+    // the stages add the balance heuristic's share; wave/optimal_mis.h the rest
+    case Heuristic::optimal: return mis_weight<Heuristic::balance>(q_self, q_other, p);
   }
   return T(0.f);
 }

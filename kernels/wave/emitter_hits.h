@@ -10,6 +10,7 @@
 #pragma once
 #include "light/bvh.h"
 #include "wave/escaped.h"
+#include "wave/optimal_mis.h"
 #include "wave/surface_hits.h"
 
 namespace tuile {
@@ -84,6 +85,7 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
   store(tb.tech.cg + j, load<T>(tb.queue.beta_g + j) * Le_g * factor);
   store(tb.tech.cb + j, load<T>(tb.queue.beta_b + j) * Le_b * factor);
   store(tb.tech.wb + j, w);
+  if (optimal_mis(est)) store(tb.tech.pl + j, pdf_l);  // wave/optimal_mis.h
 }
 
 // Lanes [k, k + width) of the bounce packets: the rays that hit the front of an emitter
@@ -198,6 +200,7 @@ inline void weight_queue(const LightView& L, const Estimator& est, float rate_li
     weight_lanes<typename decltype(lane)::type, Kinds, Delta>(L, est, rate_light, rate_bsdf, tb, j);
   });
   if (!Delta && (est.strategy == Strategy::light || est.strategy == Strategy::ris)) return;
+  const bool optimal = optimal_mis(est);
   for (int j = 0; j < nq; ++j) {
     if (!(tb.queue.vis[j] > 0.f)) continue;
     const float r = tb.tech.cr[j], g = tb.tech.cg[j], b = tb.tech.cb[j];
@@ -209,6 +212,14 @@ inline void weight_queue(const LightView& L, const Estimator& est, float rate_li
     tb.radiance.r[k] += r;
     tb.radiance.g[k] += g;
     tb.radiance.b[k] += b;
+    if (optimal) {  // what the point's BSDF sample met, for optimal_bsdf_pass
+      tb.opt.hit[k] = 1;
+      tb.opt.pl[k] = tb.tech.pl[j];
+      tb.opt.ur[k] = r;
+      tb.opt.ug[k] = g;
+      tb.opt.ub[k] = b;
+      tb.opt.wb[k] = tb.tech.wb[j];
+    }
     if (est.aov_mis_weight) {
       const int i = tb.points.lane[k];
       tb.lanes.wsum[i] += tb.tech.wb[j];

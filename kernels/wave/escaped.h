@@ -24,6 +24,7 @@
 
 #include "light/bvh.h"
 #include "light/sample.h"
+#include "wave/optimal_mis.h"
 #include "wave/tile.h"
 
 namespace tuile {
@@ -133,6 +134,18 @@ inline uint32_t escaped_bounce_lanes(const LightView& L, const Estimator& est, f
   store(tb.radiance.g + k, load<T>(tb.radiance.g + k) + sel(add, acc_g, T(0.f)));
   store(tb.radiance.b + k, load<T>(tb.radiance.b + k) + sel(add, acc_b, T(0.f)));
   if (est.aov_mis_weight) store(tb.tech.wb + k, wsum);
+  if (optimal_mis(est)) {  // what the point's BSDF sample met, for optimal_bsdf_pass (one sky)
+    const T pdf_l = L.sky_count == 1 ? sky_pick_pmf<T>(L, x, n, L.sky_light[0]) *
+                                           pdf_sky_direction<kind_sky>(broadcast_light<T>(L, L.sky_light[0]), d)
+                                     : T(0.f);
+    // (the lanes whose sample met an emitter keep what weight_queue wrote)
+    store_valid(tb.opt.hit + k, add || f_mask_from_i(load_i32<T>(tb.opt.hit + k) != i32_t<T>(0)));
+    store(tb.opt.pl + k, sel(add, pdf_l, load<T>(tb.opt.pl + k)));
+    store(tb.opt.ur + k, sel(add, acc_r, load<T>(tb.opt.ur + k)));
+    store(tb.opt.ug + k, sel(add, acc_g, load<T>(tb.opt.ug + k)));
+    store(tb.opt.ub + k, sel(add, acc_b, load<T>(tb.opt.ub + k)));
+    store(tb.opt.wb + k, sel(add, wsum, load<T>(tb.opt.wb + k)));
+  }
   return lane_bits(add);
 }
 

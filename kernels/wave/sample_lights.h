@@ -12,6 +12,7 @@
 #include <type_traits>
 
 #include "light/bvh.h"
+#include "wave/optimal_mis.h"
 #include "wave/surface_bsdf.h"
 
 namespace tuile {
@@ -169,7 +170,14 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
   // the channels are >= 0 or NaN: their sum is finite iff each one is
   const T c_sum = c_r + c_g + c_b;
   const auto fin = is_finite(c_sum);
-  auto live = ok && fin && (c_sum > T(0.f));
+  // --heuristic optimal: a sample that adds nothing still counts, by whether it is lit
+  // (wave/optimal_mis.h), so its shadow ray is traced; and the techniques' densities
+  const bool optimal = optimal_mis(est);
+  auto live = ok && fin && (optimal ? mask_t<T>(true) : c_sum > T(0.f));
+  if (optimal) {
+    store(tb.tech.pl + k, sel(s.is_delta, s.pick, pdf_l));
+    store(tb.tech.pb + k, sel(s.is_delta, T(0.f), s.fe.pdf));
+  }
   store(tb.tech.cr + k, sel(live, c_r, T(0.f)));
   store(tb.tech.cg + k, sel(live, c_g, T(0.f)));
   store(tb.tech.cb + k, sel(live, c_b, T(0.f)));

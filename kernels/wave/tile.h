@@ -115,6 +115,10 @@ struct TechniqueSample {
   alignas(64) float pdf[lane_array];                                             // BSDF sample: its pdf
   alignas(64) int32_t delta[lane_array];                                         // BSDF sample: a specular lobe
   alignas(64) float wb[lane_array];  // the BSDF technique's MIS weight (AOV)
+  // --heuristic optimal (wave/optimal_mis.h), the light stage's sample: the light and BSDF
+  // techniques' densities of it (a delta source's: pl = its pick, pb = 0); the emitter-hit
+  // stage: the light technique's density of each queued hit
+  alignas(64) float pl[lane_array], pb[lane_array];
 };
 
 // The BSDF-sampled rays that reached the front of an emitter (the MIS weight stage runs on
@@ -170,6 +174,19 @@ struct TileCounters {
   void reset() noexcept { *this = TileCounters{}; }
 };
 
+// --heuristic optimal (wave/optimal_mis.h): per tile lane, the moments of its pixel
+// (OptimalMoment order) before this render (prior) and in it (sum), and this sample's
+// alphas per channel; per shading point, what its BSDF sample met (an emitter or the sky:
+// hit, the light technique's density pl, the balance-weighted contribution u and weight wb).
+enum OptimalMoment : int { opt_a_ll = 0, opt_a_lb = 1, opt_a_bb = 2, opt_b_l = 3, opt_b_b = 6, opt_moments = 9 };
+struct OptimalState {
+  alignas(64) double prior[opt_moments][lane_array];
+  alignas(64) double sum[opt_moments][lane_array];
+  alignas(64) float alpha_l[3][lane_array], alpha_b[3][lane_array];
+  alignas(64) int32_t hit[lane_array];
+  alignas(64) float pl[lane_array], ur[lane_array], ug[lane_array], ub[lane_array], wb[lane_array];
+};
+
 struct alignas(64) TileBuffers {
   RayHit16 cam[max_packets];
   Ray16 shadow[max_packets];
@@ -193,6 +210,7 @@ struct alignas(64) TileBuffers {
   TechniqueSample tech;
   EmitterHitQueue queue;
   RisReservoirs ris;
+  OptimalState opt;
   SamplerKeys keys;
   TileCounters stats;
 };

@@ -26,7 +26,8 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                  "lightsampler, else power");
   app.add_option("--light-point", f.light_point, "area (uniform by area, pdf d^2/(cos A)) | solid-angle")
       ->capture_default_str();
-  app.add_option("--heuristic", f.heuristic, "balance | power | cutoff | maximum (Veach & Guibas 1995)")
+  app.add_option("--heuristic", f.heuristic, "balance | power | cutoff | maximum (Veach & Guibas 1995) | optimal (Kondapaneni et al. "
+                 "2019: per-pixel optimal weights at the first vertex, power after it)")
       ->capture_default_str();
   app.add_option("--beta", f.beta, "power heuristic exponent")->capture_default_str();
   app.add_option("--alpha", f.alpha, "cutoff heuristic threshold")->capture_default_str();

@@ -390,6 +390,14 @@ int run_render_distributed(const RenderFlags& f) {
       std::cerr << "tuile: error: --time-budget and --target-error are not supported under mpirun yet\n";
     return 1;
   }
+  // a pixel's optimal MIS weights come from its earlier passes, which the ranks render at
+  // the same time: the units would not be independent
+  if (f.heuristic == "optimal") {
+    if (mpi.rank == 0)
+      std::cerr << "tuile: error: --heuristic optimal solves each pixel's weights from its earlier passes, which the "
+                   "ranks of mpirun render at the same time; render it in one process\n";
+    return 1;
+  }
   std::unique_ptr<RenderJob> job;
   std::unique_ptr<Prepared> prepared;
   if (!load_everywhere(mpi, f, job, prepared)) return 1;

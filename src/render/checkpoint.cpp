@@ -156,6 +156,7 @@ void save_checkpoint(const std::string& path, const std::string& fingerprint, co
       w.array(film.w_sum);
       w.array(film.w_cnt);
       w.array(film.max_sample);
+      w.array(film.optimal);  // --heuristic optimal only (9 per pixel); nothing otherwise
       const uint32_t crc = static_cast<uint32_t>(w.crc.value);
       if (std::fwrite(&crc, sizeof(crc), 1, f) != 1) throw std::runtime_error("write failed (disk full?)");
       if (std::fflush(f) != 0 || std::ferror(f)) throw std::runtime_error("write failed (disk full?)");
@@ -201,6 +202,7 @@ Checkpoint load_checkpoint(const std::string& path) {
   r.array(c.film.w_sum, n);
   r.array(c.film.w_cnt, n);
   r.array(c.film.max_sample, n);
+  if (data.size() - r.at == 4 + 9 * n * sizeof(double)) r.array(c.film.optimal, 9 * n);  // --heuristic optimal's moments
   if (r.at + 4 != data.size()) throw std::runtime_error(path + ": checkpoint has trailing bytes");
   return c;
 }

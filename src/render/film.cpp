@@ -16,6 +16,7 @@ void Film::reset(int w, int h) {
   w_sum.assign(n, 0.0);
   w_cnt.assign(n, 0.0);
   max_sample.assign(n, 0.f);
+  if (!optimal.empty()) optimal.assign(9 * n, 0.0);
 }
 
 void Film::add(const Film& more) {
@@ -24,6 +25,10 @@ void Film::add(const Film& more) {
   for (size_t i = 0; i < w_sum.size(); ++i) w_sum[i] += more.w_sum[i];
   for (size_t i = 0; i < w_cnt.size(); ++i) w_cnt[i] += more.w_cnt[i];
   for (size_t i = 0; i < max_sample.size(); ++i) max_sample[i] = std::max(max_sample[i], more.max_sample[i]);
+  if (!more.optimal.empty()) {
+    if (optimal.size() != more.optimal.size()) optimal.assign(more.optimal.size(), 0.0);
+    for (size_t i = 0; i < optimal.size(); ++i) optimal[i] += more.optimal[i];
+  }
   samples += more.samples;
 }
 

@@ -28,6 +28,9 @@ struct Film {
   FilmArray<double> w_sum;   // BSDF-technique MIS weight, summed over emitter hits
   FilmArray<double> w_cnt;
   FilmArray<float> max_sample;  // largest single-sample luminance
+  // --heuristic optimal: each pixel's moments of the optimal MIS system (9 per pixel,
+  // wave/optimal_mis.h), which its later samples' weights are solved from; empty otherwise
+  FilmArray<double> optimal;
   void reset(int w, int h);
   // Adds another film's samples (the same size): sums added, largest samples kept. A film
   // made by rendering [a, b) into a fresh film and then added gives the bits of rendering

@@ -28,6 +28,12 @@ void validate(const RenderOptions& o) {
     if (e.pick == LightPick::all)
       throw std::invalid_argument("--strategy ris picks a source per candidate: --light-pick all does not apply");
   }
+  if (e.heuristic == Heuristic::optimal) {
+    if (e.strategy != Strategy::mis)
+      throw std::invalid_argument("--heuristic optimal weighs the light and BSDF techniques: it needs --strategy mis");
+    if (e.one_sample() && e.pick == LightPick::all)
+      throw std::invalid_argument("--heuristic optimal with --mis-mode one picks one source: --light-pick all does not apply");
+  }
   if (e.max_depth < 1 || e.max_depth > 100000) throw std::invalid_argument("--max-depth must be in 1..100000");
   if (e.rr_depth < 0 || e.rr_depth > 100000) throw std::invalid_argument("--rr-depth must be in 0..100000");
   if (o.threads < 0 || o.threads > 1024) throw std::invalid_argument("--threads must be in 0..1024");
@@ -62,7 +68,8 @@ Heuristic parse_heuristic(const std::string& s) {
   if (s == "power") return Heuristic::power;
   if (s == "cutoff") return Heuristic::cutoff;
   if (s == "maximum") return Heuristic::maximum;
-  throw std::invalid_argument("unknown heuristic '" + s + "' (expected balance, power, cutoff or maximum)");
+  if (s == "optimal") return Heuristic::optimal;
+  throw std::invalid_argument("unknown heuristic '" + s + "' (expected balance, power, cutoff, maximum or optimal)");
 }
 MisMode parse_mis_mode(const std::string& s) {
   if (s == "multi") return MisMode::multi;
@@ -87,7 +94,7 @@ std::string describe(const Estimator& e) {
   static const char* strategies[] = {"light", "bsdf", "mis", "ris"};
   static const char* picks[] = {"all", "uniform", "area", "power", "bvh"};
   static const char* points[] = {"area", "solid-angle"};
-  static const char* heuristics[] = {"balance", "power", "cutoff", "maximum"};
+  static const char* heuristics[] = {"balance", "power", "cutoff", "maximum", "optimal"};
   static const char* samplers[] = {"independent", "stratified", "sobol"};
   std::string s = std::string("strategy=") + strategies[static_cast<int>(e.strategy)] +
                   " light-pick=" + picks[static_cast<int>(e.pick)] + " light-point=" + points[static_cast<int>(e.point)];

@@ -46,7 +46,7 @@ PassesResult render_passes(Renderer& renderer, Film& film, uint32_t spp, const P
       if (st.cancelled) film.reset(film.width, film.height);
     } else {
       if (pass.width != film.width || pass.height != film.height || pass.samples != 0) pass.reset(film.width, film.height);
-      st = renderer.render(pass, begin, end);
+      st = renderer.render(pass, begin, end, nullptr, nullptr, &film);
       if (!st.cancelled) film.add(pass);
     }
     if (st.cancelled) {

@@ -56,8 +56,11 @@ class Renderer {
   // do not pay for them again).
   // With `only`, just those tiles run (their pixels get the bits a whole render gives them;
   // the others are left alone): the unit of work of a distributed render.
+  // With --heuristic optimal, each pixel's weights are solved from the moments of its
+  // earlier samples: those in `prior` when given (the image a pass film is added to),
+  // else those already in the film.
   RenderStats render(Film& film, uint32_t begin, uint32_t end, Profile* profile = nullptr,
-                     const std::vector<int>* only = nullptr);
+                     const std::vector<int>* only = nullptr, const Film* prior = nullptr);
   int tile_count() const;
   TileRect tile_rect(int tile) const;
   // The pipeline this scene and estimator select, and why.

@@ -15,6 +15,7 @@
 #include "render/filter_table.h"
 #include "render/tile_pipeline.h"
 #include "wave/accumulate.h"
+#include "wave/optimal_mis.h"
 
 namespace tuile {
 
@@ -38,6 +39,11 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   const Estimator& e = opt_.est;
   const bool bsdf_covers = (e.strategy == Strategy::mis && e.bsdf_samples > 0) || (e.strategy == Strategy::ris && e.ris_bsdf > 0);
   views_->lights.sky_dist = bsdf_covers ? sky_dist_compensated : sky_dist_full;
+  // optimal MIS takes a BSDF sample that escapes as one point of the sky, whose light density
+  // is that of the one sky (several skies would each see the same direction)
+  if (optimal_mis(e) && views_->lights.sky_count > 1)
+    throw std::invalid_argument("--heuristic optimal: the scene has " + std::to_string(views_->lights.sky_count) +
+                                " skies (LightSource \"infinite\" with different maps); it handles one");
   views_->camera.filter = build_filter(opt_.filter, views_->filter_table);  // the pixel filter's tables, once
   // a bounce ray traced against the emitters alone cannot tell the sky from the rest of the
   // scene: where there is a sky, every bounce ray looks for its nearest hit in the scene
@@ -89,7 +95,8 @@ std::string Renderer::pipeline_name(std::string* why) const {
   return e.name;
 }
 
-RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* profile, const std::vector<int>* only) {
+RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* profile, const std::vector<int>* only,
+                             const Film* prior) {
   const Camera& cam = scene_.camera;
   if (film.width != cam.width || film.height != cam.height) film.reset(cam.width, cam.height);
   const SceneViews& v = *views_;
@@ -118,6 +125,16 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
                 film.samples == 0,
                 profile,
                 __rdtsc()};
+  if (optimal_mis(est)) {  // the moments of optimal MIS (wave/optimal_mis.h)
+    const size_t n = static_cast<size_t>(cam.width) * static_cast<size_t>(cam.height);
+    if (film.optimal.size() != 9 * n) film.optimal.assign(9 * n, 0.0);
+    const Film& before = prior ? *prior : film;
+    if (before.samples > 0 && before.optimal.size() == 9 * n) {
+      c.opt_prior = before.optimal.data();
+      c.opt_prior_samples = before.samples;
+    }
+    c.opt_film = film.optimal.data();
+  }
   c.layout = SampleLayout{static_cast<uint32_t>(ris ? c.bsdf_passes : est.bsdf_samples), static_cast<uint32_t>(c.light_passes)};
   std::string why;
   const PipelineEntry pipe = pick_pipeline(v, est, opt_.general_pipeline, why);

@@ -33,6 +33,11 @@ struct TileContext {
   bool fresh_film;        // the film held no samples (zeros) when the render began
   Profile* profile;       // null when not profiling
   uint64_t origin_ticks;
+  // --heuristic optimal: the moments of the pixels' earlier samples (9 per pixel, null
+  // for none), how many samples they hold, and the film's own moment sums
+  const double* opt_prior = nullptr;
+  uint64_t opt_prior_samples = 0;
+  double* opt_film = nullptr;
 };
 
 // Per-thread profiling state.

@@ -20,6 +20,7 @@
 #include "wave/emitter_hits.h"
 #include "wave/escaped.h"
 #include "wave/generate.h"
+#include "wave/optimal_mis.h"
 #include "wave/path.h"
 #include "wave/ris.h"
 #include "wave/sample_bsdf.h"
@@ -224,6 +225,7 @@ void run_light_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer,
       trace_shadow(c, tb, timer, packets, rec, tp);
       timer.lap(Stage::intersect_shadow);
       accumulate_shadow(tb);
+      if (optimal_mis(e)) optimal_light_pass(tb, e, c.rate_light, c.rate_bsdf);
       timer.lap(Stage::accumulate);
     }
   }
@@ -253,6 +255,8 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
       trace_bounce(c, tb, timer, packets, rec, tp, against_emitters ? Bvh::emitters : Bvh::scene);
       timer.lap(Stage::intersect_bounce);
       constexpr bool delta = (F.bsdfs & bsdf_delta_capable) != 0;
+      const bool optimal = optimal_mis(e);
+      if (optimal) optimal_bsdf_clear(tb);
       queue_bounce_hits<vfloat, F.kinds, delta>(v.geom, v.lights, tb, against_emitters, continuation && e.one_sample());
       if (against_emitters && tb.queue.count > 0) {
         const int qpackets = bounce_visibility_rays(tb);
@@ -271,6 +275,7 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
       // with a sky never traces its bounce rays against the emitters alone)
       if constexpr ((F.kinds & kind_sky) != 0)
         escaped_bounce<vfloat, delta>(v.lights, e, c.rate_light, c.rate_bsdf, tb, continuation && e.one_sample());
+      if (optimal) optimal_bsdf_pass(tb, e, c.rate_light, c.rate_bsdf, delta, e.aov_mis_weight);
       timer.lap(Stage::mis_weight);
     }
   }
@@ -297,10 +302,17 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   const SampleLayout& layout = c.layout;
   Estimator deep = est;  // paths past the first vertex: the MIS-weight AOV is the first vertex's
   deep.aov_mis_weight = false;
+  // --heuristic optimal applies at the first vertex; the power heuristic after it
+  const bool optimal = optimal_mis(est);
+  if (optimal) {
+    deep.heuristic = Heuristic::power;
+    optimal_tile_start(tb, lanes, c.opt_prior);
+  }
   hash_tile_keys<F>(c, tb, lanes, cam_packets);
   timer.lap(Stage::generate);
   for (uint32_t s = begin; s < end; ++s) {
     generate(v.camera, est, s, layout.camera, lanes, tb);
+    if (optimal) optimal_alphas(tb, lanes, c.opt_prior_samples + (s - begin));
     timer.lap(Stage::generate);
     const bool rec = tp && c.profile->record_rays && s == begin;
     clear_high_vector_registers();
@@ -360,6 +372,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
                     film.max_sample.data(), static_cast<size_t>(c.width)};
   if (c.fresh_film && blocks && can_stream_tile(x0, tw, th, fs)) stream_tile_to_film(tb, x0, y0, th, fs, est.aov_mis_weight);
   else add_tile_to_film(tb, lanes, fs, est.aov_mis_weight);
+  if (optimal) optimal_tile_end(tb, lanes, c.opt_film);
   timer.lap(Stage::accumulate);
 }
 
