@@ -387,12 +387,15 @@ TEST(Lanes, StagesEqualScalar) {
     for (int tier : {tier_small, tier_gather})
     for (LightPoint point : {LightPoint::area, LightPoint::solid_angle})
       for (Strategy strategy : {Strategy::light, Strategy::bsdf, Strategy::mis})
-        for (MisMode mode : {MisMode::multi, MisMode::one}) {
+        for (MisMode mode : {MisMode::multi, MisMode::one})
+        for (Heuristic heuristic : {Heuristic::power, Heuristic::optimal}) {
+          if (heuristic == Heuristic::optimal && strategy != Strategy::mis) continue;
           Estimator est;
           est.pick = pick;
           est.point = point;
           est.strategy = strategy;
           est.mode = mode;
+          est.heuristic = heuristic;
           auto a = std::make_unique<TileBuffers>();
           fill_shading_points(*a, rng, 200);
           auto b = std::make_unique<TileBuffers>(*a);
@@ -428,6 +431,12 @@ TEST(Lanes, StagesEqualScalar) {
             expect_same_floats(t->tech.cb, b->tech.cb, n, name);
             EXPECT_EQ(t->stats.rejected_light, b->stats.rejected_light) << name();
             for (int k = 0; k < n; ++k) ASSERT_EQ(t->tech.valid[k], b->tech.valid[k]) << name() << " lane " << k;
+            if (heuristic == Heuristic::optimal)  // the densities optimal MIS reads (wave/optimal_mis.h)
+              for (int k = 0; k < n; ++k)
+                if (b->tech.valid[k]) {
+                  expect_same_floats(&t->tech.pl[k], &b->tech.pl[k], 1, name);
+                  expect_same_floats(&t->tech.pb[k], &b->tech.pb[k], 1, name);
+                }
             for (int p = 0; p < n / packet_width; ++p) {
               const Ray16 &ra = t->shadow[p], &rb = b->shadow[p];
               for (int l = 0; l < packet_width; ++l) {
@@ -897,9 +906,12 @@ TEST(Lanes, EmitterQueueEqualScalar) {
   std::mt19937 rng(5);
   int queued = 0, two_sided_hits = 0;
   for (Strategy strategy : {Strategy::mis, Strategy::bsdf})
+    for (Heuristic heuristic : {Heuristic::power, Heuristic::optimal})
     for (int count : {200, 256, 13}) {
+      if (heuristic == Heuristic::optimal && strategy != Strategy::mis) continue;
       Estimator est;
       est.strategy = strategy;
+      est.heuristic = heuristic;
       auto a = std::make_unique<TileBuffers>();
       fill_shading_points(*a, rng, count);
       for (int k = 0; k < max_tile_lanes; ++k) {  // points under the sources, facing them
@@ -938,6 +950,10 @@ TEST(Lanes, EmitterQueueEqualScalar) {
       expect_same_floats(a->radiance.r, b->radiance.r, count, name);
       expect_same_floats(a->radiance.g, b->radiance.g, count, name);
       expect_same_floats(a->radiance.b, b->radiance.b, count, name);
+      if (heuristic == Heuristic::optimal) {  // the light technique's density of each hit, for optimal MIS
+        expect_same_floats(a->tech.pl, b->tech.pl, nq, name);
+        for (int j = 0; j < nq; ++j) expect_same_floats(&a->opt.pl[a->queue.point[j]], &b->opt.pl[b->queue.point[j]], 1, name);
+      }
       // every queued entry is a traced ray that hit the front of an emitter, and every such
       // ray is queued; planar fronts from the scene's own sources (two-sided: either side)
       int expected = 0;
@@ -985,6 +1001,7 @@ TEST(Lanes, EscapedRaysEqualScalar) {
           est.strategy = strategy;
           est.mode = mode;
           est.heuristic = mode == MisMode::one ? Heuristic::balance : Heuristic::power;
+          if (strategy == Strategy::mis && count == 13) est.heuristic = Heuristic::optimal;  // (wave/optimal_mis.h)
           est.aov_mis_weight = true;
           auto a = std::make_unique<TileBuffers>();
           fill_shading_points(*a, rng, count);
@@ -1024,6 +1041,14 @@ TEST(Lanes, EscapedRaysEqualScalar) {
           expect_same_floats(a->lanes.wsum, b->lanes.wsum, count, name);
           expect_same_floats(a->lanes.wcnt, b->lanes.wcnt, count, name);
           EXPECT_EQ(a->stats.rejected_bsdf, b->stats.rejected_bsdf) << name();
+          if (est.heuristic == Heuristic::optimal)  // what optimal MIS reads of each escaped sample
+            for (int k = 0; k < count; ++k) {
+              ASSERT_EQ(a->opt.hit[k], b->opt.hit[k]) << name() << " lane " << k;
+              if (!b->opt.hit[k]) continue;
+              expect_same_floats(&a->opt.pl[k], &b->opt.pl[k], 1, name);
+              expect_same_floats(&a->opt.ur[k], &b->opt.ur[k], 1, name);
+              expect_same_floats(&a->opt.wb[k], &b->opt.wb[k], 1, name);
+            }
           // a camera ray that escaped sees the sky's radiance; one that hit sees none of it
           for (int k = 0; k < count; ++k) {
             const bool out = b->tech.valid[k] && static_cast<int32_t>(b->bounce[k / packet_width].geomID[k % packet_width]) < 0;

@@ -51,7 +51,7 @@ struct Combo {
     static const char* s[] = {"light", "bsdf", "mis"};
     static const char* pk[] = {"all", "uniform", "area", "power"};
     static const char* pt[] = {"area", "sa"};
-    static const char* h[] = {"balance", "power", "cutoff", "maximum"};
+    static const char* h[] = {"balance", "power", "cutoff", "maximum", "optimal"};
     std::string n = std::string(s[int(strategy)]) + "_" + pk[int(pick)] + "_" + pt[int(point)];
     if (strategy == Strategy::mis) n += std::string("_") + h[int(heuristic)] + (mode == MisMode::one ? "_one" : "_multi");
     return n;
@@ -65,6 +65,10 @@ std::vector<Combo> all_combos() {
       c.push_back({Strategy::light, pk, pt, Heuristic::balance, MisMode::multi});
       for (Heuristic h : {Heuristic::balance, Heuristic::power, Heuristic::cutoff, Heuristic::maximum})
         for (MisMode m : {MisMode::multi, MisMode::one}) c.push_back({Strategy::mis, pk, pt, h, m});
+      // optimal MIS (wave/optimal_mis.h): its per-pixel weights come from the pixel's earlier
+      // samples, independent of the later ones (the independent sampler), so it stays unbiased
+      c.push_back({Strategy::mis, pk, pt, Heuristic::optimal, MisMode::multi});
+      if (pk != LightPick::all) c.push_back({Strategy::mis, pk, pt, Heuristic::optimal, MisMode::one});
     }
   c.push_back({Strategy::bsdf, LightPick::power, LightPoint::area, Heuristic::balance, MisMode::multi});
   return c;
@@ -148,7 +152,8 @@ TEST(ExactPlane, MseFallsLikeOneOverSpp) {
   const Combo combos[] = {{Strategy::light, LightPick::uniform, LightPoint::area, Heuristic::balance, MisMode::multi},
                           {Strategy::bsdf, LightPick::uniform, LightPoint::area, Heuristic::balance, MisMode::multi},
                           {Strategy::mis, LightPick::uniform, LightPoint::solid_angle, Heuristic::power, MisMode::multi},
-                          {Strategy::mis, LightPick::uniform, LightPoint::area, Heuristic::balance, MisMode::one}};
+                          {Strategy::mis, LightPick::uniform, LightPoint::area, Heuristic::balance, MisMode::one},
+                          {Strategy::mis, LightPick::uniform, LightPoint::area, Heuristic::optimal, MisMode::multi}};
   for (const Combo& c : combos) {
     double mse[2];
     for (int k = 0; k < 2; ++k) {

@@ -47,8 +47,7 @@ inline bool optimal_mis(const Estimator& e) noexcept {
 inline constexpr uint32_t optimal_warmup = 4;
 
 // Solves A alpha = b for the three channels from a pixel's moments m (OptimalMoment order).
-// A is symmetric and positive semi-definite: by its eigen-decomposition, with the
-// pseudo-inverse where the smaller eigenvalue is below 1e-9 of the larger (the techniques'
+// A is symmetric and positive semi-definite: by Cramer's rule, or by the pseudo-inverse where the smaller eigenvalue is below 1e-9 of the larger (the techniques'
 // densities proportional over the samples: the system is singular, and every solution
 // gives the same estimate to rounding; the pseudo-inverse takes the smallest alpha), and
 // alpha = 0 (the balance heuristic) where A is zero or not finite or a result is not finite.
@@ -65,20 +64,23 @@ inline void solve_optimal_alpha(const double* m, float* alpha_l, float* alpha_b)
   const double l2 = std::max(0.0, (a * c - h * h) / l1);
   double v1x = a >= c ? 1.0 : 0.0, v1y = a >= c ? 0.0 : 1.0;
   if (h != 0.0) {
-    const double len = std::hypot(h, l1 - a);
+    const double d = half >= 0.0 ? h * h / (radius + half) : radius - half;  // l1 - a, without cancellation
+    const double len = std::hypot(h, d);
     v1x = h / len;
-    v1y = (l1 - a) / len;
+    v1y = d / len;
   }
-  const double v2x = -v1y, v2y = v1x;
   const bool full_rank = l2 > 1e-9 * l1;
+  const double det = a * c - h * h;
   for (int ch = 0; ch < 3; ++ch) {
     const double bl = m[opt_b_l + ch], bb = m[opt_b_b + ch];
-    const double p1 = (v1x * bl + v1y * bb) / l1;
-    double xl = p1 * v1x, xb = p1 * v1y;
-    if (full_rank) {
-      const double p2 = (v2x * bl + v2y * bb) / l2;
-      xl += p2 * v2x;
-      xb += p2 * v2y;
+    double xl, xb;
+    if (full_rank) {  // Cramer's rule: an error of about cond(A) 2^-53
+      xl = (c * bl - h * bb) / det;
+      xb = (a * bb - h * bl) / det;
+    } else {  // the pseudo-inverse: along the larger eigenvector only
+      const double p1 = (v1x * bl + v1y * bb) / l1;
+      xl = p1 * v1x;
+      xb = p1 * v1y;
     }
     if (std::isfinite(xl) && std::isfinite(xb)) {
       alpha_l[ch] = static_cast<float>(xl);
