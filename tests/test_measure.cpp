@@ -297,7 +297,7 @@ TEST(Figures, QuickRunWritesTheContactSheets) {
   f.quick = true;
   ASSERT_EQ(run_figures(f), 0);
   for (const char* name : {"a-noise.png", "b-points-per-source.png", "c-light-pdfs.png", "d-mis.png", "e-warmup.png",
-                           "f-veach-plates.png"}) {
+                           "f-veach-plates.png", "g-optimal-mis.png"}) {
     const std::string png = slurp(d / name);
     ASSERT_GE(png.size(), 33u) << name;
     EXPECT_EQ(png.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8)) << name;

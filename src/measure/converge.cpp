@@ -53,6 +53,8 @@ const StrategyDef strategy_table[] = {
      [](RenderFlags& f) { f.strategy = "mis", f.mis_mode = "multi", f.heuristic = "cutoff"; }},
     {"mis:maximum", "--strategy mis --mis-mode multi --heuristic maximum",
      [](RenderFlags& f) { f.strategy = "mis", f.mis_mode = "multi", f.heuristic = "maximum"; }},
+    {"mis:optimal", "--strategy mis --mis-mode multi --heuristic optimal (Kondapaneni et al. 2019: per-pixel weights)",
+     [](RenderFlags& f) { f.strategy = "mis", f.mis_mode = "multi", f.heuristic = "optimal"; }},
     {"mis-one:balance", "--strategy mis --mis-mode one --heuristic balance",
      [](RenderFlags& f) { f.strategy = "mis", f.mis_mode = "one", f.heuristic = "balance"; }},
     {"mis-one:power", "--strategy mis --mis-mode one --heuristic power",

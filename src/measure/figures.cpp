@@ -5,6 +5,8 @@
 //   d-mis.png                light alone, BSDF alone, MIS balance and power, BSDF weight (near-far)
 //   e-warmup.png/.svg        RMS error of the mean of N random values against N
 //   f-veach-plates.png       the same five panels on Veach's glossy plates (veach-plates)
+//   g-optimal-mis.png        MIS balance, power and optimal at equal samples and at equal
+//                            time, and optimal MIS's per-pixel alphas (two-panels, veach-plates)
 // Scenes come from scenes/course/ of the source tree (TUILE_SOURCE_DIR); when a file is
 // missing the built-in two-panels scene stands in and the sheet says so.
 #include <algorithm>
@@ -21,6 +23,7 @@
 #include "scene/image_io.h"
 #include "measure/plot.h"
 #include "render/render.h"
+#include "wave/optimal_mis.h"
 
 #ifndef TUILE_SOURCE_DIR
 #define TUILE_SOURCE_DIR "."
@@ -155,6 +158,69 @@ void mis_sheet(const std::string& png, const std::string& title, const std::stri
   write_sheet(png, title + ", " + std::to_string(spp) + " spp" + note, panels, scale, 3);
 }
 
+// A signed quantity (an optimal MIS alpha, in radiance units): its luminance, positive as
+// sRGB grey, negative in red.
+Panel signed_panel(std::string label, int w, int h, const std::vector<float>& rgb) {
+  Panel p{std::move(label), w, h, std::vector<unsigned char>(rgb.size())};
+  for (size_t i = 0; i < rgb.size() / 3; ++i) {
+    const float y = 0.2126f * rgb[3 * i] + 0.7152f * rgb[3 * i + 1] + 0.0722f * rgb[3 * i + 2];
+    const unsigned char v = encode_srgb(std::fabs(y));
+    p.rgb8[3 * i] = v;
+    p.rgb8[3 * i + 1] = p.rgb8[3 * i + 2] = y < 0 ? 0 : v;
+  }
+  return p;
+}
+
+// (g) optimal MIS (Kondapaneni et al. 2019) against the balance and power heuristics on
+// one course scene: the three at `spp` samples per pixel; the three at the time the slowest
+// of them took (each renders doubling passes and stops before the next would pass it); and
+// the per-pixel alphas of the light and BSDF techniques solved from the optimal render's
+// moments (wave/optimal_mis.h).
+void optimal_rows(SceneSetup& st, const std::string& name, uint32_t spp, std::vector<Panel>& panels) {
+  const char* hs[3] = {"balance", "power", "optimal"};
+  double seconds[3] = {0, 0, 0};
+  Film optimal;
+  for (int k = 0; k < 3; ++k) {
+    RenderFlags rf = st.flags();
+    rf.strategy = "mis";
+    rf.mis_mode = "multi";
+    rf.heuristic = hs[k];
+    RenderOptions o = resolve_options(rf, st.scene);
+    Renderer r(st.scene, *st.accel, o);
+    Film film;
+    film.reset(st.scene.camera.width, st.scene.camera.height);
+    seconds[k] = r.render(film, 0, spp).seconds;
+    panels.push_back(srgb_panel(name + " " + hs[k] + ", " + std::to_string(spp) + " spp", film.width, film.height, film.mean()));
+    if (k == 2) optimal = film;
+  }
+  const double budget = std::max({seconds[0], seconds[1], seconds[2]});
+  for (int k = 0; k < 3; ++k) {
+    RenderFlags rf = st.flags();
+    rf.strategy = "mis";
+    rf.mis_mode = "multi";
+    rf.heuristic = hs[k];
+    RenderOptions o = resolve_options(rf, st.scene);
+    Renderer r(st.scene, *st.accel, o);
+    Film film;
+    film.reset(st.scene.camera.width, st.scene.camera.height);
+    double t = 0;
+    uint32_t done = 0;
+    for (uint32_t next = std::max<uint32_t>(1, spp / 8);; next = done * 2) {
+      t += r.render(film, done, next).seconds;
+      done = next;
+      if (2 * t > budget * 1.05 || done >= (1u << 20)) break;  // the next pass doubles the time
+    }
+    char label[96];
+    std::snprintf(label, sizeof(label), " %s, equal time (%u spp)", hs[k], done);
+    panels.push_back(srgb_panel(name + label, film.width, film.height, film.mean()));
+  }
+  const size_t n = static_cast<size_t>(optimal.width) * static_cast<size_t>(optimal.height);
+  std::vector<float> al(3 * n), ab(3 * n);
+  for (size_t i = 0; i < n; ++i) solve_optimal_alpha(&optimal.optimal[9 * i], &al[3 * i], &ab[3 * i]);
+  panels.push_back(signed_panel(name + " alpha light (red < 0)", optimal.width, optimal.height, al));
+  panels.push_back(signed_panel(name + " alpha BSDF (red < 0)", optimal.width, optimal.height, ab));
+}
+
 // (e) the error of the mean of N values against N, over many trials
 struct SplitMix {
   uint64_t s;
@@ -214,7 +280,8 @@ void add_figures_flags(CLI::App& app, FiguresFlags& f) {
       "Writes a-noise.png (1..1024 spp), b-points-per-source.png (1/16/64 points per source, 1 spp),\n"
       "c-light-pdfs.png (p = 1/S 1/A, p = 1/sum A, solid angle), d-mis.png (light, BSDF, MIS balance/power,\n"
       "BSDF weight as grey), e-warmup.png/.svg (error of the mean of N values against N) and\n"
-      "f-veach-plates.png (d's panels on Veach's plates: four lights of equal power on four plates).");
+      "f-veach-plates.png (d's panels on Veach's plates: four lights of equal power on four plates),\n"
+      "g-optimal-mis.png (MIS balance, power and optimal at equal samples and equal time, optimal's alphas).");
 }
 
 int run_figures(const FiguresFlags& f) {
@@ -300,6 +367,22 @@ int run_figures(const FiguresFlags& f) {
   // (f) Veach's plates: four lights of equal power, radii x3 apart, on four plates of growing roughness
   mis_sheet(f.out + "/f-veach-plates.png", "(f) Veach's plates, MIS", "veach-plates.pbrt", q ? 64 : 384,
             q ? 48 : 288, q ? 2 : 8, f.threads, scale);
+
+  // (g) optimal MIS weights against the heuristics, on two-panels and the plates
+  {
+    std::vector<Panel> panels;
+    std::string notes;
+    for (const char* file : {"two-panels.pbrt", "veach-plates.pbrt"}) {
+      std::string note;
+      const std::string path = course_scene(file, note);
+      const bool plates = std::string(file) == "veach-plates.pbrt";
+      SceneSetup st(path, plates ? (q ? 64 : 256) : (q ? 72 : 300), plates ? (q ? 48 : 192) : (q ? 24 : 100), f.threads);
+      optimal_rows(st, plates ? "plates" : "panels", q ? 8 : 64, panels);
+      notes += note;
+    }
+    write_sheet(f.out + "/g-optimal-mis.png", "(g) Optimal MIS weights (Kondapaneni et al. 2019) against balance and power" + notes,
+                panels, scale, 4);
+  }
   return 0;
 }
 
