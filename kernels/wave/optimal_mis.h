@@ -62,21 +62,21 @@ inline void solve_optimal_alpha(const double* m, float* alpha_l, float* alpha_b)
   const double radius = std::sqrt(half * half + h * h);
   const double l1 = mean + radius;
   const double l2 = std::max(0.0, (a * c - h * h) / l1);
+  const bool full_rank = l2 > 1e-9 * l1;
   double v1x = a >= c ? 1.0 : 0.0, v1y = a >= c ? 0.0 : 1.0;
-  if (h != 0.0) {
+  if (!full_rank && h != 0.0) {
     const double d = half >= 0.0 ? h * h / (radius + half) : radius - half;  // l1 - a, without cancellation
-    const double len = std::hypot(h, d);
+    const double len = std::sqrt(h * h + d * d);
     v1x = h / len;
     v1y = d / len;
   }
-  const bool full_rank = l2 > 1e-9 * l1;
-  const double det = a * c - h * h;
+  const double inv_det = 1.0 / (a * c - h * h);
   for (int ch = 0; ch < 3; ++ch) {
     const double bl = m[opt_b_l + ch], bb = m[opt_b_b + ch];
     double xl, xb;
     if (full_rank) {  // Cramer's rule: an error of about cond(A) 2^-53
-      xl = (c * bl - h * bb) / det;
-      xb = (a * bb - h * bl) / det;
+      xl = (c * bl - h * bb) * inv_det;
+      xb = (a * bb - h * bl) * inv_det;
     } else {  // the pseudo-inverse: along the larger eigenvector only
       const double p1 = (v1x * bl + v1y * bb) / l1;
       xl = p1 * v1x;
@@ -91,9 +91,14 @@ inline void solve_optimal_alpha(const double* m, float* alpha_l, float* alpha_b)
 
 // Before a sample: each tile lane's alphas from its pixel's moments so far (the film's,
 // loaded at tile start, plus this render's), or zero during the warm-up. `samples_before`:
-// the pixel's samples before this one.
-inline void optimal_alphas(TileBuffers& tb, int lanes, uint64_t samples_before) noexcept {
+// the pixel's samples before this one. The alphas are solved again at the render's first
+// sample of the tile (`first`) and whenever a pixel's sample count reaches a power of two,
+// and kept between: each solve still uses earlier samples only, and solving at every sample
+// cost about a third of the estimator's overhead without a measurable gain.
+inline void optimal_alphas(TileBuffers& tb, int lanes, uint64_t samples_before, bool first) noexcept {
   OptimalState& o = tb.opt;
+  const bool solve = first || (samples_before & (samples_before - 1)) == 0;
+  if (!solve && samples_before > optimal_warmup) return;
   for (int i = 0; i < lanes; ++i) {
     float al[3], ab[3];
     if (samples_before < optimal_warmup) {

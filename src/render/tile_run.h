@@ -312,7 +312,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
   timer.lap(Stage::generate);
   for (uint32_t s = begin; s < end; ++s) {
     generate(v.camera, est, s, layout.camera, lanes, tb);
-    if (optimal) optimal_alphas(tb, lanes, c.opt_prior_samples + (s - begin));
+    if (optimal) optimal_alphas(tb, lanes, c.opt_prior_samples + (s - begin), s == begin);
     timer.lap(Stage::generate);
     const bool rec = tp && c.profile->record_rays && s == begin;
     clear_high_vector_registers();
