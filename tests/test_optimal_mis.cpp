@@ -52,21 +52,25 @@ void reference_alpha(const double* m, long double* al, long double* ab) {
   }
 }
 
-// Moments of n random samples (r_L, r_B, u) as the stages make them.
+// Adds one sample's moments (r_L, r_B, and u in channel ch times ch + 1) as the stages do.
+void add_sample(double* m, double rl, double rb, double u) {
+  m[opt_a_ll] += rl * rl;
+  m[opt_a_lb] += rl * rb;
+  m[opt_a_bb] += rb * rb;
+  for (int ch = 0; ch < 3; ++ch) {
+    m[opt_b_l + ch] += (ch + 1) * u * rl;
+    m[opt_b_b + ch] += (ch + 1) * u * rb;
+  }
+}
+
+// Moments of n random samples.
 void random_moments(std::mt19937& rng, int n, double scale_l, double scale_b, double* m) {
   std::uniform_real_distribution<double> U(0.0, 1.0);
   for (int j = 0; j < opt_moments; ++j) m[j] = 0;
   for (int s = 0; s < n; ++s) {
     const double pl = scale_l * U(rng), pb = scale_b * U(rng), f = U(rng) * (pl + 2 * pb);
     const double q = pl + pb;
-    const double rl = pl / q, rb = pb / q, u = f / q;
-    m[opt_a_ll] += rl * rl;
-    m[opt_a_lb] += rl * rb;
-    m[opt_a_bb] += rb * rb;
-    for (int ch = 0; ch < 3; ++ch) {
-      m[opt_b_l + ch] += (ch + 1) * u * rl;
-      m[opt_b_b + ch] += (ch + 1) * u * rb;
-    }
+    add_sample(m, pl / q, pb / q, f / q);
   }
 }
 
@@ -104,16 +108,7 @@ TEST(OptimalMis, SolveMatchesALongDoubleReference) {
   for (double ratio : {1.0, 0.25, 3.0, 1e-6, 1e6}) {
     for (int j = 0; j < opt_moments; ++j) m[j] = 0;
     const double rl = ratio / (ratio + 1), rb = 1 / (ratio + 1);
-    for (int s = 0; s < 10; ++s) {
-      const double u = 0.1 * (s + 1);
-      m[opt_a_ll] += rl * rl;
-      m[opt_a_lb] += rl * rb;
-      m[opt_a_bb] += rb * rb;
-      for (int ch = 0; ch < 3; ++ch) {
-        m[opt_b_l + ch] += u * rl;
-        m[opt_b_b + ch] += u * rb;
-      }
-    }
+    for (int s = 0; s < 10; ++s) add_sample(m, rl, rb, 0.1 * (s + 1));
     expect_alpha_near(m, "rank one, ratio " + std::to_string(ratio));
     float al[3], ab[3];
     solve_optimal_alpha(m, al, ab);
@@ -126,14 +121,8 @@ TEST(OptimalMis, SolveMatchesALongDoubleReference) {
   for (double eps : {1e-3, 1e-5, 1e-7}) {
     for (int j = 0; j < opt_moments; ++j) m[j] = 0;
     for (int s = 0; s < 8; ++s) {
-      const double rl = 0.5 + eps * (s % 2 ? 1 : -1), rb = 1 - rl, u = 0.3 + 0.01 * s;
-      m[opt_a_ll] += rl * rl;
-      m[opt_a_lb] += rl * rb;
-      m[opt_a_bb] += rb * rb;
-      for (int ch = 0; ch < 3; ++ch) {
-        m[opt_b_l + ch] += u * rl;
-        m[opt_b_b + ch] += u * rb;
-      }
+      const double rl = 0.5 + eps * (s % 2 ? 1 : -1);
+      add_sample(m, rl, 1 - rl, 0.3 + 0.01 * s);
     }
     expect_alpha_near(m, "near singular " + std::to_string(eps));
   }

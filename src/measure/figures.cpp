@@ -178,15 +178,17 @@ Panel signed_panel(std::string label, int w, int h, const std::vector<float>& rg
 // moments (wave/optimal_mis.h).
 void optimal_rows(SceneSetup& st, const std::string& name, uint32_t spp, std::vector<Panel>& panels) {
   const char* hs[3] = {"balance", "power", "optimal"};
-  double seconds[3] = {0, 0, 0};
-  Film optimal;
-  for (int k = 0; k < 3; ++k) {
+  auto options = [&](int k) {
     RenderFlags rf = st.flags();
     rf.strategy = "mis";
     rf.mis_mode = "multi";
     rf.heuristic = hs[k];
-    RenderOptions o = resolve_options(rf, st.scene);
-    Renderer r(st.scene, *st.accel, o);
+    return resolve_options(rf, st.scene);
+  };
+  double seconds[3] = {0, 0, 0};
+  Film optimal;
+  for (int k = 0; k < 3; ++k) {
+    Renderer r(st.scene, *st.accel, options(k));
     Film film;
     film.reset(st.scene.camera.width, st.scene.camera.height);
     seconds[k] = r.render(film, 0, spp).seconds;
@@ -195,12 +197,7 @@ void optimal_rows(SceneSetup& st, const std::string& name, uint32_t spp, std::ve
   }
   const double budget = std::max({seconds[0], seconds[1], seconds[2]});
   for (int k = 0; k < 3; ++k) {
-    RenderFlags rf = st.flags();
-    rf.strategy = "mis";
-    rf.mis_mode = "multi";
-    rf.heuristic = hs[k];
-    RenderOptions o = resolve_options(rf, st.scene);
-    Renderer r(st.scene, *st.accel, o);
+    Renderer r(st.scene, *st.accel, options(k));
     Film film;
     film.reset(st.scene.camera.width, st.scene.camera.height);
     double t = 0;
