@@ -305,7 +305,7 @@ TEST(Paths, FloorLitThroughMirror) {
   finalize_scene(s);
   const std::vector<double> exact = exact_image(p);
   for (Strategy st : {Strategy::mis, Strategy::bsdf, Strategy::ris}) {
-    RenderOptions o = path_options(2, st, scaled(1024u, 64u));
+    RenderOptions o = path_options(2, st, 1024);
     const Film f = render_film(s, o);
     const std::vector<float> m = f.mean(), v = f.variance_of_mean();
     const int W = s.camera.width, B = 4;

@@ -68,7 +68,7 @@ std::vector<Combo> all_combos() {
       // optimal MIS (wave/optimal_mis.h): its per-pixel weights come from the pixel's earlier
       // samples, independent of the later ones (the independent sampler), so it stays unbiased
       c.push_back({Strategy::mis, pk, pt, Heuristic::optimal, MisMode::multi});
-      if (pk != LightPick::all) c.push_back({Strategy::mis, pk, pt, Heuristic::optimal, MisMode::one});
+      if (pk == LightPick::power) c.push_back({Strategy::mis, pk, pt, Heuristic::optimal, MisMode::one});
     }
   c.push_back({Strategy::bsdf, LightPick::power, LightPoint::area, Heuristic::balance, MisMode::multi});
   return c;

@@ -30,6 +30,8 @@
 // alpha_L + alpha_B), so that a failed sample adds exactly 0 under multi-sample MIS.
 // With --light-pick all every source is sampled n_L times: the light technique's
 // densities add up over the sources and each sample still carries alpha_L / n_L.
+// The hooks run once per pass over all shading points, out of line (TUILE_OUT_OF_LINE): one
+// copy per translation unit instead of one inlined into each of the tile pipelines.
 #pragma once
 #include <algorithm>
 #include <cmath>
@@ -95,7 +97,7 @@ inline void solve_optimal_alpha(const double* m, float* alpha_l, float* alpha_b)
 // sample of the tile (`first`) and whenever a pixel's sample count reaches a power of two,
 // and kept between: each solve still uses earlier samples only, and solving at every sample
 // cost about a third of the estimator's overhead without a measurable gain.
-inline void optimal_alphas(TileBuffers& tb, int lanes, uint64_t samples_before, bool first) noexcept {
+TUILE_OUT_OF_LINE inline void optimal_alphas(TileBuffers& tb, int lanes, uint64_t samples_before, bool first) noexcept {
   OptimalState& o = tb.opt;
   const bool solve = first || (samples_before & (samples_before - 1)) == 0;
   if (!solve && samples_before > optimal_warmup) return;
@@ -158,7 +160,7 @@ inline OptimalShares optimal_shares(const Estimator& e, float rate_light, float 
 // light sample. Lit samples (traced and unoccluded) read their densities from the light
 // stage (tech.pl, tech.pb; a delta source's pb is 0); the rest are points of the light
 // technique alone (u = 0, r = (1 / n_L, 0)).
-inline void optimal_light_pass(TileBuffers& tb, const Estimator& e, float rate_light, float rate_bsdf) noexcept {
+TUILE_OUT_OF_LINE inline void optimal_light_pass(TileBuffers& tb, const Estimator& e, float rate_light, float rate_bsdf) noexcept {
   const OptimalShares sh = optimal_shares(e, rate_light, rate_bsdf, true);
   for (int k = 0; k < tb.points.count; ++k) {
     if (e.one_sample() && !(tb.points.choose_light[k] > 0.5f)) continue;
@@ -181,13 +183,13 @@ inline void optimal_light_pass(TileBuffers& tb, const Estimator& e, float rate_l
 }
 
 // Before a BSDF pass's emitter hits are weighted: no point has met an emitter yet.
-inline void optimal_bsdf_clear(TileBuffers& tb) noexcept { std::fill_n(tb.opt.hit, packet_padded(tb.points.count), 0); }
+TUILE_OUT_OF_LINE inline void optimal_bsdf_clear(TileBuffers& tb) noexcept { std::fill_n(tb.opt.hit, packet_padded(tb.points.count), 0); }
 
 // After a BSDF pass's emitter hits and escaped rays (weight_queue, escaped_bounce, which
 // set opt.hit, opt.pl and opt.u of the points whose sample met an emitter or the sky):
 // every shading point that took a BSDF sample. A specular sample (tech.delta) or one that
 // met nothing that emits is a point of the BSDF technique alone.
-inline void optimal_bsdf_pass(TileBuffers& tb, const Estimator& e, float rate_light, float rate_bsdf, bool delta_capable,
+TUILE_OUT_OF_LINE inline void optimal_bsdf_pass(TileBuffers& tb, const Estimator& e, float rate_light, float rate_bsdf, bool delta_capable,
                               bool aov) noexcept {
   const OptimalShares sh = optimal_shares(e, rate_light, rate_bsdf, false);
   for (int k = 0; k < tb.points.count; ++k) {
@@ -216,7 +218,7 @@ inline void optimal_bsdf_pass(TileBuffers& tb, const Estimator& e, float rate_li
 
 // At tile start: the moments of the tile's pixels before this render (`prior`: the film the
 // earlier samples are in, 9 per pixel; null: none) and this render's sums at zero.
-inline void optimal_tile_start(TileBuffers& tb, int lanes, const double* prior) noexcept {
+TUILE_OUT_OF_LINE inline void optimal_tile_start(TileBuffers& tb, int lanes, const double* prior) noexcept {
   OptimalState& o = tb.opt;
   const int padded = packet_padded(lanes);
   for (int j = 0; j < opt_moments; ++j) {
@@ -226,7 +228,7 @@ inline void optimal_tile_start(TileBuffers& tb, int lanes, const double* prior) 
 }
 
 // At tile end: this render's moments into the film (9 per pixel).
-inline void optimal_tile_end(const TileBuffers& tb, int lanes, double* film) noexcept {
+TUILE_OUT_OF_LINE inline void optimal_tile_end(const TileBuffers& tb, int lanes, double* film) noexcept {
   for (int i = 0; i < lanes; ++i)
     for (int j = 0; j < opt_moments; ++j) film[static_cast<size_t>(opt_moments) * tb.lanes.pixel[i] + j] += tb.opt.sum[j][i];
 }

@@ -374,7 +374,7 @@ int run_figures(const FiguresFlags& f) {
       const std::string path = course_scene(file, note);
       const bool plates = std::string(file) == "veach-plates.pbrt";
       SceneSetup st(path, plates ? (q ? 64 : 256) : (q ? 72 : 300), plates ? (q ? 48 : 192) : (q ? 24 : 100), f.threads);
-      optimal_rows(st, plates ? "plates" : "panels", q ? 8 : 64, panels);
+      optimal_rows(st, plates ? "plates" : "panels", q ? 2 : 64, panels);
       notes += note;
     }
     write_sheet(f.out + "/g-optimal-mis.png", "(g) Optimal MIS weights (Kondapaneni et al. 2019) against balance and power" + notes,
