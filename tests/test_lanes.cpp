@@ -931,6 +931,7 @@ TEST(Lanes, EmitterQueueEqualScalar) {
       std::fill_n(a->radiance.r, max_tile_lanes, 0.f);
       std::fill_n(a->radiance.g, max_tile_lanes, 0.f);
       std::fill_n(a->radiance.b, max_tile_lanes, 0.f);
+      std::fill_n(a->opt.pl, max_tile_lanes, 0.f);  // (optimal MIS: what weight_queue fills)
       auto b = std::make_unique<TileBuffers>(*a);
       if (rects) weight_bounce<vfloat, kind_area | kind_rects>(views.geom, views.lights, est, 1.f, 1.f, *a);
       else weight_bounce<vfloat>(views.geom, views.lights, est, 1.f, 1.f, *a);
@@ -1026,6 +1027,9 @@ TEST(Lanes, EscapedRaysEqualScalar) {
           std::fill_n(a->radiance.g, max_tile_lanes, 0.f);
           std::fill_n(a->radiance.b, max_tile_lanes, 0.f);
           for (int k = 0; k < max_tile_lanes; ++k) a->points.lane[k] = k;
+          // no point's sample has met an emitter yet (as optimal_bsdf_clear leaves them)
+          std::fill_n(a->opt.hit, max_tile_lanes, 0);
+          for (float* arr : {a->opt.pl, a->opt.ur, a->opt.ug, a->opt.ub, a->opt.wb}) std::fill_n(arr, max_tile_lanes, 0.f);
           auto b = std::make_unique<TileBuffers>(*a);
           const bool chosen_only = mode == MisMode::one;
           escaped_camera<vfloat>(views.lights, *a, count);
