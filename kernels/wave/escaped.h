@@ -112,10 +112,12 @@ inline uint32_t escaped_bounce_lanes(const LightView& L, const Estimator& est, f
   const T pdf_b = load<T>(tb.tech.pdf + k);
   const T beta_r = load<T>(tb.tech.beta_r + k), beta_g = load<T>(tb.tech.beta_g + k), beta_b = load<T>(tb.tech.beta_b + k);
   T acc_r(0.f), acc_g(0.f), acc_b(0.f), wsum(0.f);
+  T pdf_one_sky(0.f);  // the light technique's density of the direction where there is one sky (optimal MIS)
   for (int s = 0; s < L.sky_count; ++s) {
     const int32_t sky = L.sky_light[s];
     const LightGeom<T> g = broadcast_light<T>(L, sky);
     const T pdf_l = sky_pick_pmf<T>(L, x, n, sky) * pdf_sky_direction<kind_sky>(g, d);
+    if (L.sky_count == 1) pdf_one_sky = pdf_l;
     T w = bsdf_technique_weight<T>(est, rate_light, rate_bsdf, pdf_b, pdf_l);
     if constexpr (Delta) w = sel(f_mask_from_i(load_i32<T>(tb.tech.delta + k) != i32_t<T>(0)), T(1.f), w);
     T Le_r, Le_g, Le_b;
@@ -135,12 +137,9 @@ inline uint32_t escaped_bounce_lanes(const LightView& L, const Estimator& est, f
   store(tb.radiance.b + k, load<T>(tb.radiance.b + k) + sel(add, acc_b, T(0.f)));
   if (est.aov_mis_weight) store(tb.tech.wb + k, wsum);
   if (optimal_mis(est)) {  // what the point's BSDF sample met, for optimal_bsdf_pass (one sky)
-    const T pdf_l = L.sky_count == 1 ? sky_pick_pmf<T>(L, x, n, L.sky_light[0]) *
-                                           pdf_sky_direction<kind_sky>(broadcast_light<T>(L, L.sky_light[0]), d)
-                                     : T(0.f);
     // (the lanes whose sample met an emitter keep what weight_queue wrote)
     store_valid(tb.opt.hit + k, add || f_mask_from_i(load_i32<T>(tb.opt.hit + k) != i32_t<T>(0)));
-    store(tb.opt.pl + k, sel(add, pdf_l, load<T>(tb.opt.pl + k)));
+    store(tb.opt.pl + k, sel(add, pdf_one_sky, load<T>(tb.opt.pl + k)));
     store(tb.opt.ur + k, sel(add, acc_r, load<T>(tb.opt.ur + k)));
     store(tb.opt.ug + k, sel(add, acc_g, load<T>(tb.opt.ug + k)));
     store(tb.opt.ub + k, sel(add, acc_b, load<T>(tb.opt.ub + k)));
