@@ -2,7 +2,8 @@
 # Installs the Debian packages tuile needs, only those missing (apt-get update first when needed).
 set -e
 PKGS="cmake make ninja-build g++ pkg-config libembree-dev libtbb-dev libxsimd-dev libopenexr-dev libcli11-dev \
-libgtest-dev libbenchmark-dev zlib1g-dev libpng-dev libstb-dev libopenmpi-dev openmpi-bin"
+libgtest-dev libbenchmark-dev zlib1g-dev libpng-dev libstb-dev libopenmpi-dev openmpi-bin \
+python3 python3-dev pybind11-dev python3-numpy python3-matplotlib python3-pytest"
 missing=""
 for p in $PKGS; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then

@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -47,12 +49,6 @@ std::string slurp(const fs::path& p) {
   std::ostringstream s;
   s << f.rdbuf();
   return s.str();
-}
-
-size_t count(const std::string& s, const std::string& what) {
-  size_t n = 0;
-  for (size_t at = s.find(what); at != std::string::npos; at = s.find(what, at + 1)) ++n;
-  return n;
 }
 
 std::vector<std::string> split(const std::string& s, char sep) {
@@ -137,38 +133,44 @@ TEST(Metrics, LogLogSlopeAndInterpolation) {
   EXPECT_TRUE(std::isnan(loglog_interpolate(t, e, 1000.0)));
 }
 
-TEST(Plot, SvgIsWellFormedWithOnePolylinePerSeries) {
-  Plot p;
-  p.title = "a <test> & more";
-  p.guide_slope = -1;
-  p.guide_label = "1/t";
-  for (int s = 0; s < 3; ++s) {
-    PlotSeries ps;
-    ps.name = "s";
-    ps.name += std::to_string(s);
-    for (int k = 0; k < 5; ++k) ps.x.push_back(std::ldexp(1.0, k)), ps.y.push_back((s + 1) * 0.1 / ps.x.back());
-    p.series.push_back(ps);
-  }
-  const std::string svg = plot_svg(p);
-  EXPECT_EQ(svg.rfind("<svg", 0), 0u);
-  EXPECT_NE(svg.find("</svg>"), std::string::npos);
-  EXPECT_EQ(count(svg, "<polyline"), 3u);
-  EXPECT_EQ(count(svg, "<text"), count(svg, "</text>"));
-  EXPECT_EQ(svg.find("<test>"), std::string::npos);  // escaped
-  EXPECT_NE(svg.find("stroke-dasharray"), std::string::npos);
-  const Canvas c = plot_raster(p, 400, 300);
-  EXPECT_EQ(c.rgb.size(), 400u * 300u * 3u);
+// The .npy files the figures hand to matplotlib: NumPy's format 1.0 header (magic,
+// version, a 64-byte aligned dict ending in a newline) and the floats after it.
+TEST(Plot, NpyFilesFollowNumpysFormat) {
+  const fs::path d = scratch_dir("npy");
+  const std::vector<float> v = {0.f, 1.f, -2.5f, 3.f, 4.f, 5.f};
+  write_npy((d / "a.npy").string(), {1, 2, 3}, v.data());
+  const std::string s = slurp(d / "a.npy");
+  ASSERT_GE(s.size(), 10u);
+  EXPECT_EQ(s.substr(0, 8), std::string("\x93NUMPY\x01\x00", 8));
+  const size_t hl = static_cast<uint8_t>(s[8]) | (static_cast<size_t>(static_cast<uint8_t>(s[9])) << 8);
+  EXPECT_EQ((10 + hl) % 64, 0u);
+  const std::string dict = s.substr(10, hl);
+  EXPECT_NE(dict.find("'descr': '<f4'"), std::string::npos) << dict;
+  EXPECT_NE(dict.find("'shape': (1, 2, 3)"), std::string::npos) << dict;
+  EXPECT_EQ(dict.back(), '\n');
+  ASSERT_EQ(s.size(), 10 + hl + v.size() * 4);
+  float back[6];
+  std::memcpy(back, s.data() + 10 + hl, sizeof back);
+  for (int i = 0; i < 6; ++i) EXPECT_EQ(back[i], v[static_cast<size_t>(i)]);
 }
 
-TEST(Plot, FontCoversTheLabels) {
-  for (char ch : std::string("0123456789abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ .,:-+=/*()[]%_<>!?^|'\""))
-    EXPECT_TRUE(font_has_glyph(ch)) << ch;
-  EXPECT_EQ(text_width("abc", 2), (3 * font_advance - 1) * 2);
-  Canvas c(20, 10, Color{0, 0, 0});
-  draw_text(c, 0, 0, "1", Color{255, 255, 255});
-  int lit = 0;
-  for (size_t i = 0; i < c.rgb.size(); i += 3) lit += c.rgb[i] == 255;
-  EXPECT_EQ(lit, 10);  // the glyph '1' has 10 pixels
+// Without an interpreter to draw with, the error says what to install and how to point
+// tuile at another python3.
+TEST(Plot, MissingPythonIsAClearError) {
+  const fs::path d = scratch_dir("nopython");
+  setenv("TUILE_PYTHON", (d / "no-such-python3").c_str(), 1);
+  Plot p;
+  p.output = (d / "p.png").string();
+  p.series.push_back(PlotSeries{"s", {1, 2}, {1, 0.5}});
+  try {
+    draw_with_matplotlib({p}, {});
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("TUILE_PYTHON"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("python3-matplotlib"), std::string::npos) << e.what();
+  }
+  unsetenv("TUILE_PYTHON");
+  EXPECT_FALSE(fs::exists(p.output));
 }
 
 TEST(Converge, CsvSchemaAndSppDoubling) {
@@ -213,10 +215,11 @@ TEST(Converge, CsvSchemaAndSppDoubling) {
     EXPECT_LE(s.back(), 64) << name;
   }
 
+  // drawn by matplotlib, its text kept as text: one legend entry per strategy
   const std::string svg = slurp(f.plot);
-  EXPECT_EQ(svg.rfind("<svg", 0), 0u);
-  EXPECT_EQ(count(svg, "<polyline"), 3u);
+  EXPECT_NE(svg.find("<svg"), std::string::npos);
   EXPECT_NE(svg.find("</svg>"), std::string::npos);
+  for (const char* name : {"light:area", "bsdf", "mis:power", "1/t"}) EXPECT_NE(svg.find(name), std::string::npos) << name;
 }
 
 // The many-lights strategies (#19) run under converge: each gets its rows, and its error
@@ -286,7 +289,7 @@ TEST(Converge, RejectsBadArguments) {
   f.budget = 0;
   EXPECT_THROW(run_converge(f), std::invalid_argument);
   f.budget = 1;
-  f.plot = "x.pdf";
+  f.plot = "x.gif";
   EXPECT_THROW(run_converge(f), std::invalid_argument);
 }
 
@@ -310,9 +313,10 @@ TEST(Figures, QuickRunWritesTheContactSheets) {
     EXPECT_GE(w, 40u) << name;
     EXPECT_GE(h, 30u) << name;
     EXPECT_LE(w, 2000u) << name;
-    EXPECT_LE(h, 1000u) << name;
+    EXPECT_LE(h, 2000u) << name;
   }
   const std::string svg = slurp(d / "e-warmup.svg");
-  EXPECT_EQ(svg.rfind("<svg", 0), 0u);
-  EXPECT_EQ(count(svg, "<polyline"), 3u);
+  EXPECT_NE(svg.find("<svg"), std::string::npos);
+  for (const char* series : {"U[-1,1]", "U[-10,10]", "1% in U[-10,10]", "1/sqrt(N)"})
+    EXPECT_NE(svg.find(series), std::string::npos) << series;
 }

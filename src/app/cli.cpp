@@ -85,21 +85,35 @@ void add_mpi_flags(CLI::App& app, RenderFlags& f) {
       ->check(CLI::Range(0.1, 1e6));
 }
 
+namespace {
+
+// A flag's value parsed, its error naming the flag ("--light-pick: unknown light pick ...").
+template <class F> auto flag_value(const char* flag, bool given, F&& parse) -> decltype(parse()) {
+  try {
+    return parse();
+  } catch (const std::invalid_argument& e) {
+    if (!given) throw;  // the scene file's value: the message names it
+    throw std::invalid_argument(std::string(flag) + ": " + e.what());
+  }
+}
+
+}  // namespace
+
 RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   RenderOptions o;
   Estimator& e = o.est;
-  e.strategy = parse_strategy(f.strategy);
+  e.strategy = flag_value("--strategy", true, [&] { return parse_strategy(f.strategy); });
   // ris takes its light candidates from the light BVH unless told otherwise
   const std::string pick = !f.light_pick.empty()             ? f.light_pick
                            : !scene.file_light_pick.empty() ? scene.file_light_pick
                            : e.strategy == Strategy::ris    ? "bvh"
                                                             : "power";
-  e.pick = parse_light_pick(pick);
+  e.pick = flag_value("--light-pick", !f.light_pick.empty(), [&] { return parse_light_pick(pick); });
   e.ris_light = f.ris_light;
   e.ris_bsdf = f.ris_bsdf;
-  e.point = parse_light_point(f.light_point);
-  e.heuristic = parse_heuristic(f.heuristic);
-  e.mode = parse_mis_mode(f.mis_mode);
+  e.point = flag_value("--light-point", true, [&] { return parse_light_point(f.light_point); });
+  e.heuristic = flag_value("--heuristic", true, [&] { return parse_heuristic(f.heuristic); });
+  e.mode = flag_value("--mis-mode", true, [&] { return parse_mis_mode(f.mis_mode); });
   e.mis.beta = f.beta;
   e.mis.alpha = f.alpha;
   e.light_samples = f.light_samples;
@@ -110,11 +124,11 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   const int spp = f.spp_given ? f.spp : scene.file_spp > 0 ? scene.file_spp : 16;
   e.spp = static_cast<uint32_t>(spp);
   const std::string sampler = !f.sampler.empty() ? f.sampler : !scene.file_sampler.empty() ? scene.file_sampler : "sobol";
-  e.sampler = parse_sampler(sampler);
+  e.sampler = flag_value("--sampler", !f.sampler.empty(), [&] { return parse_sampler(sampler); });
   e.seed = f.seed;
   if (f.filter.empty()) o.filter = scene.file_filter;
   else {
-    const FilterKind k = parse_filter_kind(f.filter);
+    const FilterKind k = parse_filter_kind(f.filter);  // its message names --filter
     o.filter = k == scene.file_filter.kind ? scene.file_filter : default_filter(k);
   }
   o.threads = f.threads;
@@ -129,7 +143,7 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
     scene.camera.width = w;
     scene.camera.height = h;
   }
-  o.bounce = parse_bounce_trace(f.bounce_rays);
+  o.bounce = flag_value("--bounce-rays", true, [&] { return parse_bounce_trace(f.bounce_rays); });
   if (f.pipeline == "general") o.general_pipeline = true;
   else if (f.pipeline != "auto") throw std::invalid_argument("--pipeline '" + f.pipeline + "': expected auto or general");
   size_t start = 0;

@@ -11,10 +11,12 @@
 #include <iterator>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <thread>
 
 #include <chrono>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <iostream>
 
@@ -35,6 +37,7 @@ void add_bench_flags(CLI::App& app, BenchFlags& f) {
 }
 void add_profile_flags(CLI::App& app, ProfileFlags& f) {
   app.add_option("--trace", f.trace, "Chrome trace-event JSON");
+  app.add_option("--json", f.json, "write the figures as JSON");
   app.add_flag("--roofline", f.roofline, "compare with Embree alone on the same rays");
 }
 double seconds_since(std::chrono::steady_clock::time_point t0) {
@@ -57,19 +60,39 @@ Prepared prepare(const RenderFlags& f) {
   return p;
 }
 
-int run_info(const RenderFlags& f) {
-  const Prepared p = prepare(f);
+static void appendf(std::string& out, const char* fmt, ...) {
+  char buf[1024];
+  va_list ap;
+  va_start(ap, fmt);
+  const int n = std::vsnprintf(buf, sizeof buf, fmt, ap);
+  va_end(ap);
+  if (n < 0) return;
+  if (static_cast<size_t>(n) < sizeof buf) {
+    out.append(buf, static_cast<size_t>(n));
+    return;
+  }
+  std::string big(static_cast<size_t>(n) + 1, '\0');
+  va_start(ap, fmt);
+  std::vsnprintf(big.data(), big.size(), fmt, ap);
+  va_end(ap);
+  big.resize(static_cast<size_t>(n));
+  out += big;
+}
+
+std::string info_text(const Prepared& p) {
+  std::string out;
+  auto say = [&out](const char* fmt, auto... args) { appendf(out, fmt, args...); };
   const Scene& scene = p.scene;
   const RenderOptions& opt = p.opt;
   const Accel& accel = *p.accel;
   const double load = p.load_seconds, bvh = p.bvh_seconds;
   size_t area = 0, delta = 0, skies = 0;
   for (const Light& l : scene.lights) (is_delta(l.type) ? delta : is_sky(l.type) ? skies : area)++;
-  std::printf("scene: %s\n", scene.source.c_str());
-  std::printf("resolution: %dx%d\n", scene.camera.width, scene.camera.height);
-  std::printf("triangles: %zu\nspheres: %zu\nmeshes: %zu\nmaterials: %zu\ntextures: %zu\n", scene.triangle_count(),
+  say("scene: %s\n", scene.source.c_str());
+  say("resolution: %dx%d\n", scene.camera.width, scene.camera.height);
+  say("triangles: %zu\nspheres: %zu\nmeshes: %zu\nmaterials: %zu\ntextures: %zu\n", scene.triangle_count(),
               scene.spheres.size(), scene.meshes.size(), scene.materials.size(), scene.textures.size());
-  std::printf("lights: %zu (area sources %zu, delta %zu, skies %zu)\n", scene.lights.size(), area, delta, skies);
+  say("lights: %zu (area sources %zu, delta %zu, skies %zu)\n", scene.lights.size(), area, delta, skies);
   // each sky: its map (file, size, power) and how its light samples are drawn
   {
     const Estimator& e = opt.est;
@@ -77,22 +100,22 @@ int run_info(const RenderFlags& f) {
     for (const Light& l : scene.lights) {
       if (!is_sky(l.type)) continue;
       if (l.sky_map < 0) {
-        std::printf("sky: constant, radiance (%g, %g, %g), power %.4g; sampled %s\n", l.radiance.r, l.radiance.g, l.radiance.b,
+        say("sky: constant, radiance (%g, %g, %g), power %.4g; sampled %s\n", l.radiance.r, l.radiance.g, l.radiance.b,
                     l.power,
                     compensated ? "by the BSDF technique alone (MIS: a constant sky's compensated density is 0)"
                                 : "uniformly over the sphere");
         continue;
       }
       const SkyMap& m = scene.sky_maps[static_cast<size_t>(l.sky_map)];
-      std::printf("sky: map %s, %dx%d texels (equal-area octahedral, nearest texel), scale %g, mean texel (%.4g, %.4g, %.4g), "
+      say("sky: map %s, %dx%d texels (equal-area octahedral, nearest texel), scale %g, mean texel (%.4g, %.4g, %.4g), "
                   "power %.4g; sampled by a piecewise-constant 2-D distribution over its texels%s\n",
                   m.file.c_str(), m.res, m.res, l.radiance.r, m.mean[0], m.mean[1], m.mean[2], l.power,
                   compensated ? ", MIS-compensated (max(value - mean, 0))" : " (their mean channel)");
     }
   }
-  std::printf("features:");
+  say("features:");
   for (size_t i = 0; i < std::size(scene_feature_names); ++i)
-    if (scene.features & (1u << i)) std::printf(" %s", scene_feature_names[i]);
+    if (scene.features & (1u << i)) say(" %s", scene_feature_names[i]);
   // the kinds of surface the geometry has (through mixes too), and how many shapes use each
   {
     size_t per_kind[material_kind_count] = {};
@@ -112,45 +135,50 @@ int run_info(const RenderFlags& f) {
     };
     for (const Mesh& m : scene.meshes) count(m.material);
     for (const Sphere& sp : scene.spheres) count(sp.material);
-    std::printf("\nsurfaces:");
+    say("\nsurfaces:");
     for (int k = 0; k < material_kind_count; ++k)
-      if (per_kind[k]) std::printf(" %s (%zu)", material_kind_names[k], per_kind[k]);
-    if (mixes) std::printf(", %zu through mix", mixes);
+      if (per_kind[k]) say(" %s (%zu)", material_kind_names[k], per_kind[k]);
+    if (mixes) say(", %zu through mix", mixes);
   }
-  std::printf("\nestimator: %s\n", describe(opt.est).c_str());
-  std::printf("pixel filter: %s\n", describe(opt.filter).c_str());
+  say("\nestimator: %s\n", describe(opt.est).c_str());
+  say("pixel filter: %s\n", describe(opt.filter).c_str());
   {
     Renderer r(scene, accel, opt);
     std::string why;
     const std::string name = r.pipeline_name(&why);
-    std::printf("pipeline: %s (%s)\n", name.c_str(), why.c_str());
+    say("pipeline: %s (%s)\n", name.c_str(), why.c_str());
     // which picker chooses the source of each light sample
     if (const LightBvh* b = r.light_bvh()) {
       const LightBvhView bv = b->view();
       const size_t in_tree = static_cast<size_t>(bv.nodes + 1) / 2, distant = static_cast<size_t>(bv.distant);
-      std::printf("light picker: bvh (a light BVH over %zu sources, depth %d, %.1f bytes per source, built in %.3f s; "
+      say("light picker: bvh (a light BVH over %zu sources, depth %d, %.1f bytes per source, built in %.3f s; "
                   "%zu distant sources picked beside it)\n",
                   in_tree, b->depth,
                   static_cast<double>(b->bytes()) / static_cast<double>(std::max<size_t>(1, scene.lights.size())),
                   r.light_bvh_seconds(), distant);
     } else if (opt.est.pick == LightPick::all) {
-      std::printf("light picker: all (every source takes the light samples)\n");
+      say("light picker: all (every source takes the light samples)\n");
     } else {
       static const char* names[] = {"all", "uniform", "area", "power", "bvh"};
-      std::printf("light picker: %s (an alias table: the same probabilities at every shading point)%s\n",
+      say("light picker: %s (an alias table: the same probabilities at every shading point)%s\n",
                   names[static_cast<int>(opt.est.pick)],
                   opt.est.pick == LightPick::bvh ? "; bvh needs two sources or more" : "");
     }
     if (opt.est.max_depth > 1)
-      std::printf("paths: up to %d vertices, Russian roulette after vertex %d (pbrt-v4's rule); bounce rays against the "
+      say("paths: up to %d vertices, Russian roulette after vertex %d (pbrt-v4's rule); bounce rays against the "
                   "whole scene, the last vertex's against the %s\n",
                   opt.est.max_depth, opt.est.rr_depth + 1,
                   r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
     else
-      std::printf("bounce rays: against the %s\n", r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
+      say("bounce rays: against the %s\n", r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
   }
-  for (const std::string& w : scene.warnings) std::printf("approximation: %s\n", w.c_str());
-  std::printf("load: %.3f s\nbvh build: %.3f s\n", load, bvh);
+  for (const std::string& w : scene.warnings) say("approximation: %s\n", w.c_str());
+  say("load: %.3f s\nbvh build: %.3f s\n", load, bvh);
+  return out;
+}
+
+int run_info(const RenderFlags& f) {
+  std::fputs(info_text(prepare(f)).c_str(), stdout);
   return 0;
 }
 
@@ -169,6 +197,15 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+// Writes the whole file or throws naming it.
+void write_text_file(const std::string& path, const std::string& text) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path + ": cannot open for writing");
+  out << text;
+  out.flush();
+  if (!out) throw std::runtime_error(path + ": error writing");
+}
+
 std::string json_escape(const std::string& s) {
   std::string o;
   for (char ch : s) {
@@ -181,7 +218,9 @@ std::string json_escape(const std::string& s) {
 
 }  // namespace
 
-int run_bench(const BenchFlags& f) {
+int run_bench(const BenchFlags& f, std::string* json) {
+  std::string text;
+  auto say = [&text](const char* fmt, auto... args) { appendf(text, fmt, args...); };
   if (f.repeat < 1 || f.repeat > 1000) throw std::invalid_argument("--repeat must be in 1..1000");
   if (f.warmup < 0 || f.warmup > 1000) throw std::invalid_argument("--warmup must be in 0..1000");
   const auto start = std::chrono::steady_clock::now();
@@ -206,23 +245,24 @@ int run_bench(const BenchFlags& f) {
   const double med = median(sps);
   const double mn = *std::min_element(sps.begin(), sps.end()), mx = *std::max_element(sps.begin(), sps.end());
   const int threads = p.opt.threads > 0 ? p.opt.threads : static_cast<int>(std::thread::hardware_concurrency());
-  std::printf("scene: %s (%zu triangles, %zu lights)\n", p.scene.source.c_str(), p.scene.triangle_count(),
+  say("scene: %s (%zu triangles, %zu lights)\n", p.scene.source.c_str(), p.scene.triangle_count(),
               p.scene.lights.size());
-  std::printf("pipeline: %s, bounce rays against the %s\nestimator: %s\n", last.pipeline.c_str(),
+  say("pipeline: %s, bounce rays against the %s\nestimator: %s\n", last.pipeline.c_str(),
               last.bounce_against_emitters ? "emitters" : "scene", describe(p.opt.est).c_str());
-  std::printf("resolution %dx%d, %u spp, %d thread(s), %d runs after %d warm-up\n", p.scene.camera.width,
+  say("resolution %dx%d, %u spp, %d thread(s), %d runs after %d warm-up\n", p.scene.camera.width,
               p.scene.camera.height, spp, threads, f.repeat, f.warmup);
-  std::printf("samples/s: median %.4g  min %.4g  max %.4g\n", med, mn, mx);
+  say("samples/s: median %.4g  min %.4g  max %.4g\n", med, mn, mx);
   const double vertices = 1.0 + static_cast<double>(last.path_vertices) / static_cast<double>(std::max<uint64_t>(1, last.samples));
   if (p.opt.est.max_depth > 1)  // one path per sample
-    std::printf("paths/s: median %.4g (max depth %d); %.3g vertices per path, %.4g vertices/s\n", med, p.opt.est.max_depth,
+    say("paths/s: median %.4g (max depth %d); %.3g vertices per path, %.4g vertices/s\n", med, p.opt.est.max_depth,
                 vertices, median(vps));
-  std::printf("rays/s (median): camera %.4g  shadow %.4g  bounce %.4g\n", median(cam), median(sh), median(bo));
-  std::printf("time to first pixel: %.3f s (load %.3f s, BVH %.3f s)\n", first_pixel, p.load_seconds, p.bvh_seconds);
-  std::printf("peak memory: %.1f MiB\n", static_cast<double>(peak_memory_bytes()) / (1024.0 * 1024.0));
-  if (!f.json.empty()) {
-    std::ofstream js(f.json);
-    if (!js) throw std::runtime_error(f.json + ": cannot open for writing");
+  say("rays/s (median): camera %.4g  shadow %.4g  bounce %.4g\n", median(cam), median(sh), median(bo));
+  say("time to first pixel: %.3f s (load %.3f s, BVH %.3f s)\n", first_pixel, p.load_seconds, p.bvh_seconds);
+  say("peak memory: %.1f MiB\n", static_cast<double>(peak_memory_bytes()) / (1024.0 * 1024.0));
+  if (f.print) std::fputs(text.c_str(), stdout);
+  if (!f.json.empty() || json) {
+    std::ostringstream js;
+    js.precision(17);
     js << "{\n";
     js << "  \"samples_per_second\": {\"median\": " << med << ", \"min\": " << mn << ", \"max\": " << mx << "},\n";
     js << "  \"paths_per_second\": " << med << ", \"max_depth\": " << p.opt.est.max_depth
@@ -245,11 +285,15 @@ int run_bench(const BenchFlags& f) {
     js << "  \"runs_samples_per_second\": [";
     for (size_t i = 0; i < sps.size(); ++i) js << (i ? ", " : "") << sps[i];
     js << "]\n}\n";
+    if (json) *json = js.str();
+    if (!f.json.empty()) write_text_file(f.json, js.str());
   }
   return 0;
 }
 
-int run_profile(const ProfileFlags& f) {
+int run_profile(const ProfileFlags& f, std::string* json) {
+  std::string text;
+  auto say = [&text](const char* fmt, auto... args) { appendf(text, fmt, args...); };
   Prepared p = prepare(f.render);
   Renderer renderer(p.scene, *p.accel, p.opt);
   const uint32_t spp = p.opt.est.spp;
@@ -285,14 +329,26 @@ int run_profile(const ProfileFlags& f) {
   double stage_total = 0;
   for (double v : prof.stage_seconds) stage_total += v;
   const double thread_seconds = st.seconds * prof.threads;
-  std::printf("scene: %s, %dx%d, %u spp, %d thread(s), pipeline %s, bounce rays against the %s\n",
+  // the same figures as JSON (--json, and the Python module's tuile.profile)
+  std::ostringstream js;
+  js.precision(17);
+  js << "{\n  \"scene\": \"" << json_escape(p.scene.source) << "\", \"width\": " << p.scene.camera.width
+     << ", \"height\": " << p.scene.camera.height << ", \"spp\": " << spp << ", \"threads\": " << prof.threads
+     << ",\n  \"pipeline\": \"" << json_escape(st.pipeline) << "\", \"bounce_rays\": \""
+     << (st.bounce_against_emitters ? "emitters" : "scene") << "\",\n  \"stages\": [";
+  bool first_stage = true;
+  say("scene: %s, %dx%d, %u spp, %d thread(s), pipeline %s, bounce rays against the %s\n",
               p.scene.source.c_str(), p.scene.camera.width, p.scene.camera.height, spp, prof.threads,
               st.pipeline.c_str(), st.bounce_against_emitters ? "emitters" : "scene");
-  std::printf("%-18s %10s %7s %10s %10s\n", "stage", "ms", "%", "ns/sample", "Mrays/s");
+  say("%-18s %10s %7s %10s %10s\n", "stage", "ms", "%", "ns/sample", "Mrays/s");
   auto row = [&](const char* name, double sec, double rays) {
-    std::printf("%-18s %10.2f %6.1f%% %10.2f", name, sec * 1e3, 100.0 * sec / thread_seconds, sec * 1e9 / samples);
-    if (rays > 0) std::printf(" %10.2f", rays / sec * 1e-6);
-    std::printf("\n");
+    say("%-18s %10.2f %6.1f%% %10.2f", name, sec * 1e3, 100.0 * sec / thread_seconds, sec * 1e9 / samples);
+    if (rays > 0) say(" %10.2f", rays / sec * 1e-6);
+    say("\n");
+    js << (first_stage ? "\n" : ",\n") << "    {\"stage\": \"" << name << "\", \"ms\": " << sec * 1e3
+       << ", \"percent\": " << 100.0 * sec / thread_seconds << ", \"ns_per_sample\": " << sec * 1e9 / samples
+       << ", \"mrays_per_second\": " << (rays > 0 ? rays / sec * 1e-6 : 0.0) << "}";
+    first_stage = false;
   };
   for (int k = 0; k < stage_count; ++k) {
     const Stage s = static_cast<Stage>(k);
@@ -305,27 +361,34 @@ int run_profile(const ProfileFlags& f) {
   }
   row("scheduling", std::max(0.0, thread_seconds - stage_total), 0);
   // the share as the median of the three profiled runs (the table above is the last one's)
-  std::printf("total: %.2f ms wall, %.4g samples/s; Embree share %.1f%% of thread time (median of 3 profiled runs, "
+  say("total: %.2f ms wall, %.4g samples/s; Embree share %.1f%% of thread time (median of 3 profiled runs, "
               "%.1f-%.1f%%)\n",
               st.seconds * 1e3, samples / st.seconds, 100.0 * median(shares),
               100.0 * *std::min_element(shares.begin(), shares.end()),
               100.0 * *std::max_element(shares.begin(), shares.end()));
-  std::printf("profiling cost: %.4g samples/s unprofiled vs %.4g profiled (%+.1f%%)\n",
+  js << "\n  ],\n  \"wall_seconds\": " << st.seconds << ", \"samples_per_second\": " << samples / st.seconds
+     << ",\n  \"embree_share\": {\"median\": " << median(shares)
+     << ", \"min\": " << *std::min_element(shares.begin(), shares.end())
+     << ", \"max\": " << *std::max_element(shares.begin(), shares.end()) << "},\n  \"unprofiled_samples_per_second\": "
+     << samples / plain.seconds << ", \"profiled_samples_per_second\": " << samples / st.seconds;
+  say("profiling cost: %.4g samples/s unprofiled vs %.4g profiled (%+.1f%%)\n",
               samples / plain.seconds, samples / st.seconds, 100.0 * (plain.seconds / st.seconds - 1.0));
   if (prof.depths > 0) {
     // paths: where they die and what compaction buys. Live lanes per packet: the vertex's
     // shading points over the packets their rays filled (compacted), and over the packets
     // of the tile's lanes (what the same rays would fill without compaction).
-    std::printf("paths (max depth %d, Russian roulette after vertex %d): %.4g paths/s, %.3g vertices per path\n",
+    say("paths (max depth %d, Russian roulette after vertex %d): %.4g paths/s, %.3g vertices per path\n",
                 p.opt.est.max_depth, p.opt.est.rr_depth + 1, samples / st.seconds,
                 1.0 + static_cast<double>(st.path_vertices) / samples);
+    js << ",\n  \"paths_per_second\": " << samples / st.seconds << ", \"vertices_per_path\": "
+       << 1.0 + static_cast<double>(st.path_vertices) / samples << ",\n  \"vertices\": [";
     // stage columns: what each vertex spends where (ms over all threads)
     const Stage cols[] = {Stage::camera_hits,    Stage::sample_lights,    Stage::intersect_shadow, Stage::sample_bsdf,
                           Stage::intersect_bounce, Stage::mis_weight, Stage::accumulate};
     const char* col_names[] = {"hits", "lights", "shadow", "BSDF", "bounce", "MIS", "accum"};
-    std::printf("%-6s %10s %8s %7s %7s", "vertex", "paths", "alive", "lanes", "uncomp");
-    for (const char* n : col_names) std::printf(" %8s", n);
-    std::printf(" %9s %8s\n", "total ms", "ns/path");
+    say("%-6s %10s %8s %7s %7s", "vertex", "paths", "alive", "lanes", "uncomp");
+    for (const char* n : col_names) say(" %8s", n);
+    say(" %9s %8s\n", "total ms", "ns/path");
     for (int d = 0; d < prof.depths; ++d) {
       const double* t = prof.depth_seconds[d];
       double sum = 0;
@@ -333,13 +396,21 @@ int run_profile(const ProfileFlags& f) {
       const double pts = prof.depth_points[d];
       char label[16];
       std::snprintf(label, sizeof(label), d + 1 == profile_depths ? "%d+" : "%d", d + 1);
-      std::printf("%-6s %10.4g %7.2f%% %7.2f %7.2f", label, pts, 100.0 * pts / samples,
+      say("%-6s %10.4g %7.2f%% %7.2f %7.2f", label, pts, 100.0 * pts / samples,
                   prof.depth_packets[d] > 0 ? pts / prof.depth_packets[d] : 0.0,
                   prof.depth_lane_packets[d] > 0 ? pts / prof.depth_lane_packets[d] : 0.0);
-      for (Stage c : cols) std::printf(" %8.2f", t[static_cast<int>(c)] * 1e3);
-      std::printf(" %9.2f %8.1f\n", sum * 1e3, pts > 0 ? sum * 1e9 / pts : 0.0);
+      for (Stage c : cols) say(" %8.2f", t[static_cast<int>(c)] * 1e3);
+      say(" %9.2f %8.1f\n", sum * 1e3, pts > 0 ? sum * 1e9 / pts : 0.0);
+      js << (d ? ",\n" : "\n") << "    {\"vertex\": \"" << label << "\", \"paths\": " << pts
+         << ", \"alive_percent\": " << 100.0 * pts / samples
+         << ", \"lanes\": " << (prof.depth_packets[d] > 0 ? pts / prof.depth_packets[d] : 0.0)
+         << ", \"uncompacted_lanes\": " << (prof.depth_lane_packets[d] > 0 ? pts / prof.depth_lane_packets[d] : 0.0);
+      for (size_t c = 0; c < std::size(cols); ++c)
+        js << ", \"" << col_names[c] << "_ms\": " << t[static_cast<int>(cols[c])] * 1e3;
+      js << ", \"total_ms\": " << sum * 1e3 << ", \"ns_per_path\": " << (pts > 0 ? sum * 1e9 / pts : 0.0) << "}";
     }
-    std::printf("(lanes: live lanes per packet traced; uncomp: per packet of the tile's lanes, as without compaction; "
+    js << "\n  ]";
+    say("(lanes: live lanes per packet traced; uncomp: per packet of the tile's lanes, as without compaction; "
                 "vertex 1's hits are the camera's, in the table above)\n");
   }
   if (f.roofline) {
@@ -351,28 +422,36 @@ int run_profile(const ProfileFlags& f) {
     const double ours = samples / plain.seconds;
     std::vector<double> ts;
     for (int r = 0; r < 3; ++r) ts.push_back(replay_rays_stream(*p.accel, prof.rays, prof.threads));
-    std::printf("packets vs streams: the pass's rays take %.2f ms as 16-wide packets (tuile's layout), %.2f ms as "
+    say("packets vs streams: the pass's rays take %.2f ms as 16-wide packets (tuile's layout), %.2f ms as "
                 "rtcIntersectNp/rtcOccludedNp streams of one tile (medians of 3)\n",
                 median(t) * 1e3, median(ts) * 1e3);
-    std::printf("roofline: Embree alone on one pass's %zu camera, %zu shadow, %zu bounce packets: %.4g samples/s; "
+    say("roofline: Embree alone on one pass's %zu camera, %zu shadow, %zu bounce packets: %.4g samples/s; "
                 "tuile %.4g samples/s = %.1f%% of that bound\n",
                 prof.rays.camera.size(), prof.rays.shadow.size(), prof.rays.bounce.size(), bound, ours,
                 100.0 * ours / bound);
+    js << ",\n  \"roofline\": {\"packets_ms\": " << median(t) * 1e3 << ", \"streams_ms\": " << median(ts) * 1e3
+       << ", \"bound_samples_per_second\": " << bound << ", \"samples_per_second\": " << ours
+       << ", \"fraction_of_bound\": " << ours / bound << "}";
   }
+  js << "\n}\n";
+  if (json) *json = js.str();
+  if (!f.json.empty()) write_text_file(f.json, js.str());
   if (!f.trace.empty()) {
-    std::ofstream js(f.trace);
-    if (!js) throw std::runtime_error(f.trace + ": cannot open for writing");
-    js << "{\"traceEvents\":[\n";
+    std::ofstream tr(f.trace);
+    if (!tr) throw std::runtime_error(f.trace + ": cannot open for writing");
+    tr << "{\"traceEvents\":[\n";
     bool first = true;
     for (const TraceEvent& e : prof.events) {
-      js << (first ? "" : ",\n") << "{\"name\":\"" << stage_name(e.stage) << "\",\"cat\":\"stage\",\"ph\":\"X\",\"ts\":"
+      tr << (first ? "" : ",\n") << "{\"name\":\"" << stage_name(e.stage) << "\",\"cat\":\"stage\",\"ph\":\"X\",\"ts\":"
          << e.start_us << ",\"dur\":" << e.dur_us << ",\"pid\":1,\"tid\":" << e.thread << ",\"args\":{\"tile\":"
          << e.tile << "}}";
       first = false;
     }
-    js << "\n],\"displayTimeUnit\":\"ms\"}\n";
-    std::printf("trace: %zu events -> %s\n", prof.events.size(), f.trace.c_str());
+    tr << "\n],\"displayTimeUnit\":\"ms\"}\n";
+    if (!tr) throw std::runtime_error(f.trace + ": error writing");
+    say("trace: %zu events -> %s\n", prof.events.size(), f.trace.c_str());
   }
+  if (f.print) std::fputs(text.c_str(), stdout);
   return 0;
 }
 

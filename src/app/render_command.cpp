@@ -49,7 +49,7 @@ void check_nonnegative(double v, const char* flag) {
 
 }  // namespace
 
-RenderJob start_render_job(const RenderFlags& f) {
+RenderJob start_render_job(const RenderFlags& f, std::shared_ptr<Prepared> loaded) {
   const auto t0 = std::chrono::steady_clock::now();
   check_nonnegative(f.checkpoint_seconds, "--checkpoint");
   check_nonnegative(f.time_budget, "--time-budget");
@@ -57,21 +57,32 @@ RenderJob start_render_job(const RenderFlags& f) {
   // the output first, before any work (with -o; a scene's own Film name is checked after load)
   if (!f.output.empty()) check_output_path(f.output, {".exr"});
   RenderJob job;
-  job.p = prepare(f);
-  Scene& scene = job.p.scene;
-  RenderOptions& opt = job.p.opt;
+  const bool loaded_scene = loaded != nullptr;
+  if (loaded) {
+    loaded->opt = resolve_options(f, loaded->scene);
+    job.p = std::move(loaded);
+  } else {
+    job.p = std::make_shared<Prepared>(prepare(f));
+  }
+  Scene& scene = job.p->scene;
+  RenderOptions& opt = job.p->opt;
   const bool budgeted = f.time_budget > 0 || f.target_error > 0;
   if (budgeted && !f.spp_given && scene.file_spp <= 0) opt.est.spp = budget_spp_cap;
-  // -o, else the scene's Film "filename" (as an .exr), else tuile.exr
+  // -o, else the scene's Film "filename" (as an .exr), else tuile.exr; from Python
+  // (`loaded`) only the output asked for, else none (the image is returned)
   job.out = "tuile.exr";
   if (!f.output.empty()) job.out = f.output;
+  else if (job.p != nullptr && loaded_scene) job.out.clear();
   else if (!scene.file_output.empty()) job.out = with_extension(scene.file_output, ".exr");
-  if (f.output.empty()) check_output_path(job.out, {".exr"});
+  if (f.output.empty() && !job.out.empty()) check_output_path(job.out, {".exr"});
+  if (job.out.empty() && (f.resume || f.checkpoint_seconds > 0))
+    throw std::invalid_argument(std::string(f.resume ? "--resume" : "--checkpoint") +
+                                " needs --output: the checkpoint is the output's name with .checkpoint");
   job.spp = opt.est.spp;
   job.pixels = static_cast<uint64_t>(scene.camera.width) * static_cast<uint64_t>(scene.camera.height);
   job.plan = f.target_error > 0 ? doubling_passes() : fixed_passes(job.pixels);
   job.fingerprint = render_fingerprint(scene, opt, job.plan);
-  job.ckpt = checkpoint_path(job.out);
+  if (!job.out.empty()) job.ckpt = checkpoint_path(job.out);
   if (f.resume) {
     Checkpoint c = load_checkpoint(job.ckpt);
     if (c.fingerprint != job.fingerprint)
@@ -91,15 +102,15 @@ RenderJob start_render_job(const RenderFlags& f) {
 
 void print_scene_warnings(const RenderFlags& f, const RenderJob& job) {
   if (f.quiet) return;
-  for (const std::string& w : job.p.scene.warnings) std::cerr << "tuile: warning: " << w << "\n";
-  if (job.p.scene.lights.empty()) std::cerr << "tuile: warning: the scene has no light; the image is black\n";
+  for (const std::string& w : job.p->scene.warnings) std::cerr << "tuile: warning: " << w << "\n";
+  if (job.p->scene.lights.empty()) std::cerr << "tuile: warning: the scene has no light; the image is black\n";
   if (f.resume)
     std::cerr << "tuile: resuming " << job.ckpt << " at " << job.film.samples << " of " << job.spp << " spp\n";
 }
 
 int finish_render_job(const RenderFlags& f, RenderJob& job, StopReason reason, const RenderStats& st,
                       double render_seconds, double estimated_error) {
-  const RenderOptions& opt = job.p.opt;
+  const RenderOptions& opt = job.p->opt;
   const Film& film = job.film;
   const bool interrupted = reason == StopReason::cancelled || reason == StopReason::failed;
   // what the render has, before anything else can go wrong
@@ -131,7 +142,7 @@ int finish_render_job(const RenderFlags& f, RenderJob& job, StopReason reason, c
   write_png(with_extension(job.out, ".png"), film.width, film.height, img);
 
   if (!f.quiet) {
-    std::fprintf(stderr, "tuile: %s %dx%d, %llu spp, %s\n", job.p.scene.source.c_str(), film.width, film.height,
+    std::fprintf(stderr, "tuile: %s %dx%d, %llu spp, %s\n", job.p->scene.source.c_str(), film.width, film.height,
                  static_cast<unsigned long long>(film.samples), describe(opt.est).c_str());
     std::fprintf(stderr, "tuile: setup %.3f s, render %.3f s, %.2f M samples/s -> %s\n", job.setup_seconds,
                  render_seconds, st.seconds > 0 ? static_cast<double>(st.samples) / st.seconds * 1e-6 : 0.0,
@@ -165,24 +176,21 @@ int finish_render_job(const RenderFlags& f, RenderJob& job, StopReason reason, c
   return 0;
 }
 
-int run_render(const RenderFlags& f) {
-  RenderJob job = start_render_job(f);
-  print_scene_warnings(f, job);
+JobRun run_render_job(const RenderFlags& f, RenderJob& job, const std::atomic<bool>* cancel, bool progress) {
   Film& film = job.film;
   const uint32_t spp = job.spp;
   const uint64_t pixels = job.pixels;
-  Renderer renderer(job.p.scene, *job.p.accel, job.p.opt);
-  const std::atomic<bool>& stop = install_stop_signals();
+  Renderer renderer(job.p->scene, *job.p->accel, job.p->opt);
+  JobRun run;
+  run.estimated_error = NAN;
   PassControl ctl;
-  ctl.cancel = &stop;
+  ctl.cancel = cancel;
   ctl.time_budget = f.time_budget;
-  double estimated_error = NAN;
   if (f.target_error > 0)
     ctl.target_met = [&](const Film& fl) {
-      estimated_error = estimated_relmse(fl);
-      return estimated_error < f.target_error;
+      run.estimated_error = estimated_relmse(fl);
+      return run.estimated_error < f.target_error;
     };
-  const bool progress = !f.quiet && isatty(2);
   auto last_checkpoint = std::chrono::steady_clock::now();
   const auto render_start = last_checkpoint;
   bool shown = false;
@@ -204,9 +212,18 @@ int run_render(const RenderFlags& f) {
       shown = true;
     }
   };
-  const PassesResult res = render_passes(renderer, film, spp, job.plan, ctl);
+  run.res = render_passes(renderer, film, spp, job.plan, ctl);
   if (shown) std::fprintf(stderr, "\n");
-  return finish_render_job(f, job, res.reason, res.stats, seconds_since(render_start), estimated_error);
+  run.seconds = seconds_since(render_start);
+  return run;
+}
+
+int run_render(const RenderFlags& f) {
+  RenderJob job = start_render_job(f);
+  print_scene_warnings(f, job);
+  const std::atomic<bool>& stop = install_stop_signals();
+  const JobRun run = run_render_job(f, job, &stop, !f.quiet && isatty(2));
+  return finish_render_job(f, job, run.res.reason, run.res.stats, run.seconds, run.estimated_error);
 }
 
 }  // namespace tuile

@@ -401,7 +401,7 @@ int run_render_distributed(const RenderFlags& f) {
   std::unique_ptr<RenderJob> job;
   std::unique_ptr<Prepared> prepared;
   if (!load_everywhere(mpi, f, job, prepared)) return 1;
-  const Prepared& p = mpi.rank == 0 ? job->p : *prepared;
+  const Prepared& p = mpi.rank == 0 ? *job->p : *prepared;
   Renderer renderer(p.scene, *p.accel, p.opt);
   // every rank derives the same units from the same plan; rank 0 says where a resume starts
   uint32_t done = mpi.rank == 0 ? static_cast<uint32_t>(job->film.samples) : 0;

@@ -118,20 +118,20 @@ bool ends_with(const std::string& s, const std::string& e) {
   return s.size() >= e.size() && std::equal(e.rbegin(), e.rend(), s.rbegin());
 }
 
-struct Row {
-  std::string strategy;
-  uint64_t spp;
-  double seconds, mse, relmse, efficiency;
-};
-
 }  // namespace
+
+std::vector<std::string> converge_strategy_names() {
+  std::vector<std::string> v;
+  for (const StrategyDef& s : strategy_table) v.push_back(s.name);
+  return v;
+}
 
 void add_converge_flags(CLI::App& app, ConvergeFlags& f) {
   app.add_option("--reference", f.reference, "reference EXR (same resolution); default: render one first");
   app.add_option("--strategies", f.strategies, "comma-separated strategies (see below); default: all");
   app.add_option("--budget", f.budget, "render seconds per strategy")->capture_default_str();
   app.add_option("--csv", f.csv, "CSV output: strategy,spp,seconds,mse,relmse,efficiency");
-  app.add_option("--plot", f.plot, "plot of relMSE against time: FILE.svg, or FILE.png (rasterised by tuile)");
+  app.add_option("--plot", f.plot, "plot of relMSE against time, drawn by matplotlib: FILE.png, FILE.svg or FILE.pdf");
   app.add_option("--spp-max", f.spp_max, "stop a strategy at this many samples per pixel (0 = only the budget)")
       ->capture_default_str();
   app.add_option("--reference-spp", f.reference_spp, "samples per pixel of the rendered reference (0 = automatic)")
@@ -139,12 +139,12 @@ void add_converge_flags(CLI::App& app, ConvergeFlags& f) {
   app.footer(help_table());
 }
 
-int run_converge(const ConvergeFlags& f) {
+ConvergeResult converge(const ConvergeFlags& f, Scene& scene, const Accel& accel, std::vector<float> reference,
+                        bool print, const std::atomic<bool>* cancel,
+                        const std::function<void(const std::vector<float>&)>& on_reference) {
   if (!(f.budget > 0) || !std::isfinite(f.budget)) throw std::invalid_argument("--budget must be a positive number of seconds");
   if (f.spp_max < 0) throw std::invalid_argument("--spp-max must be >= 0");
   if (f.reference_spp < 0) throw std::invalid_argument("--reference-spp must be >= 0");
-  if (!f.plot.empty() && !ends_with(f.plot, ".svg") && !ends_with(f.plot, ".png"))
-    throw std::invalid_argument("--plot '" + f.plot + "': expected a .svg or .png file name");
   std::vector<const StrategyDef*> strategies;
   if (f.strategies.empty()) {
     for (const StrategyDef& s : strategy_table) strategies.push_back(&s);
@@ -153,46 +153,47 @@ int run_converge(const ConvergeFlags& f) {
     if (strategies.empty()) throw std::invalid_argument("--strategies: empty list");
   }
   const bool quiet = f.render.quiet;
-  if (!f.csv.empty()) make_parent_dir(f.csv);
-  if (!f.plot.empty()) make_parent_dir(f.plot);
-
-  Scene scene = load_scene(f.render.scene);
   (void)resolve_options(f.render, scene);  // validates the shared flags, applies --res
-  for (const std::string& w : scene.warnings)
-    if (!quiet) std::cerr << "tuile: warning: " << w << "\n";
   const int W = scene.camera.width, H = scene.camera.height;
-  Accel accel(scene);
+  ConvergeResult out;
+  out.width = W;
+  out.height = H;
+  auto check_cancel = [&] {
+    if (cancel && cancel->load()) throw ConvergeCancelled();
+  };
 
   // reference
-  std::vector<float> ref;
-  if (!f.reference.empty()) {
-    int rw = 0, rh = 0;
-    ref = read_exr(f.reference, rw, rh);
-    if (rw != W || rh != H)
-      throw std::invalid_argument("--reference " + f.reference + " is " + std::to_string(rw) + "x" + std::to_string(rh) +
-                                  " but the render is " + std::to_string(W) + "x" + std::to_string(H) + " (use --res)");
+  if (!reference.empty()) {
+    if (reference.size() != static_cast<size_t>(W) * static_cast<size_t>(H) * 3)
+      throw std::invalid_argument("the reference has " + std::to_string(reference.size() / 3) + " pixels but the render is " +
+                                  std::to_string(W) + "x" + std::to_string(H) + " (use --res)");
+    out.reference = std::move(reference);
   } else {
     RenderFlags rf = f.render;
     find_strategy("mis:power").apply(rf);
     rf.seed = f.render.seed ^ 0x9e3779b9u;  // independent of every strategy's samples
     RenderOptions opt = resolve_options(rf, scene);
     Renderer r(scene, accel, opt);
+    r.set_cancel_flag(cancel);
     uint64_t ref_spp = static_cast<uint64_t>(f.reference_spp);
     double per_spp = 0;
     if (ref_spp == 0) {
       Film cal;
       cal.reset(W, H);
       const double t = r.render(cal, 0, 4).seconds;
+      check_cancel();
       per_spp = std::max(t / 4, 1e-9);
       uint64_t reach = 1;
       while (reach * 2 <= 1u << 20 && 2.0 * static_cast<double>(reach) * per_spp <= f.budget) reach *= 2;
       if (f.spp_max > 0) reach = std::min<uint64_t>(reach, static_cast<uint64_t>(f.spp_max));
       ref_spp = std::clamp<uint64_t>(64 * reach, 256, uint64_t(1) << 24);
     }
-    std::printf("converge: no --reference given: rendering one with mis:power at %llu spp (seed %u)%s\n",
-                static_cast<unsigned long long>(ref_spp), rf.seed,
-                per_spp > 0 ? (", about " + std::to_string(static_cast<int>(std::ceil(per_spp * ref_spp))) + " s").c_str() : "");
-    std::fflush(stdout);
+    if (print) {
+      std::printf("converge: no --reference given: rendering one with mis:power at %llu spp (seed %u)%s\n",
+                  static_cast<unsigned long long>(ref_spp), rf.seed,
+                  per_spp > 0 ? (", about " + std::to_string(static_cast<int>(std::ceil(per_spp * ref_spp))) + " s").c_str() : "");
+      std::fflush(stdout);
+    }
     Film film;
     film.reset(W, H);
     double t = 0;
@@ -200,22 +201,20 @@ int run_converge(const ConvergeFlags& f) {
     while (done < ref_spp) {
       const uint64_t end = std::min(ref_spp, std::max<uint64_t>(done * 2, 16));
       t += r.render(film, static_cast<uint32_t>(done), static_cast<uint32_t>(end)).seconds;
+      check_cancel();
       done = end;
       if (!quiet) std::fprintf(stderr, "\rconverge: reference %llu / %llu spp, %.1f s", static_cast<unsigned long long>(done),
                                static_cast<unsigned long long>(ref_spp), t);
     }
     if (!quiet) std::fprintf(stderr, "\n");
-    ref = film.mean();
-    if (!f.csv.empty()) {
-      const std::string path = stem_of(f.csv) + "-reference.exr";
-      write_exr(path, W, H, ref);
-      std::printf("converge: reference saved as %s\n", path.c_str());
-    }
+    out.reference = film.mean();
+    out.reference_spp = ref_spp;
+    if (on_reference) on_reference(out.reference);
   }
+  const std::vector<float>& ref = out.reference;
 
   // strategies
   const uint64_t spp_max = f.spp_max > 0 ? static_cast<uint64_t>(f.spp_max) : uint64_t(1) << 30;
-  std::vector<Row> rows;
   {
     // one untimed pass first, so thread start-up is not charged to the first strategy
     RenderFlags rf = f.render;
@@ -224,26 +223,31 @@ int run_converge(const ConvergeFlags& f) {
     Film scratch;
     r.render(scratch, 0, 1);
   }
-  std::printf("%-18s %8s %11s %12s %12s %12s\n", "strategy", "spp", "seconds", "mse", "relmse", "efficiency");
+  if (print) std::printf("%-18s %8s %11s %12s %12s %12s\n", "strategy", "spp", "seconds", "mse", "relmse", "efficiency");
   for (const StrategyDef* s : strategies) {
     RenderFlags rf = f.render;
     s->apply(rf);
     RenderOptions opt = resolve_options(rf, scene);
     Renderer r(scene, accel, opt);
+    r.set_cancel_flag(cancel);
     Film film;
     film.reset(W, H);
     double total = 0, last = 0;
     uint64_t begin = 0, end = 1;
+    std::vector<float> img;
     for (;;) {
       last = r.render(film, static_cast<uint32_t>(begin), static_cast<uint32_t>(end)).seconds;
+      check_cancel();
       total += last;
-      const std::vector<float> img = film.mean();
-      Row row{s->name, end, total, mse(img, ref), relmse(img, ref), 0};
+      img = film.mean();
+      ConvergeRow row{s->name, end, total, mse(img, ref), relmse(img, ref), 0};
       row.efficiency = efficiency(row.relmse, row.seconds);
-      rows.push_back(row);
-      std::printf("%-18s %8llu %11.5f %12.5g %12.5g %12.5g\n", s->name, static_cast<unsigned long long>(end), total,
-                  row.mse, row.relmse, row.efficiency);
-      std::fflush(stdout);
+      out.rows.push_back(row);
+      if (print) {
+        std::printf("%-18s %8llu %11.5f %12.5g %12.5g %12.5g\n", s->name, static_cast<unsigned long long>(end), total,
+                    row.mse, row.relmse, row.efficiency);
+        std::fflush(stdout);
+      }
       const uint64_t next = end * 2;
       // the next pass renders (next - end) samples; predict its time from this pass
       const double predicted = last * static_cast<double>(next - end) / static_cast<double>(end - begin);
@@ -251,14 +255,46 @@ int run_converge(const ConvergeFlags& f) {
       begin = end;
       end = next;
     }
+    out.images.emplace_back(s->name, std::move(img));
   }
+  return out;
+}
+
+int run_converge(const ConvergeFlags& f) {
+  if (!f.plot.empty() && !ends_with(f.plot, ".svg") && !ends_with(f.plot, ".png") && !ends_with(f.plot, ".pdf"))
+    throw std::invalid_argument("--plot '" + f.plot + "': expected a .png, .svg or .pdf file name");
+  if (!f.csv.empty()) make_parent_dir(f.csv);
+  if (!f.plot.empty()) make_parent_dir(f.plot);
+  Scene scene = load_scene(f.render.scene);
+  (void)resolve_options(f.render, scene);  // validates the shared flags, applies --res
+  for (const std::string& w : scene.warnings)
+    if (!f.render.quiet) std::cerr << "tuile: warning: " << w << "\n";
+  const int W = scene.camera.width, H = scene.camera.height;
+  Accel accel(scene);
+  std::vector<float> ref;
+  if (!f.reference.empty()) {
+    int rw = 0, rh = 0;
+    ref = read_exr(f.reference, rw, rh);
+    if (rw != W || rh != H)
+      throw std::invalid_argument("--reference " + f.reference + " is " + std::to_string(rw) + "x" + std::to_string(rh) +
+                                  " but the render is " + std::to_string(W) + "x" + std::to_string(H) + " (use --res)");
+  }
+  const ConvergeResult res = converge(f, scene, accel, std::move(ref), true, nullptr, [&](const std::vector<float>& r) {
+    if (f.csv.empty()) return;
+    const std::string path = stem_of(f.csv) + "-reference.exr";
+    write_exr(path, W, H, r);
+    std::printf("converge: reference saved as %s\n", path.c_str());
+  });
+  const std::vector<ConvergeRow>& rows = res.rows;
+  std::vector<std::string> names;
+  for (const auto& im : res.images) names.push_back(im.first);
 
   if (!f.csv.empty()) {
     std::ofstream csv(f.csv);
     if (!csv) throw std::runtime_error("cannot write " + f.csv);
     csv << "strategy,spp,seconds,mse,relmse,efficiency\n";
     char line[256];
-    for (const Row& r : rows) {
+    for (const ConvergeRow& r : rows) {
       std::snprintf(line, sizeof line, "%s,%llu,%.9g,%.9g,%.9g,%.9g\n", r.strategy.c_str(),
                     static_cast<unsigned long long>(r.spp), r.seconds, r.mse, r.relmse, r.efficiency);
       csv << line;
@@ -271,13 +307,13 @@ int run_converge(const ConvergeFlags& f) {
   std::printf("\nper strategy (last row; slope = least-squares log-log slope of MSE against time, rows with spp >= 4; "
               "expect about -1):\n");
   std::printf("%-18s %8s %11s %12s %12s %12s %8s\n", "strategy", "spp", "seconds", "mse", "relmse", "efficiency", "slope");
-  for (const StrategyDef* s : strategies) {
+  for (const std::string& name : names) {
     PlotSeries ps;
-    ps.name = s->name;
+    ps.name = name;
     std::vector<double> t4, m4;
-    const Row* lastr = nullptr;
-    for (const Row& r : rows) {
-      if (r.strategy != s->name) continue;
+    const ConvergeRow* lastr = nullptr;
+    for (const ConvergeRow& r : rows) {
+      if (r.strategy != name) continue;
       ps.x.push_back(r.seconds);
       ps.y.push_back(r.relmse);
       if (r.spp >= 4) t4.push_back(r.seconds), m4.push_back(r.mse);
@@ -285,11 +321,10 @@ int run_converge(const ConvergeFlags& f) {
     }
     const double slope = loglog_slope(t4, m4);
     if (lastr)
-      std::printf("%-18s %8llu %11.5f %12.5g %12.5g %12.5g %8.3f\n", s->name, static_cast<unsigned long long>(lastr->spp),
+      std::printf("%-18s %8llu %11.5f %12.5g %12.5g %12.5g %8.3f\n", name.c_str(), static_cast<unsigned long long>(lastr->spp),
                   lastr->seconds, lastr->mse, lastr->relmse, lastr->efficiency, slope);
     series.push_back(std::move(ps));
   }
-
   // the winner per time budget: lowest relMSE interpolated (log-log) at t = 2^k seconds
   double tmin = HUGE_VAL, tmax = 0;
   for (const PlotSeries& ps : series)
@@ -317,19 +352,19 @@ int run_converge(const ConvergeFlags& f) {
     }
   }
 
+  if (!f.csv.empty()) std::printf("converge: %zu rows written to %s\n", rows.size(), f.csv.c_str());
   if (!f.plot.empty()) {
     Plot p;
+    p.output = f.plot;
     p.title = "relMSE against render time: " + scene.source.substr(scene.source.find_last_of('/') + 1);
     p.xlabel = "render time (s)";
     p.ylabel = "relMSE";
     p.series = std::move(series);
     p.guide_slope = -1;
     p.guide_label = "1/t";
-    if (ends_with(f.plot, ".svg")) write_plot_svg(f.plot, p);
-    else write_plot_png(f.plot, p);
-    std::printf("converge: plot written to %s\n", f.plot.c_str());
+    draw_with_matplotlib({p}, {});
+    std::printf("converge: plot written to %s (matplotlib)\n", f.plot.c_str());
   }
-  if (!f.csv.empty()) std::printf("converge: %zu rows written to %s\n", rows.size(), f.csv.c_str());
   return 0;
 }
 

@@ -1,4 +1,5 @@
-// tuile figures: the course's experiments as labelled PNG contact sheets.
+// tuile figures: the course's experiments as labelled PNG contact sheets, drawn by
+// matplotlib (measure/plot.h: tuile renders, python/tuile/plot.py draws).
 //   a-noise.png              noise at 1, 4, 16, 64, 256, 1024 spp (noise-room)
 //   b-points-per-source.png  1 / 16 / 64 points per source, every source, 1 spp (noise-room)
 //   c-light-pdfs.png         p = 1/S 1/A, p = 1/sum A, solid angle (two-panels)
@@ -33,63 +34,32 @@ namespace tuile {
 
 namespace {
 
-struct Panel {
-  std::string label;
-  int width = 0, height = 0;
-  std::vector<unsigned char> rgb8;
-};
+using Panel = SheetPanel;
 
-unsigned char encode_srgb(float v) {
-  if (!(v > 0)) return 0;
-  if (v >= 1) return 255;
-  const float s = v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1 / 2.4f) - 0.055f;
-  return static_cast<unsigned char>(std::lround(s * 255.f));
-}
-
-Panel srgb_panel(std::string label, int w, int h, const std::vector<float>& rgb) {
-  Panel p{std::move(label), w, h, std::vector<unsigned char>(rgb.size())};
-  for (size_t i = 0; i < rgb.size(); ++i) p.rgb8[i] = encode_srgb(rgb[i]);
-  return p;
+// Linear RGB, shown as sRGB.
+Panel srgb_panel(std::string label, int w, int h, std::vector<float> rgb) {
+  return Panel{std::move(label), "srgb", w, h, 3, std::move(rgb)};
 }
 
 // A [0, 1] quantity (an MIS weight) shown linearly as grey.
-Panel grey_panel(std::string label, int w, int h, const std::vector<float>& y) {
-  Panel p{std::move(label), w, h, std::vector<unsigned char>(y.size() * 3)};
-  for (size_t i = 0; i < y.size(); ++i) {
-    const float v = std::clamp(std::isfinite(y[i]) ? y[i] : 0.f, 0.f, 1.f);
-    const unsigned char g = static_cast<unsigned char>(std::lround(v * 255.f));
-    p.rgb8[3 * i] = p.rgb8[3 * i + 1] = p.rgb8[3 * i + 2] = g;
-  }
-  return p;
+Panel grey_panel(std::string label, int w, int h, std::vector<float> y) {
+  return Panel{std::move(label), "grey", w, h, 1, std::move(y)};
 }
 
-// Panels in rows of at most `columns`, each under its label, under a title.
-void write_sheet(const std::string& path, const std::string& title, const std::vector<Panel>& panels, int scale,
-                 int columns) {
-  const int pad = 4 * scale, label_h = (font_height + 4) * scale;
-  int cell_w = 0, cell_h = 0;
-  for (const Panel& p : panels) {
-    cell_w = std::max({cell_w, p.width, text_width(p.label, scale)});
-    cell_h = std::max(cell_h, p.height);
-  }
-  cell_h += label_h;
-  columns = std::max(1, std::min<int>(columns, static_cast<int>(panels.size())));
-  const int rows = (static_cast<int>(panels.size()) + columns - 1) / columns;
-  const int title_h = (font_height + 6) * scale;
-  const int W = std::max(columns * (cell_w + pad) + pad, text_width(title, scale) + 2 * pad);
-  const int H = title_h + rows * (cell_h + pad) + pad;
-  Canvas c(W, H, Color{32, 32, 32});
-  draw_text(c, pad, 3 * scale, title, Color{255, 255, 255}, scale);
-  for (size_t i = 0; i < panels.size(); ++i) {
-    const Panel& p = panels[i];
-    const int col = static_cast<int>(i) % columns, row = static_cast<int>(i) / columns;
-    const int x = pad + col * (cell_w + pad), y = title_h + row * (cell_h + pad);
-    draw_text(c, x, y + scale, p.label, Color{255, 230, 120}, scale);
-    c.blit(x, y + label_h, p.width, p.height, p.rgb8.data());
-  }
-  write_png8(path, c.width, c.height, c.rgb);
-  std::printf("figures: %s\n", path.c_str());
+// A signed quantity (an optimal MIS alpha, in radiance units): its luminance, positive as
+// sRGB grey, negative in red.
+Panel signed_panel(std::string label, int w, int h, std::vector<float> rgb) {
+  return Panel{std::move(label), "signed", w, h, 3, std::move(rgb)};
 }
+
+// The sheets and plots of the run, drawn together at the end (one start of matplotlib).
+struct Figures {
+  std::vector<Sheet> sheets;
+  std::vector<Plot> plots;
+  void sheet(const std::string& path, const std::string& title, std::vector<Panel> panels, int columns) {
+    sheets.push_back(Sheet{path, title, columns, std::move(panels)});
+  }
+};
 
 std::string course_scene(const std::string& name, std::string& note) {
   const std::string path = std::string(TUILE_SOURCE_DIR) + "/scenes/course/" + name;
@@ -132,8 +102,8 @@ struct SceneSetup {
 // light sampling alone, BSDF sampling alone (one sample each), MIS with one light and one
 // BSDF sample under the balance and power heuristics, and the balance heuristic's weight of
 // the BSDF technique per pixel as grey.
-void mis_sheet(const std::string& png, const std::string& title, const std::string& scene_file, int w, int h,
-               uint32_t spp, int threads, int scale) {
+void mis_sheet(Figures& figs, const std::string& png, const std::string& title, const std::string& scene_file, int w,
+               int h, uint32_t spp, int threads) {
   std::string note;
   const std::string path = course_scene(scene_file, note);
   SceneSetup st(path, w, h, threads);
@@ -155,20 +125,7 @@ void mis_sheet(const std::string& png, const std::string& title, const std::stri
   film = st.render(rf, spp);
   panels.push_back(srgb_panel("MIS power", film.width, film.height, film.mean()));
   panels.push_back(weight);
-  write_sheet(png, title + ", " + std::to_string(spp) + " spp" + note, panels, scale, 3);
-}
-
-// A signed quantity (an optimal MIS alpha, in radiance units): its luminance, positive as
-// sRGB grey, negative in red.
-Panel signed_panel(std::string label, int w, int h, const std::vector<float>& rgb) {
-  Panel p{std::move(label), w, h, std::vector<unsigned char>(rgb.size())};
-  for (size_t i = 0; i < rgb.size() / 3; ++i) {
-    const float y = 0.2126f * rgb[3 * i] + 0.7152f * rgb[3 * i + 1] + 0.0722f * rgb[3 * i + 2];
-    const unsigned char v = encode_srgb(std::fabs(y));
-    p.rgb8[3 * i] = v;
-    p.rgb8[3 * i + 1] = p.rgb8[3 * i + 2] = y < 0 ? 0 : v;
-  }
-  return p;
+  figs.sheet(png, title + ", " + std::to_string(spp) + " spp" + note, std::move(panels), 3);
 }
 
 // (g) optimal MIS (Kondapaneni et al. 2019) against the balance and power heuristics on
@@ -230,7 +187,7 @@ struct SplitMix {
   double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }  // [0, 1)
 };
 
-void warmup_plot(const std::string& out, bool quick) {
+void warmup_plot(Figures& figs, const std::string& out, bool quick) {
   const int max_log2 = quick ? 10 : 14, trials = quick ? 200 : 2000;
   Plot p;
   p.title = "Error of the mean of N random values";
@@ -261,10 +218,10 @@ void warmup_plot(const std::string& out, bool quick) {
     }
     p.series.push_back(std::move(s));
   }
-  write_plot_png(out + "/e-warmup.png", p);
-  std::printf("figures: %s/e-warmup.png\n", out.c_str());
-  write_plot_svg(out + "/e-warmup.svg", p);
-  std::printf("figures: %s/e-warmup.svg\n", out.c_str());
+  p.output = out + "/e-warmup.png";
+  figs.plots.push_back(p);
+  p.output = out + "/e-warmup.svg";
+  figs.plots.push_back(p);
 }
 
 }  // namespace
@@ -285,7 +242,7 @@ int run_figures(const FiguresFlags& f) {
   if (f.threads < 0 || f.threads > 1024) throw std::invalid_argument("--threads must be in 0..1024");
   std::filesystem::create_directories(f.out);
   const bool q = f.quick;
-  const int scale = q ? 1 : 2;
+  Figures figs;
 
   // (a) noise against samples per pixel: one progressive render, snapshots at 4^k
   {
@@ -304,8 +261,7 @@ int run_figures(const FiguresFlags& f) {
       done = spp;
       panels.push_back(srgb_panel(std::to_string(spp) + " spp", film.width, film.height, film.mean()));
     }
-    write_sheet(f.out + "/a-noise.png", "(a) Noise against samples per pixel, MIS power heuristic" + note, panels,
-                scale, 3);
+    figs.sheet(f.out + "/a-noise.png", "(a) Noise against samples per pixel, MIS power heuristic" + note, std::move(panels), 3);
   }
 
   // (b) N points on every source at 1 spp
@@ -323,8 +279,7 @@ int run_figures(const FiguresFlags& f) {
       panels.push_back(srgb_panel(std::to_string(n) + (n == 1 ? " point" : " points") + " per source",
                                   film.width, film.height, film.mean()));
     }
-    write_sheet(f.out + "/b-points-per-source.png", "(b) Points per source, every source, 1 spp" + note, panels,
-                scale, 3);
+    figs.sheet(f.out + "/b-points-per-source.png", "(b) Points per source, every source, 1 spp" + note, std::move(panels), 3);
   }
 
   // (c) how the light point is chosen: p = 1/S 1/A, p = 1/sum A, solid angle
@@ -350,20 +305,20 @@ int run_figures(const FiguresFlags& f) {
       const Film film = st.render(rf, spp);
       panels.push_back(srgb_panel(c.label, film.width, film.height, film.mean()));
     }
-    write_sheet(f.out + "/c-light-pdfs.png",
-                "(c) Light sampling pdfs, " + std::to_string(spp) + " spp" + note, panels, scale, 3);
+    figs.sheet(f.out + "/c-light-pdfs.png", "(c) Light sampling pdfs, " + std::to_string(spp) + " spp" + note,
+               std::move(panels), 3);
   }
 
   // (d) MIS on near-far
-  mis_sheet(f.out + "/d-mis.png", "(d) Multiple importance sampling", "near-far.pbrt", q ? 40 : 320, q ? 30 : 240,
-            q ? 4 : 16, f.threads, scale);
+  mis_sheet(figs, f.out + "/d-mis.png", "(d) Multiple importance sampling", "near-far.pbrt", q ? 40 : 320, q ? 30 : 240,
+            q ? 4 : 16, f.threads);
 
   // (e) the 1D warm-up
-  warmup_plot(f.out, q);
+  warmup_plot(figs, f.out, q);
 
   // (f) Veach's plates: four lights of equal power, radii x3 apart, on four plates of growing roughness
-  mis_sheet(f.out + "/f-veach-plates.png", "(f) Veach's plates, MIS", "veach-plates.pbrt", q ? 64 : 384,
-            q ? 48 : 288, q ? 2 : 8, f.threads, scale);
+  mis_sheet(figs, f.out + "/f-veach-plates.png", "(f) Veach's plates, MIS", "veach-plates.pbrt", q ? 64 : 384,
+            q ? 48 : 288, q ? 2 : 8, f.threads);
 
   // (g) optimal MIS weights against the heuristics, on two-panels and the plates
   {
@@ -377,9 +332,13 @@ int run_figures(const FiguresFlags& f) {
       optimal_rows(st, plates ? "plates" : "panels", q ? 2 : 64, panels);
       notes += note;
     }
-    write_sheet(f.out + "/g-optimal-mis.png", "(g) Optimal MIS weights (Kondapaneni et al. 2019) against balance and power" + notes,
-                panels, scale, 4);
+    figs.sheet(f.out + "/g-optimal-mis.png",
+               "(g) Optimal MIS weights (Kondapaneni et al. 2019) against balance and power" + notes, std::move(panels), 4);
   }
+  // drawn by matplotlib (python/tuile/plot.py), all in one run
+  draw_with_matplotlib(figs.plots, figs.sheets);
+  for (const Sheet& sh : figs.sheets) std::printf("figures: %s\n", sh.output.c_str());
+  for (const Plot& p : figs.plots) std::printf("figures: %s\n", p.output.c_str());
   return 0;
 }
 
