@@ -151,6 +151,25 @@ def test_bench_and_profile_return_what_their_commands_print():
         tuile.bench("built-in:two-panels", repeat=0)
 
 
+def test_a_render_releases_the_gil(cornell):
+    import threading
+    done = threading.Event()
+    result = {}
+
+    def work():
+        result["img"] = cornell.render(spp=64, res="128x128", max_depth=5)
+        done.set()
+
+    t = threading.Thread(target=work)
+    t.start()
+    ticks = 0
+    while not done.is_set():  # Python runs here while the render goes on
+        ticks += 1
+        done.wait(0.001)
+    t.join()
+    assert ticks > 20 and result["img"].shape == (128, 128, 3)
+
+
 INTERRUPT = r"""
 import os, signal, threading, time, sys
 import tuile
