@@ -213,10 +213,10 @@ struct PyScene {
   int width = 0, height = 0;  // the file's film (--res changes the loaded scene's camera)
   std::mutex busy;            // one render of a scene at a time (they share its camera)
 
-  explicit PyScene(const std::string& path) {
+  PyScene(const std::string& path, bool strict) {
     p = std::make_shared<Prepared>();
     const auto t0 = std::chrono::steady_clock::now();
-    p->scene = load_scene(path);
+    p->scene = load_scene(path, LoadOptions{strict});
     p->load_seconds = seconds_since(t0);
     const auto t1 = std::chrono::steady_clock::now();
     p->accel = std::make_unique<Accel>(p->scene);
@@ -244,6 +244,7 @@ py::object render(PyScene& s, const py::kwargs& kw) {
   add_render_run_flags(app, f);
   app.add_option("-o,--output", f.output, "output .exr");
   if (kw.contains("scene")) throw py::value_error(where + ": scene: the scene is the object rendered (tuile.load)");
+  if (kw.contains("strict")) throw py::value_error(where + ": strict: the scene is loaded already (tuile.load(path, strict=True))");
   parse(where, app, kw);
   f.scene = s.source;
   f.command_line = call_text(s.source, "render", kw);
@@ -417,11 +418,11 @@ PYBIND11_MODULE(_tuile, m) {
                              [](const PyFilm& f) { return reinterpret_cast<uintptr_t>(f.image.data()); });
 
   py::class_<PyScene>(m, "Scene", "A scene loaded and its BVH built (tuile.load)")
-      .def(py::init([](const std::string& path) {
+      .def(py::init([](const std::string& path, bool strict) {
              py::gil_scoped_release nogil;
-             return new PyScene(path);
+             return new PyScene(path, strict);
            }),
-           py::arg("path"))
+           py::arg("path"), py::arg("strict") = false)
       .def_readonly("source", &PyScene::source)
       .def_readonly("width", &PyScene::width)
       .def_readonly("height", &PyScene::height)

@@ -454,8 +454,6 @@ TEST(PbrtMaterials, BadInputIsAnErrorNamingFileAndLine) {
   expect_error(b, "\"texture reflectance\"", "float texture");
   b = "Material \"conductor\" \"texture roughness\" \"nope\"\n";
   expect_error(b, "\"texture roughness\"", "nope");
-  b = "Texture \"f\" \"float\" \"imagemap\" \"string filename\" \"missing.tga\"\nMaterial \"conductor\" \"texture roughness\" \"f\"\n";
-  expect_error(b, "Texture", "missing.tga");
   b = "Material \"conductor\" \"rgb reflectance\" [0.5 0.5 0.5] \"rgb eta\" [1 1 1]\n";
   expect_error(b, "\"rgb reflectance\"", "reflectance");
   b = "Material \"conductor\" \"spectrum k\" [ 500 1 400 2 ]\n";
@@ -464,6 +462,34 @@ TEST(PbrtMaterials, BadInputIsAnErrorNamingFileAndLine) {
   expect_error(b, "\"float eta\"", "rgb/spectrum/texture");
   b = "Material \"coateddiffuse\" \"integer nsamples\" 0\n";
   expect_error(b, "\"integer nsamples\"", "nsamples");
+}
+
+// One policy for missing images, float and colour textures alike: the image's mean 0.5 (as
+// the imagemap's scale and invert turn it) with a warning naming file and line; with
+// --strict (LoadOptions::strict), pbrt-v4's error naming them.
+TEST(PbrtMaterials, MissingImagesFallBackToAConstantUnlessStrict) {
+  const std::string rough = "Texture \"f\" \"float\" \"imagemap\" \"string filename\" \"missing.tga\" \"float scale\" 0.5\n"
+                            "Material \"conductor\" \"texture roughness\" \"f\"\n" + tri;
+  const Scene s = world(rough);
+  const Material& c = mat(s, 0);
+  EXPECT_EQ(c.alpha_u.texture, -1);
+  EXPECT_NEAR(c.alpha_u.value, 0.5f, 1e-6);  // roughness 0.5 * 0.5, remapped: sqrt(0.25)
+  EXPECT_TRUE(has_warning(s, "m.pbrt:2"));
+  EXPECT_TRUE(has_warning(s, "missing.tga"));
+  const std::string colour = "Texture \"c\" \"spectrum\" \"imagemap\" \"string filename\" \"gone.png\"\n"
+                             "Material \"diffuse\" \"texture reflectance\" \"c\"\n" + tri;
+  const Scene s2 = world(colour);
+  EXPECT_TRUE(has_warning(s2, "gone.png"));
+  EXPECT_TRUE(has_warning(s2, "m.pbrt:2"));
+  for (const std::string& body : {rough, colour}) {
+    try {
+      load_pbrt_string("WorldBegin\n" + body, "m.pbrt", tmp_dir().string(), LoadOptions{true});
+      ADD_FAILURE() << "no error under strict";
+    } catch (const SceneError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind("m.pbrt:2", 0), 0u) << e.what();
+      EXPECT_NE(std::string(e.what()).find(body == rough ? "missing.tga" : "gone.png"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(PbrtMaterials, WarningsSayWhatIsApproximated) {

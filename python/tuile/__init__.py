@@ -21,13 +21,15 @@ __all__ = ["load", "Scene", "Film", "SceneError", "converge", "bench", "profile"
            "strategies", "plot"]
 
 
-def load(path):
+def load(path, strict=False):
     """Loads a pbrt-v4 scene (.pbrt, .pbrt.gz) or a built-in one ("built-in:two-panels",
     "built-in:cornell") and builds its BVH. A broken file raises tuile.SceneError (a
-    ValueError) naming the file and line. What tuile approximates is given as warnings."""
+    ValueError) naming the file and line. What tuile approximates is given as warnings;
+    strict=True is pbrt-v4's behaviour where tuile is lenient (an image texture that
+    cannot be read is an error, not its constant mean with a warning)."""
     if not isinstance(path, str):
         raise ValueError("load: path: expected a file name or 'built-in:NAME', not %s" % type(path).__name__)
-    scene = Scene(path)
+    scene = Scene(path, strict=bool(strict))
     for w in scene.warnings:
         _warnings.warn("tuile: " + w, stacklevel=2)
     return scene

@@ -65,6 +65,8 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                  "auto (emitters when they are at most half of the primitives)")
       ->capture_default_str();
   app.add_flag("--quiet", f.quiet, "no progress or summary on stderr");
+  app.add_flag("--strict", f.strict,
+               "as pbrt-v4, stop on an image texture that cannot be read (default: its constant mean, 0.5, with a warning)");
   app.add_flag("--stats", f.stats, "print rejected samples, worst accident and mean variance");
 }
 

@@ -26,6 +26,7 @@ struct RenderFlags {
   int rr_depth = 1;
   uint32_t seed = 0;
   bool quiet = false, stats = false, spp_given = false, tile_given = false, max_depth_given = false;
+  bool strict = false;  // pbrt-v4's behaviour for missing images (an error, not a constant)
   // tuile render only (add_render_run_flags)
   double checkpoint_seconds = 0;  // > 0: save a checkpoint that often
   bool resume = false;

@@ -51,7 +51,7 @@ std::string with_extension(const std::string& path, const char* ext) {
 Prepared prepare(const RenderFlags& f) {
   Prepared p;
   const auto t0 = std::chrono::steady_clock::now();
-  p.scene = load_scene(f.scene);
+  p.scene = load_scene(f.scene, LoadOptions{f.strict});
   p.opt = resolve_options(f, p.scene);
   p.load_seconds = seconds_since(t0);
   const auto t1 = std::chrono::steady_clock::now();

@@ -265,7 +265,7 @@ int run_converge(const ConvergeFlags& f) {
     throw std::invalid_argument("--plot '" + f.plot + "': expected a .png, .svg or .pdf file name");
   if (!f.csv.empty()) make_parent_dir(f.csv);
   if (!f.plot.empty()) make_parent_dir(f.plot);
-  Scene scene = load_scene(f.render.scene);
+  Scene scene = load_scene(f.render.scene, LoadOptions{f.render.strict});
   (void)resolve_options(f.render, scene);  // validates the shared flags, applies --res
   for (const std::string& w : scene.warnings)
     if (!f.render.quiet) std::cerr << "tuile: warning: " << w << "\n";

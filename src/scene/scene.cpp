@@ -314,10 +314,10 @@ void finalize_scene(Scene& scene) {
   detect_features(scene);
 }
 
-Scene load_scene(const std::string& path) {
+Scene load_scene(const std::string& path, const LoadOptions& options) {
   Scene s;
   if (path.rfind("built-in:", 0) == 0) s = builtin_scene(path.substr(9));
-  else s = load_pbrt(path);
+  else s = load_pbrt(path, options);
   finalize_scene(s);
   return s;
 }

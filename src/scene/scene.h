@@ -196,7 +196,13 @@ void finalize_scene(Scene& scene);
 Scene builtin_scene(const std::string& name);
 std::vector<std::string> builtin_scene_names();
 
+// How a scene file is read. strict: pbrt-v4's behaviour where tuile is lenient (an image
+// texture that cannot be read is an error, not a constant with a warning).
+struct LoadOptions {
+  bool strict = false;
+};
+
 // Loads a scene: "built-in:NAME" or a pbrt-v4 file (.pbrt or .pbrt.gz). Calls finalize_scene.
-Scene load_scene(const std::string& path);
+Scene load_scene(const std::string& path, const LoadOptions& options = {});
 
 }  // namespace tuile

@@ -103,6 +103,20 @@ def test_a_broken_scene_raises_with_file_and_line(tmp_path):
         tuile.load(42)
 
 
+def test_missing_images_warn_unless_strict(tmp_path):
+    f = tmp_path / "tex.pbrt"
+    f.write_text('WorldBegin\nTexture "c" "spectrum" "imagemap" "string filename" "gone.png"\n'
+                 'Material "diffuse" "texture reflectance" "c"\n'
+                 'Shape "trianglemesh" "point3 P" [ 1 0 0  0 1 0  0 0 1 ]\n')
+    with pytest.warns(UserWarning, match=r"tex\.pbrt:2.*gone\.png"):
+        scene = tuile.load(str(f))
+    assert any("gone.png" in w for w in scene.warnings)
+    with pytest.raises(tuile.SceneError, match=r"tex\.pbrt:2.*gone\.png"):
+        tuile.load(str(f), strict=True)
+    with pytest.raises(ValueError, match="strict"):
+        scene.render(strict=True)
+
+
 def test_info_is_what_tuile_info_prints(cornell):
     info = cornell.info()
     text = cli("info", "built-in:cornell").stdout

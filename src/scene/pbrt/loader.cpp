@@ -345,8 +345,9 @@ void Loader::finish() {
 
 namespace {
 
-Scene load(std::unique_ptr<Lexer> lx, const std::string& source) {
+Scene load(std::unique_ptr<Lexer> lx, const std::string& source, const LoadOptions& options) {
   Loader l;
+  l.strict = options.strict;
   l.scene.source = source;
   l.scene.file_max_depth = 5;  // pbrt-v4's integrator when the file names none: volpath, maxdepth 5
   l.run(std::move(lx));
@@ -356,15 +357,16 @@ Scene load(std::unique_ptr<Lexer> lx, const std::string& source) {
 }  // namespace
 }  // namespace pbrt
 
-Scene load_pbrt(const std::string& path) {
+Scene load_pbrt(const std::string& path, const LoadOptions& options) {
   std::string text, reason;
   if (!pbrt::read_file(path, text, reason))
     throw SceneError(path + ":1:1: error: cannot read scene file: " + reason + " (expected an existing, readable .pbrt file)");
-  return pbrt::load(std::make_unique<pbrt::Lexer>(std::move(text), path, pbrt::parent_dir(path)), path);
+  return pbrt::load(std::make_unique<pbrt::Lexer>(std::move(text), path, pbrt::parent_dir(path)), path, options);
 }
 
-Scene load_pbrt_string(const std::string& text, const std::string& virtual_name, const std::string& base_dir) {
-  return pbrt::load(std::make_unique<pbrt::Lexer>(text, virtual_name, base_dir), virtual_name);
+Scene load_pbrt_string(const std::string& text, const std::string& virtual_name, const std::string& base_dir,
+                       const LoadOptions& options) {
+  return pbrt::load(std::make_unique<pbrt::Lexer>(text, virtual_name, base_dir), virtual_name, options);
 }
 
 }  // namespace tuile

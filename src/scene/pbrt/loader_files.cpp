@@ -126,9 +126,16 @@ void Loader::load_files() {
   if (polygons)
     warn("plypolygon", std::to_string(polygons) + " PLY faces with more than 4 vertices were fan-triangulated (first in " +
                            first_polygon + ")");
-  for (const ImageJob& j : images_)
-    if (j.needed && !j.ok)
-      warn("image:" + j.path, j.where + ": cannot read image '" + j.path + "' (" + j.reason + "): constant grey 0.5 used");
+  // one policy for missing images (float textures: loader_textures.cpp): a constant with a
+  // warning, or with --strict pbrt-v4's error
+  for (const ImageJob& j : images_) {
+    if (!j.needed || j.ok) continue;
+    if (strict)
+      throw SceneError(j.where + ": error: cannot read image '" + j.path + "': " + j.reason +
+                       " (expected an existing, readable image file: --strict)");
+    warn("image:" + j.path, j.where + ": cannot read image '" + j.path + "' (" + j.reason +
+                                "): constant grey 0.5 used (--strict: an error)");
+  }
 }
 
 }  // namespace tuile::pbrt

@@ -1,5 +1,5 @@
 // The pbrt-v4 reader's shapes: trianglemesh, bilinearmesh (patches split into triangle
-// pairs), loopsubdiv (its control mesh), plymesh (recorded, read by loader_files.cpp),
+// pairs), loopsubdiv (Loop subdivision: scene/loop_subdiv.h), plymesh (recorded, read by loader_files.cpp),
 // sphere and disk (a 64-gon of the same area), emitting when the graphics state has an
 // area light (triangles oriented by their shading normals, as pbrt-v4 does). At the end,
 // flatten applies area-light powers and copies object instances into world-space meshes
@@ -12,6 +12,7 @@
 
 #include "lexer.h"
 #include "loader_state.h"
+#include "scene/loop_subdiv.h"
 #include "params.h"
 #include "util.h"
 
@@ -97,8 +98,10 @@ void Loader::orient_by_normals(Mesh& m, const std::vector<float>& n_obj, const M
 }
 
 // trianglemesh, bilinearmesh (each patch two triangles: a parallelogram pair) and
-// loopsubdiv (its control mesh, with a warning): vertices, indices, uv and normals checked
-// against each other, positions transformed to world space.
+// loopsubdiv (subdivided `levels` times, 3 by default, with the limit surface's positions
+// and normals: scene/loop_subdiv.h; a control mesh Loop's rules do not apply to is
+// rendered as it is, with a warning): vertices, indices, uv and normals checked against
+// each other, positions transformed to world space.
 void Loader::mesh_shape(Lexer& lx, const Token& t, const std::string& type, Params& ps, const std::string& where) {
   const bool bilinear = type == "bilinearmesh";
   const size_t per = bilinear ? 4 : 3;
@@ -122,19 +125,40 @@ void Loader::mesh_shape(Lexer& lx, const Token& t, const std::string& type, Para
     N->fail("\"N\" has " + std::to_string(N->nums.size() / 3) + " normals for " + std::to_string(nv) + " vertices", "one normal per vertex");
   ps.get("S", "vector3");
   ps.get("faceIndices", "integer");
-  if (type == "loopsubdiv") {
-    ps.get("levels", "integer");
-    warn("loopsubdiv", where + ": loopsubdiv is not subdivided: its control mesh is rendered");
-  }
-  const size_t mi = new_mesh(lx, t);
-  Mesh& m = meshes_[mi].mesh;
-  m.positions.assign(P->nums.begin(), P->nums.end());
-  transform_positions(gs_.ctm, m.positions.data(), nv);
-  if (uv) m.uvs.assign(uv->nums.begin(), uv->nums.end());
   std::vector<uint32_t> idx;
   if (I) idx.assign(I->nums.begin(), I->nums.end());
   else
     for (uint32_t i = 0; i < per; ++i) idx.push_back(i);
+  std::vector<float> pos(P->nums.begin(), P->nums.end());
+  std::vector<float> n_obj;
+  if (N) n_obj.assign(N->nums.begin(), N->nums.end());
+  bool keep_uv = uv != nullptr;
+  if (type == "loopsubdiv") {
+    // subdivided in object space as pbrt-v4 does: limit positions and normals, no uv
+    const Param* L = ps.get("levels", "integer");
+    const int levels = ps.one_int("levels", 3);
+    if (levels < 0 || levels > 12) {
+      if (L) L->fail("\"levels\" " + std::to_string(levels) + " out of range", "0..12 (each level makes 4 times the triangles)");
+      lx.fail(t, "levels out of range", "0..12");
+    }
+    LoopMesh lm;
+    std::string why;
+    if (loop_subdivide(pos, idx, levels, lm, why)) {
+      pos = std::move(lm.positions);
+      idx = std::move(lm.indices);
+      n_obj = std::move(lm.normals);
+      keep_uv = false;
+    } else if (why.rfind("levels", 0) == 0) {
+      lx.fail(t, "loopsubdiv: " + why, "fewer levels");
+    } else {
+      warn("loopsubdiv", where + ": loopsubdiv is not subdivided (" + why + "): its control mesh is rendered");
+    }
+  }
+  const size_t mi = new_mesh(lx, t);
+  Mesh& m = meshes_[mi].mesh;
+  m.positions = std::move(pos);
+  transform_positions(gs_.ctm, m.positions.data(), m.positions.size() / 3);
+  if (keep_uv) m.uvs.assign(uv->nums.begin(), uv->nums.end());
   if (bilinear) {
     // patch (p00, p10, p01, p11) -> triangles (p00 p10 p11), (p00 p11 p01): one parallelogram pair
     for (size_t q = 0; q < idx.size(); q += 4) {
@@ -144,8 +168,7 @@ void Loader::mesh_shape(Lexer& lx, const Token& t, const std::string& type, Para
   } else {
     m.indices = std::move(idx);
   }
-  if (N) {
-    const std::vector<float> n_obj(N->nums.begin(), N->nums.end());
+  if (!n_obj.empty()) {
     orient_by_normals(m, n_obj, gs_.ctm, gs_.reverse);
     set_shading_normals(m, n_obj, gs_.ctm, gs_.reverse);
   }

@@ -145,6 +145,7 @@ struct Resolved {
 class Loader {
  public:
   Scene scene;
+  bool strict = false;  // LoadOptions::strict: a missing image is an error
   void run(std::unique_ptr<Lexer> main);
 
  private:

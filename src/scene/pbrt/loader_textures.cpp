@@ -348,13 +348,22 @@ ResolvedFloat Loader::resolve_float(int fd, int depth) {
     out.texture = add_float_texture(std::move(t));
     return out;
   };
-  if (depth > 64) {
+  if (depth <= 64 && d.kind == FloatTexDef::image && !images_[size_t(d.job)].ok) {
+    // one policy for missing images: the image's documented mean, 0.5, as pbrt's imagemap
+    // turns it (times "scale", then "invert"), with a warning; --strict: pbrt-v4's error
+    const ImageJob& j = images_[size_t(d.job)];
+    if (strict)
+      fail(d.file, d.line, d.col, "cannot read image '" + j.path + "' of float texture \"" + d.name + "\": " + j.reason,
+           "an existing, readable image file (--strict)");
+    float v = 0.5f * d.scale;
+    if (d.invert) v = std::max(0.f, 1 - v);
+    r.value = v;
+    warn("image:" + j.path, d.where + ": cannot read image '" + j.path + "' of float texture \"" + d.name + "\" (" + j.reason +
+                                "): the constant " + std::to_string(v) + " used (--strict: an error)");
+  } else if (depth > 64) {
     r.value = 0.5f;
   } else if (d.kind == FloatTexDef::image) {
     ImageJob& j = images_[size_t(d.job)];
-    if (!j.ok)
-      fail(d.file, d.line, d.col, "cannot read image '" + j.path + "' of float texture \"" + d.name + "\": " + j.reason,
-           "an existing, readable image file");
     const auto key = std::make_tuple(d.job, d.scale, d.invert);
     auto it = float_images_.find(key);
     if (it == float_images_.end()) {
