@@ -512,6 +512,94 @@ TEST(Pbrt, SphereAndDisk) {
   }
 }
 
+namespace {
+
+// A mesh's area, and whether every triangle's winding normal agrees with its vertices'
+// shading normals (when it has them) and with `want` (dot > 0) when given.
+double area_of(const Mesh& m, const double* want = nullptr) {
+  double area = 0;
+  for (size_t t = 0; t < m.indices.size(); t += 3) {
+    const float* a = &m.positions[3 * m.indices[t]];
+    const float* b = &m.positions[3 * m.indices[t + 1]];
+    const float* c = &m.positions[3 * m.indices[t + 2]];
+    const double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    area += 0.5 * std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (int k = 0; k < 3 && !m.normals.empty(); ++k) {
+      const float* ns = &m.normals[3 * m.indices[t + size_t(k)]];
+      EXPECT_GT(n[0] * ns[0] + n[1] * ns[1] + n[2] * ns[2], 0) << "triangle " << t / 3;
+    }
+    if (want) {
+      EXPECT_GT(n[0] * want[0] + n[1] * want[1] + n[2] * want[2], 0) << "triangle " << t / 3;
+    }
+  }
+  return area;
+}
+
+}  // namespace
+
+// pbrt-v4's cylinder and partial disks: their areas exact (emitted power kept), the normal
+// facing out, turned by ReverseOrientation XOR a mirroring transform's handedness in object
+// space as pbrt-v4 turns a quadric's, radial shading normals, pbrt-v4's uv.
+TEST(Pbrt, CylinderAndPartialDisk) {
+  const Scene s = world(
+      "AttributeBegin\nTranslate 0 0 1\nShape \"cylinder\" \"float radius\" 2 \"float zmin\" -1 \"float zmax\" 3\nAttributeEnd\n"
+      "AttributeBegin\nScale 1 1 -1\nShape \"cylinder\" \"float radius\" 0.5 \"float phimax\" 90\nAttributeEnd\n"
+      "AttributeBegin\nReverseOrientation\nShape \"cylinder\"\nAttributeEnd\n"
+      "Shape \"disk\" \"float radius\" 2 \"float innerradius\" 1 \"float phimax\" 180\n"
+      "Shape \"disk\" \"float radius\" 3 \"float phimax\" 45\n");
+  ASSERT_EQ(s.meshes.size(), 5u);
+  for (const std::string& w : s.warnings) EXPECT_EQ(w.find("cylinder"), std::string::npos) << w;
+  // the full cylinder: 128 quads, area 2 pi r h, every normal radial and outward, uv
+  const Mesh& c = s.meshes[0];
+  EXPECT_EQ(c.triangle_count(), 256u);
+  EXPECT_NEAR(area_of(c), 2 * M_PI * 2 * 4, 1e-3);
+  ASSERT_EQ(c.normals.size(), c.positions.size());
+  ASSERT_EQ(c.uvs.size(), c.positions.size() / 3 * 2);
+  for (size_t v = 0; v < c.positions.size() / 3; ++v) {
+    const float* p = &c.positions[3 * v];
+    const float* n = &c.normals[3 * v];
+    const double rr = std::hypot(p[0], p[1]);
+    EXPECT_NEAR(n[0], p[0] / rr, 1e-5);
+    EXPECT_NEAR(n[1], p[1] / rr, 1e-5);
+    EXPECT_EQ(n[2], 0.f);
+    EXPECT_TRUE(p[2] == 0.f || p[2] == 4.f) << p[2];
+    EXPECT_EQ(c.uvs[2 * v + 1], p[2] == 0.f ? 0.f : 1.f);
+    EXPECT_NEAR(c.uvs[2 * v], std::fmod(std::atan2(p[1], p[0]) + 2 * M_PI, 2 * M_PI) / (2 * M_PI), 1e-5);
+  }
+  EXPECT_FALSE(c.reverse_orientation);
+  // a quarter cylinder under a mirroring transform: 32 quads, its own area; pbrt-v4 flips a
+  // quadric's normal by the handedness in object space and then transforms it, so a
+  // mirrored cylinder faces in (its winding and its normals agree, checked by area_of)
+  const Mesh& q = s.meshes[1];
+  EXPECT_EQ(q.triangle_count(), 64u);
+  EXPECT_NEAR(area_of(q), 0.25 * 2 * M_PI * 0.5 * 2, 1e-4);
+  for (size_t v = 0; v < q.positions.size() / 3; ++v) {
+    EXPECT_GE(q.positions[3 * v], -1e-6f);
+    EXPECT_GE(q.positions[3 * v + 1], -1e-6f);
+    EXPECT_LT(q.normals[3 * v] * q.positions[3 * v] + q.normals[3 * v + 1] * q.positions[3 * v + 1], 0);
+  }
+  EXPECT_NEAR(q.uvs[q.uvs.size() - 2], 1.f, 1e-6);  // u = phi / phimax reaches 1 on the last edge
+  // ReverseOrientation: the normals face in and the surface emits inwards
+  const Mesh& r = s.meshes[2];
+  EXPECT_TRUE(r.reverse_orientation);
+  for (size_t v = 0; v < r.positions.size() / 3; ++v)
+    EXPECT_LT(r.normals[3 * v] * r.positions[3 * v] + r.normals[3 * v + 1] * r.positions[3 * v + 1], 0);
+  // a half ring and a 45-degree sector: their areas, facing +z, pbrt-v4's v (0 outside, 1 inside)
+  const double up[3] = {0, 0, 1};
+  EXPECT_NEAR(area_of(s.meshes[3], up), 0.5 * M_PI * (4 - 1), 1e-4);
+  EXPECT_NEAR(area_of(s.meshes[4], up), M_PI / 8 * 9, 1e-4);
+  for (size_t v = 0; v < s.meshes[3].positions.size() / 3; ++v) {
+    const double rr = std::hypot(s.meshes[3].positions[3 * v], s.meshes[3].positions[3 * v + 1]);
+    EXPECT_EQ(s.meshes[3].uvs[2 * v + 1], rr > 1.5 ? 0.f : 1.f);
+  }
+  // bad input names file and line
+  EXPECT_THROW(world("Shape \"cylinder\" \"float radius\" -1\n"), SceneError);
+  EXPECT_THROW(world("Shape \"cylinder\" \"float zmin\" 1 \"float zmax\" 1\n"), SceneError);
+  EXPECT_THROW(world("Shape \"cylinder\" \"float phimax\" 400\n"), SceneError);
+  EXPECT_THROW(world("Shape \"disk\" \"float phimax\" 0\n"), SceneError);
+}
+
 TEST(Pbrt, PlyBinaryBothEndiansAndGzip) {
   write_text(tmp_dir() / "le.ply", ply_binary(false));
   write_text(tmp_dir() / "be.ply", ply_binary(true));

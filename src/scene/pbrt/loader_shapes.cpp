@@ -1,9 +1,11 @@
 // The pbrt-v4 reader's shapes: trianglemesh, bilinearmesh (patches split into triangle
 // pairs), loopsubdiv (Loop subdivision: scene/loop_subdiv.h), plymesh (recorded, read by loader_files.cpp),
-// sphere and disk (a 64-gon of the same area), emitting when the graphics state has an
+// sphere, disk (a 64-gon of the same area, a sector for phimax) and cylinder (a band of 128
+// quads of the same area, radial shading normals), emitting when the graphics state has an
 // area light (triangles oriented by their shading normals, as pbrt-v4 does). At the end,
 // flatten applies area-light powers and copies object instances into world-space meshes
 // and spheres.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -226,38 +228,107 @@ void Loader::sphere_shape(Lexer& lx, const Token& t, Params& ps, const std::stri
   spheres_.push_back(os);
 }
 
-// disk: a 64-gon (or ring) of the disk's area in its plane z = height.
-void Loader::disk_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where) {
+// The segments of a quadric's tessellation over phimax degrees (64 for a full turn,
+// proportionally fewer, at least 4, for a part), and the factor on the radius that gives the
+// polygon the quadric's area (the emitted power is kept): k^2 for a fan of triangles from
+// the axis (disks), k for a band of chords (cylinders).
+struct Segments {
+  int n;
+  double dphi, fan_k, chord_k;
+};
+Segments segments(double phimax_rad, int full) {
+  Segments s;
+  s.n = std::max(4, static_cast<int>(std::ceil(full * phimax_rad / (2 * M_PI) - 1e-9)));
+  s.dphi = phimax_rad / s.n;
+  s.fan_k = std::sqrt(s.dphi / std::sin(s.dphi));
+  s.chord_k = (s.dphi / 2) / std::sin(s.dphi / 2);
+  return s;
+}
+
+double phimax_of(Lexer& lx, const Token& t, Params& ps) {
+  const Param* pp = ps.get("phimax", "float");
+  const float phimax = ps.one_float("phimax", 360);
+  if (!(phimax > 0 && phimax <= 360)) {
+    if (pp) pp->fail("\"phimax\" " + std::to_string(phimax) + " out of range", "0 < phimax <= 360 (degrees)");
+    lx.fail(t, "phimax out of range", "0 < phimax <= 360");
+  }
+  return phimax * M_PI / 180;
+}
+
+void Loader::quadric_normals(Mesh& m, const std::vector<float>& n_obj) {
+  set_shading_normals(m, n_obj, gs_.ctm, gs_.reverse != gs_.ctm.swaps_handedness());
+}
+
+// disk: a polygon (or a ring) of the disk's area in its plane z = height, over phimax
+// degrees (a sector for phimax < 360); uv as pbrt-v4's (u = phi / phimax, v = (r - radius)
+// / (innerradius - radius)).
+void Loader::disk_shape(Lexer& lx, const Token& t, Params& ps) {
   const float h = ps.one_float("height", 0), r = ps.one_float("radius", 1), ri = ps.one_float("innerradius", 0);
   if (!(r > 0) || !(ri >= 0) || !(ri < r)) lx.fail(t, "disk radii out of range", "radius > innerradius >= 0");
-  if (ps.one_float("phimax", 360) < 360) warn("partialdisk", where + ": partial disks (phimax) are rendered as full disks");
+  const double phimax = phimax_of(lx, t, ps);
+  const bool full = phimax >= 2 * M_PI - 1e-9;
+  const Segments sg = segments(phimax, disk_segments);
   const size_t mi = new_mesh(lx, t);
   Mesh& m = meshes_[mi].mesh;
   // pbrt's disk faces +z in object space and its orientation ignores the handedness of
-  // the transform (the normal is transformed, not recomputed), hence only ReverseOrientation.
+  // the transform (the normal is turned in object space), hence only ReverseOrientation.
   m.reverse_orientation = gs_.reverse;
-  // Radii grown so that the 64-gon has the disk's area (emitted power is kept).
-  const double n = disk_segments, k = std::sqrt(2 * M_PI / (n * std::sin(2 * M_PI / n)));
   const bool ring = ri > 0;
-  for (int i = 0; i < disk_segments; ++i) {
-    const double phi = 2 * M_PI * i / n, cx = std::cos(phi), sy = std::sin(phi);
+  const int ends = full ? sg.n : sg.n + 1;  // a sector's last edge has its own vertices
+  const double k = sg.fan_k;
+  for (int i = 0; i < ends; ++i) {
+    const double phi = sg.dphi * i, cx = std::cos(phi), sy = std::sin(phi);
     m.positions.insert(m.positions.end(), {float(r * k * cx), float(r * k * sy), h});
-    m.uvs.insert(m.uvs.end(), {float(i / n), 0.f});
+    m.uvs.insert(m.uvs.end(), {float(phi / phimax), 0.f});
     if (ring) {
       m.positions.insert(m.positions.end(), {float(ri * k * cx), float(ri * k * sy), h});
-      m.uvs.insert(m.uvs.end(), {float(i / n), float(1 - ri / r)});
+      m.uvs.insert(m.uvs.end(), {float(phi / phimax), 1.f});
     }
   }
+  const uint32_t centre = uint32_t(ends);
   if (!ring) {
     m.positions.insert(m.positions.end(), {0.f, 0.f, h});
     m.uvs.insert(m.uvs.end(), {0.f, 1.f});
   }
-  for (uint32_t i = 0; i < uint32_t(disk_segments); ++i) {
-    const uint32_t j = (i + 1) % disk_segments;
+  for (uint32_t i = 0; i < uint32_t(sg.n); ++i) {
+    const uint32_t j = (i + 1) % uint32_t(ends);
     if (ring) m.indices.insert(m.indices.end(), {2 * i + 1, 2 * i, 2 * j, 2 * i + 1, 2 * j, 2 * j + 1});
-    else m.indices.insert(m.indices.end(), {uint32_t(disk_segments), i, j});
+    else m.indices.insert(m.indices.end(), {centre, i, j});
   }
   transform_positions(gs_.ctm, m.positions.data(), m.positions.size() / 3);
+}
+
+// cylinder: pbrt-v4's (radius, zmin, zmax, phimax about the z axis, its normal facing out):
+// a band of quads around the axis, 128 for a full turn, its radius grown so the band has
+// the cylinder's area, shading normals radial (the analytic surface's), uv as pbrt-v4's
+// (u = phi / phimax, v = (z - zmin) / (zmax - zmin)).
+void Loader::cylinder_shape(Lexer& lx, const Token& t, Params& ps) {
+  const float r = ps.one_float("radius", 1), z0 = ps.one_float("zmin", -1), z1 = ps.one_float("zmax", 1);
+  if (!(r > 0) || !std::isfinite(r)) lx.fail(t, "cylinder radius out of range", "radius > 0");
+  if (!(std::isfinite(z0) && std::isfinite(z1)) || z0 == z1) lx.fail(t, "cylinder zmin and zmax out of range", "finite zmin != zmax");
+  const float zmin = std::min(z0, z1), zmax = std::max(z0, z1);
+  const double phimax = phimax_of(lx, t, ps);
+  const bool full = phimax >= 2 * M_PI - 1e-9;
+  const Segments sg = segments(phimax, 2 * disk_segments);
+  const size_t mi = new_mesh(lx, t);
+  Mesh& m = meshes_[mi].mesh;
+  m.reverse_orientation = gs_.reverse;  // as the disk: turned in object space
+  const int ends = full ? sg.n : sg.n + 1;
+  std::vector<float> n_obj;
+  for (int i = 0; i < ends; ++i) {
+    const double phi = sg.dphi * i, cx = std::cos(phi), sy = std::sin(phi);
+    const float x = float(r * sg.chord_k * cx), y = float(r * sg.chord_k * sy);
+    m.positions.insert(m.positions.end(), {x, y, zmin, x, y, zmax});
+    m.uvs.insert(m.uvs.end(), {float(phi / phimax), 0.f, float(phi / phimax), 1.f});
+    n_obj.insert(n_obj.end(), {float(cx), float(sy), 0.f, float(cx), float(sy), 0.f});
+  }
+  for (uint32_t i = 0; i < uint32_t(sg.n); ++i) {
+    const uint32_t j = (i + 1) % uint32_t(ends);
+    // (bottom i, bottom j, top j), (bottom i, top j, top i): the winding faces out
+    m.indices.insert(m.indices.end(), {2 * i, 2 * j, 2 * j + 1, 2 * i, 2 * j + 1, 2 * i + 1});
+  }
+  transform_positions(gs_.ctm, m.positions.data(), m.positions.size() / 3);
+  quadric_normals(m, n_obj);
 }
 
 void Loader::shape(Lexer& lx, const Token& t, const std::string& type, Params& ps) {
@@ -274,13 +345,15 @@ void Loader::shape(Lexer& lx, const Token& t, const std::string& type, Params& p
   } else if (type == "sphere") {
     sphere_shape(lx, t, ps, where);
   } else if (type == "disk") {
-    disk_shape(lx, t, ps, where);
-  } else if (type == "cylinder" || type == "curve" || type == "cone" || type == "paraboloid" || type == "hyperboloid") {
+    disk_shape(lx, t, ps);
+  } else if (type == "cylinder") {
+    cylinder_shape(lx, t, ps);
+  } else if (type == "curve" || type == "cone" || type == "paraboloid" || type == "hyperboloid") {
     ps.mark_all_used();
     warn("shape:" + type, where + ": shape \"" + type + "\" is not supported and was skipped");
     return;
   } else {
-    lx.fail(t, "unknown shape \"" + type + "\"", "trianglemesh, plymesh, bilinearmesh, sphere or disk");
+    lx.fail(t, "unknown shape \"" + type + "\"", "trianglemesh, plymesh, bilinearmesh, loopsubdiv, sphere, disk or cylinder");
   }
   warn_unused(ps, "Shape \"" + type + "\"", lx, t);
 }

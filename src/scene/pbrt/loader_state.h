@@ -184,7 +184,11 @@ class Loader {
   void mesh_shape(Lexer& lx, const Token& t, const std::string& type, Params& ps, const std::string& where);
   void ply_shape(Lexer& lx, const Token& t, Params& ps);
   void sphere_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where);
-  void disk_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where);
+  void disk_shape(Lexer& lx, const Token& t, Params& ps);
+  void cylinder_shape(Lexer& lx, const Token& t, Params& ps);
+  // The mesh's shading normals from object-space ones on a quadric (pbrt-v4 turns a
+  // quadric's normal by ReverseOrientation XOR the transform's handedness, in object space).
+  void quadric_normals(Mesh& m, const std::vector<float>& n_obj);
   size_t new_mesh(Lexer& lx, const Token& t);
   void set_emission(OwnedMesh& om, Lexer& lx, const Token& t);
   void orient_by_normals(Mesh& m, const std::vector<float>& n_obj, const Mat4& ctm, bool ro);
