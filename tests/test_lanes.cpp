@@ -377,6 +377,7 @@ TEST(Lanes, RectangleStagesEqualGeneral) {
 TEST(Lanes, StagesEqualScalar) {
   Scene s = all_lights_scene(false, true);  // every kind of source, a constant sky and a map too
   ASSERT_EQ(s.lights.size(), 9u);
+  s.spheres[0].alpha = 0.6f;  // a cut-out emitter: its light samples' radiance times its alpha (wave/alpha.h)
   std::mt19937 rng(3);
   for (LightPick pick : {LightPick::all, LightPick::uniform, LightPick::area, LightPick::power, LightPick::bvh}) {
     SceneViews views = build_views(s, pick);

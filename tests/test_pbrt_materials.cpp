@@ -492,6 +492,45 @@ TEST(PbrtMaterials, MissingImagesFallBackToAConstantUnlessStrict) {
   }
 }
 
+// A shape's "alpha": a float on the shape (meshes and spheres), a float texture on meshes
+// (looked up per hit), its mean on spheres (with a warning); no "not supported" warning;
+// bad values name file and line.
+TEST(PbrtMaterials, ShapeAlphaFloatAndTexture) {
+  write_tga(tmp_dir() / "mask.tga", 2, 1, {0, 0, 0, 255, 255, 255});
+  const Scene s = world(
+      "Texture \"m\" \"float\" \"imagemap\" \"string filename\" \"mask.tga\"\n"
+      "Texture \"k\" \"float\" \"constant\" \"float value\" 0.25\n"
+      "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2] \"texture alpha\" \"m\"\n"
+      "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2] \"float alpha\" 0.5\n"
+      "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2] \"texture alpha\" \"k\"\n"
+      "Shape \"sphere\" \"float alpha\" 0.75\n"
+      "Translate 5 0 0 Shape \"sphere\" \"texture alpha\" \"m\"\n"
+      "Shape \"disk\"\n");
+  ASSERT_EQ(s.meshes.size(), 4u);
+  ASSERT_GE(s.meshes[0].alpha.texture, 0);
+  const FloatTexture& t = s.float_textures[size_t(s.meshes[0].alpha.texture)];
+  ASSERT_EQ(t.width, 2);
+  EXPECT_NEAR(t.value[0], 0.f, 1e-6);
+  EXPECT_NEAR(t.value[1], 1.f, 1e-6);
+  EXPECT_TRUE(s.meshes[0].has_alpha());
+  EXPECT_EQ(s.meshes[1].alpha.texture, -1);
+  EXPECT_EQ(s.meshes[1].alpha.value, 0.5f);
+  EXPECT_EQ(s.meshes[2].alpha.texture, -1);  // a constant texture is a constant
+  EXPECT_EQ(s.meshes[2].alpha.value, 0.25f);
+  EXPECT_FALSE(s.meshes[3].has_alpha());
+  ASSERT_EQ(s.spheres.size(), 2u);
+  EXPECT_EQ(s.spheres[0].alpha, 0.75f);
+  EXPECT_NEAR(s.spheres[1].alpha, 0.5f, 1e-6);  // the mask's mean
+  EXPECT_TRUE(has_warning(s, "m.pbrt:8: an alpha texture on a sphere"));
+  for (const std::string& w : s.warnings) EXPECT_EQ(w.find("\"alpha\" is not supported"), std::string::npos) << w;
+  const std::string inf = "Shape \"sphere\" \"float alpha\" 1e999\n";
+  EXPECT_EQ(error_of(inf).rfind("m.pbrt:2", 0), 0u) << error_of(inf);
+  const std::string two = "Shape \"sphere\" \"float alpha\" [0.5 0.5]\n";
+  EXPECT_NE(error_of(two).find("m.pbrt:2"), std::string::npos) << error_of(two);
+  const std::string unknown = "Shape \"sphere\" \"texture alpha\" \"nope\"\n";
+  EXPECT_NE(error_of(unknown).find("unknown float texture"), std::string::npos) << error_of(unknown);
+}
+
 TEST(PbrtMaterials, WarningsSayWhatIsApproximated) {
   const Scene s = world(
       "Material \"conductor\" \"float roughnes\" 0.1\n" + tri + "Material \"hair\"\n" + tri +

@@ -14,6 +14,7 @@ namespace tuile {
 enum class LightPoint : int { area = 0, solid_angle = 1 };
 
 struct LightBvhView;
+struct AlphaShape;  // wave/alpha.h
 
 struct LightView {
   int32_t count = 0;
@@ -53,6 +54,11 @@ struct LightView {
   const SkyMapView* sky_maps = nullptr;
   int32_t sky_map_count = 0;
   int sky_dist = sky_dist_full;
+  // Cut-out emitters (wave/alpha.h): per source, its shape in alpha_shapes or -1, and its
+  // triangle in that mesh; nullptr when no source has an alpha
+  const int32_t* alpha_shape = nullptr;
+  const int32_t* alpha_prim = nullptr;
+  const AlphaShape* alpha_shapes = nullptr;
 };
 
 // How a light table is read per lane: tier_gather (any size), tier_small (tables padded to

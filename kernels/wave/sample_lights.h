@@ -12,6 +12,7 @@
 #include <type_traits>
 
 #include "light/bvh.h"
+#include "wave/alpha.h"
 #include "wave/optimal_mis.h"
 #include "wave/surface_bsdf.h"
 
@@ -42,6 +43,34 @@ template <class T> struct LightCandidate {
   mask_t<T> ray_ok;     // the ray is finite (Embree does not skip non-finite rays)
 };
 
+// Cut-out emitters: each lane's radiance times the alpha at the point y drawn on its source
+// (the mean of what rays that meet y see: pbrt-v4 masks the point by a hash instead), so
+// light sampling estimates what the hits see. Scalar over the lanes, only in scenes whose
+// sources have an alpha.
+template <class T>
+inline void apply_light_alpha(const LightView& L, const i32_t<T>& light, const Vec3<T>& y, LightCandidate<T>& out) {
+  constexpr int W = lane_traits<T>::width;
+  alignas(64) int32_t li[W];
+  alignas(64) float yx[W], yy[W], yz[W], a[W];
+  store(li, light);
+  store(yx, y.x);
+  store(yy, y.y);
+  store(yz, y.z);
+  for (int i = 0; i < W; ++i) {
+    a[i] = 1.f;
+    if (li[i] < 0 || li[i] >= L.count) continue;
+    const int32_t sh = L.alpha_shape[li[i]];
+    if (sh >= 0) {
+      const float v = alpha_at_point(L.alpha_shapes[sh], static_cast<uint32_t>(std::max(L.alpha_prim[li[i]], 0)), yx[i], yy[i], yz[i]);
+      a[i] = std::clamp(v, 0.f, 1.f);
+    }
+  }
+  const T alpha = load<T>(a);
+  out.Le_r = out.Le_r * alpha;
+  out.Le_g = out.Le_g * alpha;
+  out.Le_b = out.Le_b * alpha;
+}
+
 // Kinds: which kinds of source can occur (kind_area, kind_delta); Pick: whether lanes pick
 // a source (false: every lane samples pass.fixed_light, as with one light or "all");
 // Bsdfs: the kinds of surface (bsdf/material.h). Surfaces that transmit take light from
@@ -57,6 +86,7 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
 
   LightGeom<T> g;
   T pick;
+  i32_t<T> light_idx(pass.fixed_light);
   const AliasPicker picker{L};
   // the light BVH's context: the point and its geometric normal (pbrt-v4's), the same bits
   // the emitter-hit queue gives the pmf (emitter_hits.h)
@@ -76,6 +106,7 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
         idx = picked.light;
         pick = picked.pmf;
       }
+      light_idx = idx;
       if constexpr ((Kinds & kind_rects) != 0) g = gather_rect_light<S>(L, idx);
       else g = gather_light<S>(L, idx);
       lookup_radiance<S>(L, idx, out.Le_r, out.Le_g, out.Le_b);
@@ -124,6 +155,7 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
                 ? x + sel(dot(n, s.wi) < T(0.f), Vec3<T>(T(0.f), T(0.f), T(0.f)) - n, n) * eps
                 : x + n * eps;
   const Vec3<T> y = x + s.wi * sel(at_infinity, T(0.f), s.dist);
+  if (L.alpha_shape) apply_light_alpha(L, light_idx, y, out);
   // error bound of the light point, per axis (it is p0 + u e1 + v e2, or x + t wi), with
   // |e1| + |e2| bounding every axis's |e1_i| + |e2_i| (a sphere's |e1| is its radius)
   const T g7 = T(gamma_err(7));

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "wave/alpha.h"
 #include "wave/tile.h"
 #include "lanes/vec.h"
 
@@ -79,27 +80,9 @@ inline void resolve_mixes(const GeomView& G, ShadingPoints& P) {
   }
 }
 
-// Float texture t at (u, v), filtered bilinearly with repeat wrap (pbrt-v4's imagemap
-// defaults; its MIP level is not chosen: the full-resolution image): texel centres at
-// half-integers, v = 1 the top row (pbrt flips t = 1 - v).
+// Float texture t at (u, v), filtered bilinearly with repeat wrap (wave/alpha.h).
 inline float float_texture_bilinear(const GeomView& G, int32_t t, float u, float v) {
-  const float* val = G.ftex_value[t];
-  if (!std::isfinite(u) || !std::isfinite(v)) return val[0];
-  const int w = G.ftex_w[t], h = G.ftex_h[t];
-  const float s = u - std::floor(u), q0 = 1.f - v, q = q0 - std::floor(q0);  // in [0, 1]
-  const float x = s * static_cast<float>(w) - 0.5f, y = q * static_cast<float>(h) - 0.5f;
-  const float xf = std::floor(x), yf = std::floor(y);
-  const float fx = x - xf, fy = y - yf;
-  int x0 = static_cast<int>(xf), y0 = static_cast<int>(yf);  // in [-1, w - 1], [-1, h - 1]
-  int x1 = x0 + 1, y1 = y0 + 1;
-  if (x0 < 0) x0 += w;
-  if (y0 < 0) y0 += h;
-  if (x1 >= w) x1 -= w;
-  if (y1 >= h) y1 -= h;
-  const auto at = [&](int xi, int yi) {
-    return val[static_cast<size_t>(yi) * static_cast<size_t>(w) + static_cast<size_t>(xi)];
-  };
-  return (1.f - fy) * ((1.f - fx) * at(x0, y0) + fx * at(x1, y0)) + fy * ((1.f - fx) * at(x0, y1) + fx * at(x1, y1));
+  return bilinear_texel(G.ftex_value[t], G.ftex_w[t], G.ftex_h[t], u, v);
 }
 
 // Textured roughness: each point's Trowbridge-Reitz alphas, from its material's float

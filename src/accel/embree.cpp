@@ -8,6 +8,9 @@
 #include <cstddef>
 #include <cstring>
 #include <mutex>
+#include <vector>
+
+#include "wave/alpha.h"
 
 namespace tuile {
 
@@ -24,12 +27,36 @@ struct Accel::Impl {
   RTCScene emitters = nullptr;  // geometry attached at construction, built by prepare_emitters
   std::once_flag emitters_built;
   std::string error;
+  std::vector<AlphaShape> alpha;  // the shapes with an alpha, each geometry's user data (reserved: stable)
   RTCScene of(Bvh t) const { return t == Bvh::emitters ? emitters : scene; }
 };
 
 static void error_callback(void* user, RTCError code, const char* str) {
   auto* impl = static_cast<Accel::Impl*>(user);
   if (impl->error.empty()) impl->error = "Embree error " + std::to_string(static_cast<int>(code)) + ": " + (str ? str : "");
+}
+
+// Embree's intersection filter of a shape with an alpha (wave/alpha.h): a candidate hit the
+// alpha test rejects is invalidated, and traversal goes on behind it. Every query calls it
+// (packets, single rays, streams; the scene and the emitters' BVH; nearest hits and
+// occlusion), so camera, shadow and bounce rays all see the same cutouts.
+static void alpha_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* shape = static_cast<const AlphaShape*>(args->geometryUserPtr);
+  const unsigned n = args->N;
+  for (unsigned i = 0; i < n; ++i) {
+    if (args->valid[i] != -1) continue;
+    const float ray[6] = {RTCRayN_org_x(args->ray, n, i), RTCRayN_org_y(args->ray, n, i), RTCRayN_org_z(args->ray, n, i),
+                          RTCRayN_dir_x(args->ray, n, i), RTCRayN_dir_y(args->ray, n, i), RTCRayN_dir_z(args->ray, n, i)};
+    const uint32_t prim = RTCHitN_primID(args->hit, n, i), geom = RTCHitN_geomID(args->hit, n, i);
+    const float a = alpha_at(*shape, prim, RTCHitN_u(args->hit, n, i), RTCHitN_v(args->hit, n, i));
+    if (!alpha_keeps(a, ray, geom, prim)) args->valid[i] = 0;
+  }
+}
+
+static void attach_alpha(RTCGeometry g, const AlphaShape* shape) {
+  rtcSetGeometryUserData(g, const_cast<AlphaShape*>(shape));
+  rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
+  rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
 }
 
 Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make_unique<Impl>()) {
@@ -46,8 +73,25 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
 
   // Each emitter is a second geometry object on the same shared buffers, attached to the
   // emitters' scene under the same ID.
+  impl_->alpha.reserve(scene.meshes.size() + scene.spheres.size());
   unsigned id = 0;
   for (const Mesh& m : scene.meshes) {
+    const AlphaShape* alpha = nullptr;
+    if (m.has_alpha()) {
+      AlphaShape a;
+      a.indices = m.indices.data();
+      a.positions = m.positions.data();
+      a.uvs = m.uvs.empty() ? nullptr : m.uvs.data();
+      a.value = m.alpha.value;
+      if (m.alpha.texture >= 0) {
+        const FloatTexture& t = scene.float_textures[static_cast<size_t>(m.alpha.texture)];
+        a.tex = t.value.data();
+        a.tex_w = t.width;
+        a.tex_h = t.height;
+      }
+      impl_->alpha.push_back(a);
+      alpha = &impl_->alpha.back();
+    }
     for (RTCScene sc : {impl_->scene, impl_->emitters}) {
       if (sc == impl_->emitters && !m.emissive()) continue;
       RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -58,6 +102,7 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
                                  3 * sizeof(float), nv);
       rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.indices.data(), 0,
                                  3 * sizeof(uint32_t), nt);
+      if (alpha) attach_alpha(g, alpha);
       rtcCommitGeometry(g);
       rtcAttachGeometryByID(sc, g, id);
       rtcReleaseGeometry(g);
@@ -66,6 +111,13 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
   }
   for (const Sphere& s : scene.spheres) {
     const bool emissive = s.emissive();
+    const AlphaShape* alpha = nullptr;
+    if (s.alpha < 1) {
+      AlphaShape a;
+      a.value = s.alpha;
+      impl_->alpha.push_back(a);
+      alpha = &impl_->alpha.back();
+    }
     for (RTCScene sc : {impl_->scene, impl_->emitters}) {
       if (sc == impl_->emitters && !emissive) continue;
       RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
@@ -75,6 +127,7 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
       v[1] = s.center.y;
       v[2] = s.center.z;
       v[3] = s.radius;
+      if (alpha) attach_alpha(g, alpha);
       rtcCommitGeometry(g);
       rtcAttachGeometryByID(sc, g, id);
       rtcReleaseGeometry(g);

@@ -148,6 +148,46 @@ void build_light_table(SceneViews& v, const Scene& scene, LightPick pick) {
   for (const SkyMap& m : scene.sky_maps) v.sky_maps.push_back(sky_map_view(m));
   L.sky_maps = v.sky_maps.data();
   L.sky_map_count = static_cast<int32_t>(v.sky_maps.size());
+  // cut-out emitters: each source's shape with an alpha (one entry per mesh or sphere)
+  std::vector<int32_t> mesh_shape(scene.meshes.size(), -1), sphere_shape(scene.spheres.size(), -1);
+  for (size_t i = 0; i < n; ++i) {
+    const Light& l = lights[i];
+    int32_t* shape = nullptr;
+    AlphaShape a;
+    if (l.mesh >= 0 && scene.meshes[static_cast<size_t>(l.mesh)].has_alpha()) {
+      const Mesh& m = scene.meshes[static_cast<size_t>(l.mesh)];
+      shape = &mesh_shape[static_cast<size_t>(l.mesh)];
+      a.indices = m.indices.data();
+      a.positions = m.positions.data();
+      a.uvs = m.uvs.empty() ? nullptr : m.uvs.data();
+      a.value = m.alpha.value;
+      if (m.alpha.texture >= 0) {
+        const FloatTexture& t = scene.float_textures[static_cast<size_t>(m.alpha.texture)];
+        a.tex = t.value.data();
+        a.tex_w = t.width;
+        a.tex_h = t.height;
+      }
+    } else if (l.sphere >= 0 && scene.spheres[static_cast<size_t>(l.sphere)].alpha < 1) {
+      shape = &sphere_shape[static_cast<size_t>(l.sphere)];
+      a.value = scene.spheres[static_cast<size_t>(l.sphere)].alpha;
+    }
+    if (!shape) continue;
+    if (v.light_alpha_shape.empty()) {
+      v.light_alpha_shape.assign(n, -1);
+      v.light_alpha_prim.assign(n, 0);
+    }
+    if (*shape < 0) {
+      *shape = static_cast<int32_t>(v.alpha_shapes.size());
+      v.alpha_shapes.push_back(a);
+    }
+    v.light_alpha_shape[i] = *shape;
+    v.light_alpha_prim[i] = std::max(l.prim, 0);
+  }
+  if (!v.light_alpha_shape.empty()) {
+    L.alpha_shape = v.light_alpha_shape.data();
+    L.alpha_prim = v.light_alpha_prim.data();
+    L.alpha_shapes = v.alpha_shapes.data();
+  }
   if (pick == LightPick::bvh && n > 1) {
     const auto t0 = std::chrono::steady_clock::now();
     v.light_bvh = std::make_unique<LightBvh>(build_light_bvh(lights));

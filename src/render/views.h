@@ -6,6 +6,7 @@
 
 #include "render/light_bvh.h"
 #include "scene/scene.h"
+#include "wave/alpha.h"
 #include "wave/tile.h"
 
 namespace tuile {
@@ -27,6 +28,8 @@ struct SceneViews {
   std::vector<int32_t> alias_idx;
   std::vector<int32_t> sky_light;  // LightView::sky_light
   std::vector<SkyMapView> sky_maps;  // LightView::sky_maps (pointing into Scene::sky_maps)
+  std::vector<int32_t> light_alpha_shape, light_alpha_prim;  // LightView::alpha_shape, alpha_prim
+  std::vector<AlphaShape> alpha_shapes;                      // LightView::alpha_shapes (into the Scene)
   LightView lights;
   // --light-pick bvh with two sources or more: the light BVH and its view (lights.bvh; on
   // the heap, so that moving the views keeps the pointer), its build time

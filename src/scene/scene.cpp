@@ -228,7 +228,8 @@ void derive_lights(Scene& scene) {
       l.mesh = static_cast<int>(mi);
       l.prim = static_cast<int>(t);
       vec3f p0, e1, e2;
-      const bool quad = match_parallelogram(m, t, p0, e1, e2);
+      // (a cut-out mesh keeps its triangles: the light stage looks its alpha up per triangle)
+      const bool quad = !m.has_alpha() && match_parallelogram(m, t, p0, e1, e2);
       if (!quad) {
         p0 = vertex(m, m.indices[3 * t]);
         e1 = vertex(m, m.indices[3 * t + 1]) - p0;

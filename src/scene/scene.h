@@ -97,6 +97,10 @@ struct Mesh {
   Rgb emission;                    // radiance L when emissive (all zero otherwise)
   bool two_sided = false;          // emits on both sides
   bool reverse_orientation = false;  // emission on the side opposite the geometric normal
+  // pbrt's "alpha" (wave/alpha.h): 1 is opaque; a constant below 1 or a float texture
+  // (Scene::float_textures) cuts the mesh out where it is 0, stochastically between
+  FloatParam alpha{1, -1};
+  bool has_alpha() const { return alpha.texture >= 0 || alpha.value < 1; }
   // filled by finalize_scene: light index of each triangle or -1
   std::vector<int32_t> prim_light;
   size_t triangle_count() const { return indices.size() / 3; }
@@ -109,6 +113,7 @@ struct Sphere {
   int material = -1;
   Rgb emission;
   bool reverse_orientation = false;  // emit inwards
+  float alpha = 1;  // pbrt's "alpha", a constant (wave/alpha.h)
   int light = -1;  // filled by finalize_scene
   bool emissive() const { return emission.any_positive(); }
 };

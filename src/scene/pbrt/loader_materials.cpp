@@ -156,6 +156,7 @@ void Loader::set_float(Material& m, FloatFix::Field field, float v, const std::s
       m.thickness = v;
       break;
     case FloatFix::g: m.g = std::clamp(v, -1.f, 1.f); break;  // pbrt-v4 clamps g
+    case FloatFix::shape_alpha: break;  // a shape's (set_shape_alpha)
   }
 }
 
@@ -479,6 +480,10 @@ void Loader::bake_materials() {
   }
   for (const FloatFix& f : float_fixes_) {
     const ResolvedFloat r = resolve_float(f.def);
+    if (f.field == FloatFix::shape_alpha) {
+      set_shape_alpha(f, r);
+      continue;
+    }
     Material& m = scene.materials[size_t(f.material)];
     if (!r.image) {
       set_float(m, f.field, r.value, f.file, f.line, f.col, f.name);
@@ -491,6 +496,7 @@ void Loader::bake_materials() {
       case FloatFix::base_alpha_v: m.base_alpha_v = {0, r.texture}; break;
       case FloatFix::mix_amount: m.mix_amount = {0.5f, r.texture}; break;
       case FloatFix::displacement: m.displacement = r.texture; break;
+      case FloatFix::shape_alpha: break;  // above
       case FloatFix::thickness:
       case FloatFix::g:
         warn("texavg:" + f.name, f.file + ":" + std::to_string(f.line) + ": a texture as \"" + f.name +

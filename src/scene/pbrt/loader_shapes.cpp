@@ -334,10 +334,12 @@ void Loader::cylinder_shape(Lexer& lx, const Token& t, Params& ps) {
 void Loader::shape(Lexer& lx, const Token& t, const std::string& type, Params& ps) {
   const std::string where = loc_str(lx, t);
   for (Param& p : ps.items)
-    if (p.name == "alpha" || p.name == "displacement" || p.name == "edgelength") {
+    if (p.name == "displacement" || p.name == "edgelength") {
       p.used = true;
       warn("shape:" + p.name, where + ": shape parameter \"" + p.name + "\" is not supported and was ignored");
     }
+  const Param* alpha = ps.get("alpha", "float|texture");
+  const size_t meshes0 = meshes_.size(), spheres0 = spheres_.size();
   if (type == "trianglemesh" || type == "bilinearmesh" || type == "loopsubdiv") {
     mesh_shape(lx, t, type, ps, where);
   } else if (type == "plymesh") {
@@ -355,7 +357,50 @@ void Loader::shape(Lexer& lx, const Token& t, const std::string& type, Params& p
   } else {
     lx.fail(t, "unknown shape \"" + type + "\"", "trianglemesh, plymesh, bilinearmesh, loopsubdiv, sphere, disk or cylinder");
   }
+  if (alpha) shape_alpha(*alpha, meshes0, spheres0);
   warn_unused(ps, "Shape \"" + type + "\"", lx, t);
+}
+
+// A shape's "alpha" (wave/alpha.h): a float is set on the shape's meshes and sphere now, a
+// float texture when textures are resolved (set_shape_alpha).
+void Loader::shape_alpha(const Param& p, size_t meshes0, size_t spheres0) {
+  if (p.type == "float") {
+    if (p.nums.size() != 1) p.fail("parameter \"float alpha\" has " + std::to_string(p.nums.size()) + " values", "1 value");
+    const double a = p.nums[0];
+    if (!std::isfinite(a)) p.fail("alpha is not a finite number", "an alpha in [0, 1]");
+    for (size_t i = meshes0; i < meshes_.size(); ++i) meshes_[i].mesh.alpha = {float(a), -1};
+    for (size_t i = spheres0; i < spheres_.size(); ++i) spheres_[i].sphere.alpha = float(a);
+    return;
+  }
+  FloatFix f;
+  f.field = FloatFix::shape_alpha;
+  f.def = float_texture_ref(p);
+  f.file = p.file;
+  f.name = "alpha";
+  f.line = p.line;
+  f.col = p.col;
+  f.mesh = int(meshes0);
+  f.mesh_end = int(meshes_.size());
+  f.sphere = int(spheres0);
+  f.sphere_end = int(spheres_.size());
+  float_fixes_.push_back(f);
+}
+
+// A shape's alpha texture, resolved: meshes look it up at their uv; a sphere (no uv here)
+// takes the texture's mean as its constant alpha, with a warning.
+void Loader::set_shape_alpha(const FloatFix& f, const ResolvedFloat& r) {
+  for (int i = f.mesh; i < f.mesh_end; ++i)
+    meshes_[size_t(i)].mesh.alpha = r.image ? FloatParam{1, r.texture} : FloatParam{r.value, -1};
+  for (int i = f.sphere; i < f.sphere_end; ++i) {
+    float a = r.value;
+    if (r.image) {
+      a = average(scene.float_textures[size_t(r.texture)]);
+      warn("spherealpha", f.file + ":" + std::to_string(f.line) +
+                              ": an alpha texture on a sphere is not looked up per hit: its mean alpha used");
+    }
+    spheres_[size_t(i)].sphere.alpha = a;
+  }
+  if (!std::isfinite(r.value)) fail(f.file, f.line, f.col, "alpha is not a finite number", "an alpha in [0, 1]");
 }
 
 static double mesh_area(const Mesh& m) {

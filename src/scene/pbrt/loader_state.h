@@ -93,8 +93,10 @@ struct SpectrumFix {
 
 // A material field given by a float texture (or a float constant), set at the end.
 struct FloatFix {
-  enum Field { alpha_u, alpha_v, base_alpha_u, base_alpha_v, mix_amount, displacement, thickness, g } field = alpha_u;
+  enum Field { alpha_u, alpha_v, base_alpha_u, base_alpha_v, mix_amount, displacement, thickness, g, shape_alpha } field = alpha_u;
   int material = -1;
+  // shape_alpha: a shape's "alpha" texture, for meshes_[mesh, mesh_end) and spheres_[sphere, sphere_end)
+  int mesh = 0, mesh_end = 0, sphere = 0, sphere_end = 0;
   int def = -1;  // FloatTexDef index
   std::string file, name;  // the parameter, for errors
   int line = 0, col = 0;
@@ -181,6 +183,8 @@ class Loader {
   void light(Lexer& lx, const Token& t, const std::string& type, Params& ps);
   void infinite_map(Lexer& lx, const Token& t, const std::string& path, Params& ps);
   void shape(Lexer& lx, const Token& t, const std::string& type, Params& ps);
+  void shape_alpha(const Param& p, size_t meshes0, size_t spheres0);
+  void set_shape_alpha(const FloatFix& f, const ResolvedFloat& r);
   void mesh_shape(Lexer& lx, const Token& t, const std::string& type, Params& ps, const std::string& where);
   void ply_shape(Lexer& lx, const Token& t, Params& ps);
   void sphere_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where);
