@@ -721,6 +721,17 @@ TEST(Lanes, FusedSobolEqualsTextbookComposition) {
 // directly, textures, rejections, one-sample choice) against the scalar reference.
 TEST(Lanes, CameraHitsEqualScalar) {
   Scene s = all_lights_scene(true);
+  // curves of each type across the view (geometry kind curve: the point on the ray)
+  for (int i = 0; i < 3; ++i) {
+    Curves c;
+    c.name = "curve";
+    c.type = static_cast<CurveType>(i);
+    for (int k = 0; k < 4; ++k) c.points.insert(c.points.end(), {-2.f + 4.f * k / 3.f, 0.4f + 0.3f * i, 1.f - 0.3f * k, 0.08f});
+    if (c.type == CurveType::ribbon)
+      for (int k = 0; k < 4; ++k) c.normals.insert(c.normals.end(), {0.f, 0.6f, 0.8f});
+    s.curves.push_back(c);
+  }
+  finalize_scene(s);
   SceneViews views = build_views(s, LightPick::power);
   ASSERT_TRUE(views.geom.has_textures);
   // the flattened triangle table holds every mesh's vertices and lights
@@ -744,6 +755,11 @@ TEST(Lanes, CameraHitsEqualScalar) {
       est.mode = mode;
       generate(views.camera, est, 0, SampleLayout::camera, 256, *a);
       for (int p = 0; p < 16; ++p) accel.intersect16(a->lanes.cam_valid + p * packet_width, a->cam[p], true);
+      int curve_hits = 0;
+      for (int i = 0; i < 256; ++i)
+        curve_hits += a->cam[i / 16].geomID[i % 16] != invalid_id &&
+                      a->cam[i / 16].geomID[i % 16] >= s.meshes.size() + s.spheres.size();
+      ASSERT_GT(curve_hits, 4);
       // degenerate hits: counted as rejected, no shading point
       for (int i : {3, 40, 41, 130, 200}) {
         RayHit16& p = a->cam[i / 16];

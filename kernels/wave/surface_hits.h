@@ -103,7 +103,8 @@ inline void add_seen_emission(const LightView& L, const i32_t<T>& light, const V
 // exact coordinate; for spheres reprojected onto the surface (see below).
 template <class T> struct HitGeometry {
   Vec3<T> x, err;
-  mask_t<T> triangle, sphere;  // the lanes' kinds
+  mask_t<T> triangle, sphere, curve;  // the lanes' kinds
+  mask_t<T> flat_curve;               // curves facing the ray (Ng is their tangent)
   i32_t<T> tri;                // the flattened triangle (0 where the lane hit another kind)
   bool one_geom, one_tri;      // every lane hit geometry g0 (triangle t0): broadcasts, not gathers
   int32_t g0, t0;
@@ -124,7 +125,10 @@ TUILE_FLATTEN inline HitGeometry<T> hit_geometry_lanes(const GeomView& G, const 
   // the geometry table's kind of each lane's hit
   const i32_t<T> kind = one_geom ? i32_t<T>(G.geom_kind[g0]) : gather(G.geom_kind, gi);
   const auto tri_i = i_mask_from_f(ok) && kind == i32_t<T>(static_cast<int32_t>(GeomKind::triangles));
-  const auto sphere = ok && !f_mask_from_i(tri_i);
+  const auto flat_i = i_mask_from_f(ok) && kind == i32_t<T>(static_cast<int32_t>(GeomKind::flat_curve));
+  const auto curve_i = (i_mask_from_f(ok) && kind == i32_t<T>(static_cast<int32_t>(GeomKind::curve))) || flat_i;
+  const auto curve = f_mask_from_i(curve_i);
+  const auto sphere = ok && !f_mask_from_i(tri_i) && !curve;
   const bool mesh0 = is_mesh(G, g0);
   const bool one_tri = one_geom && (!mesh0 || all(!ok || f_mask_from_i(prim == i32_t<T>(p0))));
   const int32_t t0 = mesh0 ? G.geom_first[g0] + p0 : 0;
@@ -165,10 +169,24 @@ TUILE_FLATTEN inline HitGeometry<T> hit_geometry_lanes(const GeomView& G, const 
     x = sel(sphere, xs, x);
     err = sel(sphere, Vec3<T>{k * (abs(xs.x) + r), k * (abs(xs.y) + r), k * (abs(xs.z) + r)}, err);
   }
+  if (any(curve)) {
+    // A curve's point is on the ray (Embree intersects the curve in world space, its t good
+    // to a few 1e-6 relative); its error bound covers the curve's width, so a ray leaving
+    // the point starts outside a flat curve's ribbon and a round curve's tube: flat curves
+    // face each ray, and the new ray's ribbon lies behind its origin.
+    const i32_t<T> c4 = sel(curve_i, gather(G.geom_first, gi), i32_t<T>(0)) * i32_t<T>(4);
+    const T r2 = T(2.f) * gather(G.sphere_center + 3, c4);
+    const Vec3<T> xc = o + d * t;
+    const T k(0x1p-16f);
+    x = sel(curve, xc, x);
+    err = sel(curve, Vec3<T>{k * abs(xc.x) + r2, k * abs(xc.y) + r2, k * abs(xc.z) + r2}, err);
+  }
   h.x = x;
   h.err = err;
   h.triangle = f_mask_from_i(tri_i);
   h.sphere = sphere;
+  h.curve = curve;
+  h.flat_curve = f_mask_from_i(flat_i);
   h.tri = tri;
   h.one_geom = one_geom;
   h.one_tri = one_tri;
@@ -216,12 +234,21 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   if constexpr (!Bounce) store(tb.lanes.shade_of + i, expand_index<T>(n, keep));
   if (!keep) return;
   ng = ng * rsqrt_nr(sel(ok, len2, T(1.f)));
+  const HitGeometry<T> h = hit_geometry_lanes<T>(G, p, l, ok, keep, geom, o, d, t);
+  if (any(h.flat_curve)) {
+    // a flat curve faces the ray (pbrt-v4's): its normal is -d without its part along the
+    // tangent (Embree's Ng there), or -d where the ray runs along the curve
+    const Vec3<T> w = Vec3<T>(T(0.f), T(0.f), T(0.f)) - d;
+    const Vec3<T> nf = w - ng * dot(w, ng);
+    const T lf = dot(nf, nf);
+    const auto good = lf > T(1e-12f);
+    ng = sel(h.flat_curve, sel(good, nf * rsqrt_nr(sel(good, lf, T(1.f))), w), ng);
+  }
   // face the viewer: diffuse reflection on both sides. 0 - n, not -n: xsimd 8 negates
   // AVX-512 lanes as 0 - x, so this keeps +0 components in every build and the reference.
   const auto back = dot(ng, d) > T(0.f);
   ng = sel(back, Vec3<T>(T(0.f), T(0.f), T(0.f)) - ng, ng);
 
-  const HitGeometry<T> h = hit_geometry_lanes<T>(G, p, l, ok, keep, geom, o, d, t);
   const Vec3<T>& x = h.x;
   const bool one_geom = h.one_geom, one_tri = h.one_tri;
   const int32_t g0 = h.g0, t0 = h.t0;

@@ -24,7 +24,9 @@ enum MatParam : int {
 
 // The kind of geometry an Embree geomID names, which decides how its hits are found and
 // shaded: a triangle mesh (its triangles flattened in GeomView::tri_pos), or a sphere.
-enum class GeomKind : int32_t { triangles = 0, sphere = 1 };
+// curve: a ribbon or a tube, whose Embree Ng is the surface's normal; flat_curve: a ribbon
+// facing each ray, whose Ng is the curve's tangent (Embree's convention)
+enum class GeomKind : int32_t { triangles = 0, sphere = 1, curve = 2, flat_curve = 3 };
 
 // Per-geometry data the hit stages look up by Embree's geomID / primID.
 struct GeomView {
@@ -36,10 +38,10 @@ struct GeomView {
   const int32_t* geom_kind = nullptr;          // GeomKind
   const int32_t* geom_material = nullptr;      // never -1
   // triangles: its first triangle in the flattened table (triangle geom_first[g] + primID
-  // of tri_pos and tri_light); a sphere: its index in sphere_center
+  // of tri_pos and tri_light); a sphere or a curve: its row in sphere_center
   const int32_t* geom_first = nullptr;
   const int32_t* geom_light = nullptr;         // a sphere's light or -1 (a mesh's lights are per triangle)
-  const float* sphere_center = nullptr;        // per sphere: centre xyz and radius
+  const float* sphere_center = nullptr;        // per sphere: centre xyz and radius; per curve: 0 0 0 and its largest radius
   bool has_textures = false;
   // Every triangle of every mesh, flattened.
   const float* tri_pos = nullptr;              // per triangle: v0 v1 v2, xyz each (9 floats)

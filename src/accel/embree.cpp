@@ -134,6 +134,27 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
     }
     ++id;
   }
+  // Curves (pbrt-v4's "curve"): cubic Bezier segments of 4 control points each (x y z r,
+  // the scene's own buffer), in the scene's BVH alone (they never emit).
+  for (const Curves& c : scene.curves) {
+    const RTCGeometryType type = c.type == CurveType::flat     ? RTC_GEOMETRY_TYPE_FLAT_BEZIER_CURVE
+                                 : c.type == CurveType::ribbon ? RTC_GEOMETRY_TYPE_NORMAL_ORIENTED_BEZIER_CURVE
+                                                               : RTC_GEOMETRY_TYPE_ROUND_BEZIER_CURVE;
+    RTCGeometry g = rtcNewGeometry(impl_->device, type);
+    const size_t ns = c.segment_count();
+    rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, c.points.data(), 0, 4 * sizeof(float),
+                               4 * ns);
+    if (c.type == CurveType::ribbon)
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_NORMAL, 0, RTC_FORMAT_FLOAT3, c.normals.data(), 0, 3 * sizeof(float),
+                                 4 * ns);
+    auto* first = static_cast<uint32_t*>(
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT, sizeof(uint32_t), ns));
+    for (size_t s = 0; s < ns; ++s) first[s] = static_cast<uint32_t>(4 * s);
+    rtcCommitGeometry(g);
+    rtcAttachGeometryByID(impl_->scene, g, id);
+    rtcReleaseGeometry(g);
+    ++id;
+  }
   rtcCommitScene(impl_->scene);
   if (!impl_->error.empty()) throw SceneError(impl_->error);
   build_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

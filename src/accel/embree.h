@@ -21,9 +21,10 @@ enum class Bvh { scene, emitters };
 
 class Accel {
  public:
-  // Builds the BVH over every mesh and sphere of the scene, and attaches the emitters to a
-  // second scene (built by prepare_emitters). geomID == mesh index for meshes,
-  // meshes.size() + i for sphere i, in both. Throws SceneError if Embree fails.
+  // Builds the BVH over every mesh, sphere and curve of the scene, and attaches the
+  // emitters to a second scene (built by prepare_emitters). geomID == mesh index for
+  // meshes, meshes.size() + i for sphere i, in both; then the curves (the scene alone).
+  // Throws SceneError if Embree fails.
   Accel(const Scene& scene, const EmbreeOptions& options = {});
   ~Accel();
   Accel(const Accel&) = delete;

@@ -92,6 +92,15 @@ std::string info_text(const Prepared& p) {
   say("resolution: %dx%d\n", scene.camera.width, scene.camera.height);
   say("triangles: %zu\nspheres: %zu\nmeshes: %zu\nmaterials: %zu\ntextures: %zu\n", scene.triangle_count(),
               scene.spheres.size(), scene.meshes.size(), scene.materials.size(), scene.textures.size());
+  if (!scene.curves.empty()) {
+    size_t segments = 0, kinds[3] = {0, 0, 0};
+    for (const Curves& c : scene.curves) {
+      segments += c.segment_count();
+      ++kinds[static_cast<int>(c.type)];
+    }
+    say("curves: %zu (%zu cubic Bezier segments; flat %zu, ribbon %zu, cylinder %zu)\n", scene.curves.size(), segments,
+        kinds[0], kinds[1], kinds[2]);
+  }
   say("lights: %zu (area sources %zu, delta %zu, skies %zu)\n", scene.lights.size(), area, delta, skies);
   // each sky: its map (file, size, power) and how its light samples are drawn
   {

@@ -95,6 +95,12 @@ std::string render_fingerprint(const Scene& scene, const RenderOptions& options,
     const uint8_t reverse = s.reverse_orientation;
     c.add(&reverse, 1);
   }
+  for (const Curves& cv : scene.curves) {
+    c.add_vector(cv.points);
+    c.add_vector(cv.normals);
+    c.add(&cv.type, sizeof(cv.type));
+    c.add(&cv.material, sizeof(cv.material));
+  }
   for (const Material& m : scene.materials) {
     c.add(&m.reflectance, sizeof(m.reflectance));
     c.add(&m.texture, sizeof(m.texture));

@@ -210,7 +210,7 @@ void build_geometry_table(SceneViews& v, const Scene& scene) {
   v.tri_pos.reserve(9 * (tris + 1));
   v.tri_light.reserve(tris + 1);
   // The geometry table, one row per Embree geomID (src/accel/embree.cpp attaches the meshes,
-  // then the spheres, in scene order).
+  // then the spheres, then the curves, in scene order).
   for (const Mesh& m : scene.meshes) {
     v.geom_kind.push_back(static_cast<int32_t>(GeomKind::triangles));
     v.geom_material.push_back(m.material >= 0 ? m.material : default_material);
@@ -238,6 +238,18 @@ void build_geometry_table(SceneViews& v, const Scene& scene) {
     v.geom_light.push_back(s.light);
     v.sphere_center.insert(v.sphere_center.end(), {s.center.x, s.center.y, s.center.z, s.radius});
     v.indices.push_back(nullptr);  // a mesh's arrays: none
+    v.positions.push_back(nullptr);
+    v.uvs.push_back(nullptr);
+    v.normals.push_back(nullptr);
+  }
+  for (const Curves& c : scene.curves) {
+    v.geom_kind.push_back(static_cast<int32_t>(c.type == CurveType::flat ? GeomKind::flat_curve : GeomKind::curve));
+    v.geom_material.push_back(c.material >= 0 ? c.material : default_material);
+    v.geom_side.push_back(1.f);
+    v.geom_first.push_back(static_cast<int32_t>(v.sphere_center.size() / 4));
+    v.geom_light.push_back(-1);  // curves never emit
+    v.sphere_center.insert(v.sphere_center.end(), {0.f, 0.f, 0.f, c.max_radius()});
+    v.indices.push_back(nullptr);
     v.positions.push_back(nullptr);
     v.uvs.push_back(nullptr);
     v.normals.push_back(nullptr);

@@ -182,6 +182,17 @@ void validate_scene(Scene& scene) {
   for (const Sphere& s : scene.spheres)
     if (!finite3(s.center) || !std::isfinite(s.radius) || !(s.radius > 0))
       throw SceneError("sphere: error: centre and radius must be finite, radius > 0");
+  for (Curves& c : scene.curves) {
+    if (c.points.size() % 16 != 0) throw SceneError(c.name + ": error: curve control points are not 4 per segment");
+    for (size_t i = 0; i < c.points.size(); ++i)
+      if (!std::isfinite(c.points[i]) || (i % 4 == 3 && c.points[i] < 0))
+        throw SceneError(c.name + ": error: a curve control point is not finite or has a negative width");
+    if (c.type == CurveType::ribbon && c.normals.size() / 3 != c.points.size() / 4)
+      throw SceneError(c.name + ": error: a ribbon curve needs one normal per control point");
+    if (c.material >= static_cast<int>(scene.materials.size()))
+      throw SceneError(c.name + ": error: material index out of range");
+    if (c.normals.size() % 3 == 0 && !c.normals.empty()) c.normals.push_back(0.f);  // Embree's float3 read past the end
+  }
   resolve_material_params(scene);
   const Camera& c = scene.camera;
   if (c.width < 1 || c.height < 1 || c.width > 32768 || c.height > 32768 ||

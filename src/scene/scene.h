@@ -4,6 +4,7 @@
 // table (one source per emissive triangle, or per emissive parallelogram when two
 // triangles of a mesh form one) and the scene's feature set.
 #pragma once
+#include <algorithm>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -118,6 +119,25 @@ struct Sphere {
   bool emissive() const { return emission.any_positive(); }
 };
 
+// pbrt-v4's "curve" shape: cubic Bezier segments (the loader converts B-splines and
+// quadratics), each with 4 control points of its own, x y z and radius (half pbrt's width)
+// per point, in world space. Embree intersects them as pbrt-v4's types: flat (a ribbon that
+// faces the ray), ribbon (oriented by a normal per control point) or cylinder (a round tube).
+enum class CurveType : int32_t { flat = 0, ribbon = 1, cylinder = 2 };
+struct Curves {
+  std::string name;                // for messages ("curve at f.pbrt:12")
+  CurveType type = CurveType::flat;
+  std::vector<float> points;       // x y z r per control point, 4 per segment
+  std::vector<float> normals;      // ribbons: x y z per control point (then padded by one float)
+  int material = -1;
+  size_t segment_count() const { return points.size() / 16; }
+  float max_radius() const {
+    float r = 0;
+    for (size_t i = 3; i < points.size(); i += 4) r = std::max(r, points[i]);
+    return r;
+  }
+};
+
 // An environment map (LightSource "infinite" with "filename"): pbrt-v4's equal-area
 // octahedral square (light/sky_map.h), res x res linear RGB texels, with the two sampling
 // distributions the kernels read (src/scene/sky_map.cpp builds them).
@@ -175,6 +195,7 @@ struct Scene {
   Camera camera;
   std::vector<Mesh> meshes;
   std::vector<Sphere> spheres;
+  std::vector<Curves> curves;       // after the spheres in Embree's geomIDs
   std::vector<Material> materials;  // meshes with material -1 use a default grey 0.5
   std::vector<Texture> textures;
   std::vector<FloatTexture> float_textures;

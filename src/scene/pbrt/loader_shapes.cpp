@@ -331,6 +331,110 @@ void Loader::cylinder_shape(Lexer& lx, const Token& t, Params& ps) {
   quadric_normals(m, n_obj);
 }
 
+// curve: pbrt-v4's parameters (P, basis bezier|bspline, degree 2|3, type flat|ribbon|cylinder,
+// width or width0/width1 along the whole curve, N for ribbons: one normal per segment end),
+// each segment converted to a cubic Bezier as pbrt-v4 converts them (degree elevation, the
+// B-spline to Bezier rules), widths linear along the curve (exact in the Bezier basis),
+// ribbon normals spherically interpolated at the control points. "splitdepth" is read and
+// not needed: Embree intersects the curve itself.
+void Loader::curve_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where) {
+  const Param* P = ps.get("P", "point3");
+  if (!P) lx.fail(t, "curve without \"point3 P\"", "a \"point3 P\" parameter with the control points");
+  const std::string basis = ps.one_string("basis", "bezier"), type = ps.one_string("type", "flat");
+  const int degree = ps.one_int("degree", 3);
+  const float width = ps.one_float("width", 1);
+  const float w0 = ps.one_float("width0", width), w1 = ps.one_float("width1", width);
+  ps.one_int("splitdepth", 3);
+  const Param* N = ps.get("N", "normal3");
+  if (basis != "bezier" && basis != "bspline") lx.fail(t, "curve basis \"" + basis + "\"", "\"bezier\" or \"bspline\"");
+  if (degree != 2 && degree != 3) lx.fail(t, "curve degree " + std::to_string(degree), "degree 2 or 3");
+  if (type != "flat" && type != "ribbon" && type != "cylinder")
+    lx.fail(t, "curve type \"" + type + "\"", "\"flat\", \"ribbon\" or \"cylinder\"");
+  if (!(w0 >= 0 && w1 >= 0) || !std::isfinite(w0) || !std::isfinite(w1))
+    lx.fail(t, "curve width out of range", "finite widths >= 0");
+  const size_t ncp = P->nums.size() / 3;
+  size_t nseg = 0;
+  if (basis == "bezier") {
+    if (ncp < size_t(degree) + 1 || (ncp - 1) % size_t(degree) != 0)
+      P->fail("a degree " + std::to_string(degree) + " Bezier curve with " + std::to_string(ncp) + " control points",
+              std::to_string(degree) + " k + 1 control points");
+    nseg = (ncp - 1) / size_t(degree);
+  } else {
+    if (ncp < size_t(degree) + 1)
+      P->fail("a degree " + std::to_string(degree) + " B-spline with " + std::to_string(ncp) + " control points",
+              "at least " + std::to_string(degree + 1) + " control points");
+    nseg = ncp - size_t(degree);
+  }
+  const bool ribbon = type == "ribbon";
+  if (ribbon && (!N || N->nums.size() / 3 != nseg + 1))
+    lx.fail(t, "ribbon curve with " + std::to_string(N ? N->nums.size() / 3 : 0) + " normals for " + std::to_string(nseg) + " segments",
+            "\"normal N\" with one normal per segment end (" + std::to_string(nseg + 1) + ")");
+  if (!ribbon && N) warn("curveN", where + ": \"N\" is only used by ribbon curves");
+  if (gs_.has_area) warn("curvearea", where + ": area lights on curves are not supported: the curve does not emit");
+  OwnedCurves oc;
+  oc.object = object_;
+  Curves& c = oc.curves;
+  c.name = "curve at " + where;
+  c.type = type == "flat" ? CurveType::flat : ribbon ? CurveType::ribbon : CurveType::cylinder;
+  c.material = gs_.material;
+  const double wscale = std::cbrt(std::abs(gs_.ctm.det3()));
+  if (!(wscale > 0) || !std::isfinite(wscale))
+    lx.fail(t, "curve with a degenerate transform", "a transform that keeps the curve's width finite and non-zero");
+  Mat4 inv;
+  if (ribbon && !invert(gs_.ctm, inv)) lx.fail(t, "ribbon curve under a singular transform", "an invertible transform");
+  auto cp = [&](size_t i) { return Vec3d{P->nums[3 * i], P->nums[3 * i + 1], P->nums[3 * i + 2]}; };
+  auto lerp = [](double s, Vec3d a, Vec3d b) { return Vec3d{(1 - s) * a.x + s * b.x, (1 - s) * a.y + s * b.y, (1 - s) * a.z + s * b.z}; };
+  for (size_t seg = 0; seg < nseg; ++seg) {
+    Vec3d b[4];
+    if (basis == "bezier") {
+      const size_t i = seg * size_t(degree);
+      if (degree == 3) {
+        for (int k = 0; k < 4; ++k) b[k] = cp(i + size_t(k));
+      } else {  // degree elevation
+        b[0] = cp(i);
+        b[1] = lerp(2.0 / 3, cp(i), cp(i + 1));
+        b[2] = lerp(1.0 / 3, cp(i + 1), cp(i + 2));
+        b[3] = cp(i + 2);
+      }
+    } else if (degree == 3) {  // uniform cubic B-spline to Bezier
+      const Vec3d p012 = cp(seg), p123 = cp(seg + 1), p234 = cp(seg + 2), p345 = cp(seg + 3);
+      const Vec3d p122 = lerp(2.0 / 3, p012, p123), p223 = lerp(1.0 / 3, p123, p234);
+      const Vec3d p233 = lerp(2.0 / 3, p123, p234), p334 = lerp(1.0 / 3, p234, p345);
+      b[0] = lerp(0.5, p122, p223);
+      b[1] = p223;
+      b[2] = p233;
+      b[3] = lerp(0.5, p233, p334);
+    } else {  // quadratic B-spline to quadratic Bezier, then elevated
+      const Vec3d p01 = cp(seg), p12 = cp(seg + 1), p23 = cp(seg + 2);
+      const Vec3d p11 = lerp(0.5, p01, p12), p22 = lerp(0.5, p12, p23);
+      b[0] = p11;
+      b[1] = lerp(2.0 / 3, p11, p12);
+      b[2] = lerp(1.0 / 3, p12, p22);
+      b[3] = p22;
+    }
+    const double ws = double(w0) + (double(w1) - w0) * double(seg) / double(nseg);
+    const double we = double(w0) + (double(w1) - w0) * double(seg + 1) / double(nseg);
+    for (int k = 0; k < 4; ++k) {
+      const Vec3d w = apply_point(gs_.ctm, b[k]);
+      const double r = 0.5 * wscale * (ws + (we - ws) * k / 3.0);
+      c.points.insert(c.points.end(), {float(w.x), float(w.y), float(w.z), float(r)});
+    }
+    if (ribbon) {
+      const Vec3d n0 = normalized(apply_normal_inv(inv, {N->nums[3 * seg], N->nums[3 * seg + 1], N->nums[3 * seg + 2]}));
+      const Vec3d n1 = normalized(apply_normal_inv(inv, {N->nums[3 * seg + 3], N->nums[3 * seg + 4], N->nums[3 * seg + 5]}));
+      const double cos_t = std::clamp(dot(n0, n1), -1.0, 1.0), theta = std::acos(cos_t), sin_t = std::sin(theta);
+      for (int k = 0; k < 4; ++k) {  // slerp at u = k / 3 (pbrt-v4 interpolates the normal so)
+        const double u = k / 3.0;
+        const double a = sin_t > 1e-6 ? std::sin((1 - u) * theta) / sin_t : 1 - u;
+        const double bb = sin_t > 1e-6 ? std::sin(u * theta) / sin_t : u;
+        const Vec3d n = normalized({a * n0.x + bb * n1.x, a * n0.y + bb * n1.y, a * n0.z + bb * n1.z});
+        c.normals.insert(c.normals.end(), {float(n.x), float(n.y), float(n.z)});
+      }
+    }
+  }
+  curves_.push_back(std::move(oc));
+}
+
 void Loader::shape(Lexer& lx, const Token& t, const std::string& type, Params& ps) {
   const std::string where = loc_str(lx, t);
   for (Param& p : ps.items)
@@ -350,14 +454,17 @@ void Loader::shape(Lexer& lx, const Token& t, const std::string& type, Params& p
     disk_shape(lx, t, ps);
   } else if (type == "cylinder") {
     cylinder_shape(lx, t, ps);
-  } else if (type == "curve" || type == "cone" || type == "paraboloid" || type == "hyperboloid") {
+  } else if (type == "curve") {
+    curve_shape(lx, t, ps, where);
+  } else if (type == "cone" || type == "paraboloid" || type == "hyperboloid") {
     ps.mark_all_used();
     warn("shape:" + type, where + ": shape \"" + type + "\" is not supported and was skipped");
     return;
   } else {
-    lx.fail(t, "unknown shape \"" + type + "\"", "trianglemesh, plymesh, bilinearmesh, loopsubdiv, sphere, disk or cylinder");
+    lx.fail(t, "unknown shape \"" + type + "\"", "trianglemesh, plymesh, bilinearmesh, loopsubdiv, sphere, disk, cylinder or curve");
   }
-  if (alpha) shape_alpha(*alpha, meshes0, spheres0);
+  if (alpha && type == "curve") warn("curvealpha", where + ": \"alpha\" on curves is not supported and was ignored");
+  else if (alpha) shape_alpha(*alpha, meshes0, spheres0);
   warn_unused(ps, "Shape \"" + type + "\"", lx, t);
 }
 
@@ -434,6 +541,8 @@ void Loader::flatten() {
   }
   for (OwnedSphere& os : spheres_)
     if (os.object < 0) scene.spheres.push_back(os.sphere);
+  for (OwnedCurves& oc : curves_)
+    if (oc.object < 0) scene.curves.push_back(oc.curves);
   if (!instances_.empty())
     warn("instances", "object instances were flattened into copies of their meshes");
   for (const Instance& in : instances_) {
@@ -456,6 +565,27 @@ void Loader::flatten() {
       s.radius = float(s.radius * std::cbrt(std::abs(in.ctm.det3())));
       s.reverse_orientation = s.reverse_orientation != swaps;
       scene.spheres.push_back(s);
+    }
+    for (const OwnedCurves& oc : curves_) {
+      if (oc.object != in.object) continue;
+      Curves c = oc.curves;
+      const float ws = float(std::cbrt(std::abs(in.ctm.det3())));
+      for (size_t i = 0; i + 3 < c.points.size(); i += 4) {
+        const Vec3d p = apply_point(in.ctm, {c.points[i], c.points[i + 1], c.points[i + 2]});
+        c.points[i] = float(p.x);
+        c.points[i + 1] = float(p.y);
+        c.points[i + 2] = float(p.z);
+        c.points[i + 3] *= ws;
+      }
+      Mat4 inv;
+      if (!c.normals.empty() && invert(in.ctm, inv))
+        for (size_t i = 0; i + 2 < c.normals.size(); i += 3) {
+          const Vec3d n = normalized(apply_normal_inv(inv, {c.normals[i], c.normals[i + 1], c.normals[i + 2]}));
+          c.normals[i] = float(n.x);
+          c.normals[i + 1] = float(n.y);
+          c.normals[i + 2] = float(n.z);
+        }
+      scene.curves.push_back(std::move(c));
     }
   }
 }

@@ -133,6 +133,11 @@ struct OwnedSphere {
   int object = -1;
 };
 
+struct OwnedCurves {
+  Curves curves;
+  int object = -1;
+};
+
 struct Instance {
   int object;
   Mat4 ctm;
@@ -190,6 +195,7 @@ class Loader {
   void sphere_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where);
   void disk_shape(Lexer& lx, const Token& t, Params& ps);
   void cylinder_shape(Lexer& lx, const Token& t, Params& ps);
+  void curve_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where);
   // The mesh's shading normals from object-space ones on a quadric (pbrt-v4 turns a
   // quadric's normal by ReverseOrientation XOR the transform's handedness, in object space).
   void quadric_normals(Mesh& m, const std::vector<float>& n_obj);
@@ -231,6 +237,7 @@ class Loader {
   std::vector<PlyJob> plys_;
   std::vector<OwnedMesh> meshes_;
   std::vector<OwnedSphere> spheres_;
+  std::vector<OwnedCurves> curves_;
   std::vector<Instance> instances_;
   std::map<int, Resolved> resolved_;
   std::map<int, ResolvedFloat> resolved_float_;
