@@ -279,8 +279,10 @@ TEST(Alpha, PacketsEqualSingleRays) {
     accel.occluded16(valid, occ, false);
     for (int i = 0; i < 16; ++i) {
       ASSERT_EQ(a.geomID[i], b.geomID[i]) << batch << " lane " << i;
-      if (a.geomID[i] != ~0u) ASSERT_EQ(a.primID[i], b.primID[i]) << batch << " lane " << i << " geom " << a.geomID[i] << " t " << a.ray.tfar[i] << " "
+      if (a.geomID[i] != ~0u) {
+        ASSERT_EQ(a.primID[i], b.primID[i]) << batch << " lane " << i << " geom " << a.geomID[i] << " t " << a.ray.tfar[i] << " "
                                            << b.ray.tfar[i] << " uv " << a.u[i] << " " << a.v[i] << " / " << b.u[i] << " " << b.v[i];
+      }
       EXPECT_EQ(a.ray.tfar[i], b.ray.tfar[i]);
       ++hits[a.geomID[i] < 8 ? a.geomID[i] : 7];
       const bool blocked = a.geomID[i] != ~0u && a.ray.tfar[i] < 1.1f;

@@ -23,7 +23,12 @@ Curves straight(CurveType type, float a, float y, float r) {
   Curves c;
   c.name = "straight";
   c.type = type;
-  for (int k = 0; k < 4; ++k) c.points.insert(c.points.end(), {-a + 2 * a * k / 3.f, y, 0.f, r});
+  c.points.assign(16, 0.f);
+  for (int k = 0; k < 4; ++k) {
+    c.points[size_t(4 * k)] = -a + 2 * a * k / 3.f;
+    c.points[size_t(4 * k + 1)] = y;
+    c.points[size_t(4 * k + 3)] = r;
+  }
   if (type == CurveType::ribbon)
     for (int k = 0; k < 4; ++k) c.normals.insert(c.normals.end(), {0.f, 0.f, 1.f});
   return c;

@@ -726,9 +726,17 @@ TEST(Lanes, CameraHitsEqualScalar) {
     Curves c;
     c.name = "curve";
     c.type = static_cast<CurveType>(i);
-    for (int k = 0; k < 4; ++k) c.points.insert(c.points.end(), {-2.f + 4.f * k / 3.f, 0.4f + 0.3f * i, 1.f - 0.3f * k, 0.08f});
-    if (c.type == CurveType::ribbon)
-      for (int k = 0; k < 4; ++k) c.normals.insert(c.normals.end(), {0.f, 0.6f, 0.8f});
+    c.points.assign(16, 0.08f);  // x y z r per control point
+    if (c.type == CurveType::ribbon) c.normals.assign(12, 0.f);
+    for (int k = 0; k < 4; ++k) {
+      c.points[size_t(4 * k)] = -2.f + 4.f * k / 3.f;
+      c.points[size_t(4 * k + 1)] = 0.4f + 0.3f * i;
+      c.points[size_t(4 * k + 2)] = 1.f - 0.3f * k;
+      if (c.type == CurveType::ribbon) {
+        c.normals[size_t(3 * k + 1)] = 0.6f;
+        c.normals[size_t(3 * k + 2)] = 0.8f;
+      }
+    }
     s.curves.push_back(c);
   }
   finalize_scene(s);

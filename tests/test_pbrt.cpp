@@ -591,6 +591,52 @@ TEST(Pbrt, CylinderAndPartialDisk) {
   EXPECT_THROW(world("Shape \"disk\" \"float phimax\" 0\n"), SceneError);
 }
 
+// Partial spheres (zmin, zmax, phimax): meshes of the surface's exact area, radial normals
+// agreeing with the winding (out, or in under a mirroring transform as pbrt-v4's quadrics),
+// pbrt-v4's uv; a whole sphere stays a sphere.
+TEST(Pbrt, PartialSpheres) {
+  const Scene s = world(
+      "Shape \"sphere\" \"float radius\" 2 \"float zmin\" 0\n"
+      "Shape \"sphere\" \"float phimax\" 90\n"
+      "AttributeBegin\nScale -1 1 1\nShape \"sphere\" \"float zmin\" -0.5 \"float zmax\" 0.5\nAttributeEnd\n"
+      "Shape \"sphere\" \"float zmin\" -5 \"float zmax\" 5\n");
+  ASSERT_EQ(s.meshes.size(), 3u);
+  ASSERT_EQ(s.spheres.size(), 1u);  // zmin and zmax beyond the radius: whole
+  for (const std::string& w : s.warnings) EXPECT_EQ(w.find("partial"), std::string::npos) << w;
+  const Mesh& hemi = s.meshes[0];
+  EXPECT_NEAR(area_of(hemi), 2 * M_PI * 4, 1e-3 * 8 * M_PI);
+  for (size_t v = 0; v < hemi.positions.size() / 3; ++v) {
+    const float* p = &hemi.positions[3 * v];
+    const float* n = &hemi.normals[3 * v];
+    const double len = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+    EXPECT_GE(p[2], -1e-6f);
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(n[k], p[k] / len, 1e-5);  // radial, outwards
+    // pbrt-v4's v: 0 at theta(zmin) (the equator here), 1 at theta(zmax) (the pole)
+    EXPECT_NEAR(hemi.uvs[2 * v + 1], 1 - std::acos(std::clamp(p[2] / len, -1.0, 1.0)) / (M_PI / 2), 1e-4);
+  }
+  EXPECT_FALSE(hemi.reverse_orientation);
+  // a quarter sphere: pi r^2, within x, y >= 0, u reaching 1 on its last meridian
+  const Mesh& q = s.meshes[1];
+  EXPECT_NEAR(area_of(q), M_PI, 1e-3 * M_PI);
+  float umax = 0;
+  for (size_t v = 0; v < q.positions.size() / 3; ++v) {
+    EXPECT_GE(q.positions[3 * v], -1e-6f);
+    EXPECT_GE(q.positions[3 * v + 1], -1e-6f);
+    umax = std::max(umax, q.uvs[2 * v]);
+  }
+  EXPECT_NEAR(umax, 1.f, 1e-6);
+  // a band under a mirroring scale: its area 2 pi r h, facing in
+  const Mesh& band = s.meshes[2];
+  EXPECT_NEAR(area_of(band), 2 * M_PI * 1, 1e-3 * 2 * M_PI);
+  for (size_t v = 0; v < band.positions.size() / 3; ++v) {
+    const float* p = &band.positions[3 * v];
+    const float* n = &band.normals[3 * v];
+    EXPECT_LT(n[0] * p[0] + n[1] * p[1] + n[2] * p[2], 0);
+  }
+  EXPECT_THROW(world("Shape \"sphere\" \"float zmin\" 0.5 \"float zmax\" 0.5\n"), SceneError);
+  EXPECT_THROW(world("Shape \"sphere\" \"float phimax\" 0\n"), SceneError);
+}
+
 TEST(Pbrt, PlyBinaryBothEndiansAndGzip) {
   write_text(tmp_dir() / "le.ply", ply_binary(false));
   write_text(tmp_dir() / "be.ply", ply_binary(true));

@@ -26,6 +26,8 @@ constexpr size_t max_triangles = size_t(1) << 31;
 
 }  // namespace
 
+double phimax_of(Lexer& lx, const Token& t, Params& ps);  // a quadric's phimax in radians, checked
+
 size_t Loader::new_mesh(Lexer& lx, const Token& t) {
   OwnedMesh om;
   om.object = object_;
@@ -196,9 +198,14 @@ void Loader::ply_shape(Lexer& lx, const Token& t, Params& ps) {
 void Loader::sphere_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where) {
   const float r = ps.one_float("radius", 1);
   if (!(r > 0)) lx.fail(t, "sphere radius " + std::to_string(r), "a positive radius");
-  const float zmin = ps.one_float("zmin", -r), zmax = ps.one_float("zmax", r), phimax = ps.one_float("phimax", 360);
-  if (zmin > -r || zmax < r || phimax < 360)
-    warn("partialsphere", where + ": partial spheres (zmin/zmax/phimax) are rendered as full spheres");
+  const float z0 = ps.one_float("zmin", -r), z1 = ps.one_float("zmax", r);
+  const double phimax = phimax_of(lx, t, ps);
+  const float zmin = std::clamp(std::min(z0, z1), -r, r), zmax = std::clamp(std::max(z0, z1), -r, r);
+  if (!(zmin < zmax)) lx.fail(t, "sphere zmin and zmax leave nothing", "zmin < zmax within [-radius, radius]");
+  if (zmin > -r || zmax < r || phimax < 2 * M_PI - 1e-9) {
+    partial_sphere(lx, t, r, zmin, zmax, phimax);
+    return;
+  }
   OwnedSphere os;
   os.object = object_;
   const Vec3d c = apply_point(gs_.ctm, {0, 0, 0});
@@ -253,6 +260,54 @@ double phimax_of(Lexer& lx, const Token& t, Params& ps) {
     lx.fail(t, "phimax out of range", "0 < phimax <= 360");
   }
   return phimax * M_PI / 180;
+}
+
+// A partial sphere (pbrt-v4's zmin, zmax, phimax): a mesh of quads between rings of constant
+// theta and meridians of constant phi (64 a turn, 32 rings from pole to pole, proportionally
+// fewer for a part), scaled about the centre so its area is the surface's, shading normals
+// radial, uv as pbrt-v4's (u = phi / phimax, v from theta(zmin) to theta(zmax)); facing out
+// as pbrt-v4's sphere (ReverseOrientation XOR a mirroring transform turns it in). A whole
+// sphere stays Embree's analytic sphere.
+void Loader::partial_sphere(Lexer& lx, const Token& t, float r, float zmin, float zmax, double phimax) {
+  const double th_lo = std::acos(std::clamp(double(zmax) / r, -1.0, 1.0));  // the top ring: smallest theta
+  const double th_hi = std::acos(std::clamp(double(zmin) / r, -1.0, 1.0));
+  const bool full = phimax >= 2 * M_PI - 1e-9;
+  const Segments sg = segments(phimax, disk_segments);
+  const int rings = std::max(2, static_cast<int>(std::ceil(32 * (th_hi - th_lo) / M_PI - 1e-9)));
+  const int cols = full ? sg.n : sg.n + 1;
+  const size_t mi = new_mesh(lx, t);
+  Mesh& m = meshes_[mi].mesh;
+  m.reverse_orientation = gs_.reverse;  // as the cylinder: turned in object space
+  std::vector<Vec3d> p;
+  std::vector<float> n_obj;
+  for (int i = 0; i <= rings; ++i) {
+    const double th = th_lo + (th_hi - th_lo) * i / rings;
+    for (int j = 0; j < cols; ++j) {
+      const double phi = sg.dphi * j;
+      const Vec3d d{std::sin(th) * std::cos(phi), std::sin(th) * std::sin(phi), std::cos(th)};
+      p.push_back({r * d.x, r * d.y, r * d.z});
+      n_obj.insert(n_obj.end(), {float(d.x), float(d.y), float(d.z)});
+      m.uvs.insert(m.uvs.end(), {float(phi / phimax), float((th - th_hi) / (th_lo - th_hi))});
+    }
+  }
+  auto at = [&](int i, int j) { return uint32_t(i * cols + j % cols); };
+  double area = 0;
+  auto tri = [&](uint32_t a, uint32_t b, uint32_t c) {  // rings grow in theta, columns in phi: faces out
+    const double ta = 0.5 * length(cross(sub(p[b], p[a]), sub(p[c], p[a])));
+    if (!(ta > 1e-12 * r * r)) return;  // the poles' collapsed edges
+    area += ta;
+    m.indices.insert(m.indices.end(), {a, b, c});
+  };
+  for (int i = 0; i < rings; ++i)
+    for (int j = 0; j < sg.n; ++j) {
+      tri(at(i, j), at(i + 1, j), at(i + 1, j + 1));
+      tri(at(i, j), at(i + 1, j + 1), at(i, j + 1));
+    }
+  const double exact = phimax * r * (double(zmax) - zmin);
+  const double k = area > 0 ? std::sqrt(exact / area) : 1;
+  for (const Vec3d& q : p) m.positions.insert(m.positions.end(), {float(k * q.x), float(k * q.y), float(k * q.z)});
+  transform_positions(gs_.ctm, m.positions.data(), m.positions.size() / 3);
+  quadric_normals(m, n_obj);
 }
 
 void Loader::quadric_normals(Mesh& m, const std::vector<float>& n_obj) {

@@ -195,6 +195,7 @@ class Loader {
   void sphere_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where);
   void disk_shape(Lexer& lx, const Token& t, Params& ps);
   void cylinder_shape(Lexer& lx, const Token& t, Params& ps);
+  void partial_sphere(Lexer& lx, const Token& t, float r, float zmin, float zmax, double phimax);
   void curve_shape(Lexer& lx, const Token& t, Params& ps, const std::string& where);
   // The mesh's shading normals from object-space ones on a quadric (pbrt-v4 turns a
   // quadric's normal by ReverseOrientation XOR the transform's handedness, in object space).
