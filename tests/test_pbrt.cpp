@@ -669,6 +669,23 @@ TEST(Pbrt, ObjectInstancesAreFlattened) {
   expect_vertex(s.meshes[1], 0, 11, 10, 0);
   ASSERT_EQ(s.spheres.size(), 2u);
   EXPECT_FLOAT_EQ(s.spheres[1].center.y, 10);
+  // an instance turns its shading normals with it (by the inverse transpose: a non-uniform
+  // scale tilts them towards the squashed axis)
+  const Scene r = world("ObjectBegin \"n\"\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2] "
+                        "\"normal N\" [0 0 1 0 0 1 1 0 1]\nObjectEnd\nRotate 90 1 0 0\nObjectInstance \"n\"\n"
+                        "Scale 1 1 4\nObjectInstance \"n\"\n");
+  ASSERT_EQ(r.meshes.size(), 2u);
+  ASSERT_EQ(r.meshes[0].normals.size(), 9u);
+  EXPECT_NEAR(r.meshes[0].normals[0], 0, 1e-6);  // +z turned to -y by Rotate 90 about x
+  EXPECT_NEAR(r.meshes[0].normals[1], -1, 1e-6);
+  EXPECT_NEAR(r.meshes[0].normals[2], 0, 1e-6);
+  EXPECT_NEAR(r.meshes[0].normals[6], float(1 / std::sqrt(2.0)), 1e-6);  // (1, 0, 1) / sqrt 2 turned
+  EXPECT_NEAR(r.meshes[0].normals[7], float(-1 / std::sqrt(2.0)), 1e-6);
+  // M = Rotate * Scale 1 1 4: M^-T n = R S^-1 n, (1, 0, 1) to (1, 0, 1/4) to (1, -1/4, 0), unit
+  const double k = 1 / std::sqrt(1 + 1 / 16.0);
+  EXPECT_NEAR(r.meshes[1].normals[6], float(k), 1e-6);
+  EXPECT_NEAR(r.meshes[1].normals[7], float(-k / 4), 1e-6);
+  EXPECT_NEAR(r.meshes[1].normals[8], 0, 1e-6);
 }
 
 TEST(Pbrt, IncludeImportAndGzipScenes) {

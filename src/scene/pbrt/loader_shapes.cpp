@@ -610,6 +610,17 @@ void Loader::flatten() {
       Mesh m = om.mesh;
       transform_positions(in.ctm, m.positions.data(), m.positions.size() / 3);
       m.reverse_orientation = m.reverse_orientation != swaps;
+      // shading normals by the inverse transpose (they stay on the side they were, which
+      // decides the outside); zero ones stay zero
+      Mat4 inv;
+      if (!m.normals.empty() && invert(in.ctm, inv))
+        for (size_t i = 0; i + 2 < m.normals.size(); i += 3) {
+          if (m.normals[i] == 0 && m.normals[i + 1] == 0 && m.normals[i + 2] == 0) continue;
+          const Vec3d n = normalized(apply_normal_inv(inv, {m.normals[i], m.normals[i + 1], m.normals[i + 2]}));
+          m.normals[i] = float(n.x);
+          m.normals[i + 1] = float(n.y);
+          m.normals[i + 2] = float(n.z);
+        }
       scene.meshes.push_back(std::move(m));
     }
     for (const OwnedSphere& os : spheres_) {
