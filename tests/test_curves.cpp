@@ -45,6 +45,15 @@ RenderOptions options(uint32_t spp, int depth = 1) {
   return o;
 }
 
+// A square camera of res pixels on the axis, d from the plane z = 0 that it sees head-on,
+// and the side of one pixel in that plane.
+double head_on_camera(Scene& s, int res, double d, double fov) {
+  s.camera.width = s.camera.height = res;
+  s.camera.fov_deg = static_cast<float>(fov);
+  camera_look_at(s.camera, {0, 0, static_cast<float>(d)}, {0, 0, 0}, {0, 1, 0});
+  return 2 * d * std::tan(fov * M_PI / 360) / res;
+}
+
 Scene load_curves(const std::string& body) { return load_pbrt_string("WorldBegin\n" + body, "c.pbrt", "."); }
 
 std::string curve_error(const std::string& body) {
@@ -76,13 +85,9 @@ TEST(Curves, StraightCurveCoversItsExactArea) {
     s.curves.push_back(straight(type, a, 0.2f, r));
     s.curves.back().material = 0;
     const int res = 64;
-    const double d = 4, fov = 40;
-    s.camera.width = s.camera.height = res;
-    s.camera.fov_deg = static_cast<float>(fov);
-    camera_look_at(s.camera, {0, 0, static_cast<float>(d)}, {0, 0, 0}, {0, 1, 0});
+    const double pixel = head_on_camera(s, res, 4, 40);
     finalize_scene(s);
     const RenderResult out = render_scene(s, options(scaled(128u, 32u)));
-    const double pixel = 2 * d * std::tan(fov * M_PI / 360) / res;
     double lost = 0;
     for (int i = 0; i < res * res; ++i) lost += 1 - out.mean[3 * size_t(i)];
     // (a cylinder is a tube: its silhouette is 2r wide, open at its ends, its near side
@@ -202,13 +207,9 @@ TEST(Curves, FlatCurvesFaceTheRayRibbonsTheirNormalTubesTheirSurface) {
     s.curves.push_back(straight(type, a, 0.f, r));
     s.curves.back().material = 0;
     const int res = 64;
-    const double d = 6, fov = 30;
-    s.camera.width = s.camera.height = res;
-    s.camera.fov_deg = static_cast<float>(fov);
-    camera_look_at(s.camera, {0, 0, static_cast<float>(d)}, {0, 0, 0}, {0, 1, 0});
+    const double pixel = head_on_camera(s, res, 6, 30);
     finalize_scene(s);
     const RenderResult out = render_scene(s, options(scaled(64u, 16u)));
-    const double pixel = 2 * d * std::tan(fov * M_PI / 360) / res;
     double sum = 0;
     for (int i = 0; i < res * res; ++i) sum += out.mean[3 * size_t(i)];
     const double mean_radiance = sum * pixel * pixel / (2 * a * 2 * r);

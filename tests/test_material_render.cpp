@@ -69,6 +69,13 @@ Scene every_surface() {
   m.base_alpha_u.value = 0.2f;
   m.base_alpha_v.value = 0.1f;
   s.materials.push_back(m);
+  m = Material{};
+  m.kind = MaterialKind::hair;  // on a floor quad: the points carry random fiber axes and offsets
+  m.eta = 1.55f;
+  m.hair_sigma_a = {0.3f, 0.6f, 1.2f};
+  m.beta_m = 0.25f;
+  m.beta_n = 0.4f;
+  s.materials.push_back(m);
   for (int i = 0; i < static_cast<int>(s.materials.size()); ++i) {
     Mesh f;
     f.name = "floor";
@@ -139,6 +146,12 @@ void fill_points(const Scene& s, TileBuffers& tb, std::mt19937& rng, int n) {
     tb.points.woy[k] = wo.y;
     tb.points.woz[k] = wo.z;
     tb.points.side[k] = U(rng) < 0.3f ? -1.f : 1.f;
+    std::mt19937 frng(static_cast<uint32_t>(k) + 1000u);  // (its own stream: the other draws stay as they were)
+    const vec3f fiber = normalize(vec3f{U(frng) - 0.5f, U(frng) - 0.5f, U(frng) - 0.5f});
+    tb.points.fx[k] = fiber.x;
+    tb.points.fy[k] = fiber.y;
+    tb.points.fz[k] = fiber.z;
+    tb.points.fh[k] = 2 * U(frng) - 1;
     tb.points.mat[k] = static_cast<int32_t>(U(rng) * static_cast<float>(mats)) % mats;
     tb.points.eps[k] = 1e-5f;
     tb.points.ar[k] = U(rng);
@@ -172,6 +185,7 @@ TEST(MaterialStages, LanesEqualScalar) {
   const SceneViews views = build_views(s, LightPick::power);
   ASSERT_EQ(views.bsdf_kinds, bsdf_all);
   ASSERT_TRUE(views.geom.has_normals);
+  ASSERT_TRUE(views.geom.has_hair);
   std::mt19937 rng(11);
   for (Strategy st : {Strategy::mis, Strategy::light, Strategy::bsdf}) {
     Estimator est;

@@ -533,11 +533,11 @@ TEST(PbrtMaterials, ShapeAlphaFloatAndTexture) {
 
 TEST(PbrtMaterials, WarningsSayWhatIsApproximated) {
   const Scene s = world(
-      "Material \"conductor\" \"float roughnes\" 0.1\n" + tri + "Material \"hair\"\n" + tri +
+      "Material \"conductor\" \"float roughnes\" 0.1\n" + tri + "Material \"measured\"\n" + tri +
       "Material \"diffuse\" \"string normalmap\" \"n.png\"\n" + tri + "Material \"interface\"\n" + tri);
   EXPECT_TRUE(has_warning(s, "roughnes\" of Material \"conductor\""));
-  EXPECT_TRUE(has_warning(s, "m.pbrt:4: material \"hair\" approximated as diffuse"));
-  EXPECT_EQ(mat(s, 1).approximated_from, "hair");
+  EXPECT_TRUE(has_warning(s, "m.pbrt:4: material \"measured\" approximated as diffuse"));
+  EXPECT_EQ(mat(s, 1).approximated_from, "measured");
   EXPECT_TRUE(has_warning(s, "normalmap"));
   EXPECT_EQ(mat(s, 3).approximated_from, "interface");
 }

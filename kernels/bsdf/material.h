@@ -14,6 +14,7 @@
 #include "bsdf/conductor.h"
 #include "bsdf/dielectric.h"
 #include "bsdf/diffuse_transmission.h"
+#include "bsdf/hair.h"
 #include "bsdf/lambert.h"
 #include "bsdf/thin_dielectric.h"
 #include "wave/views.h"
@@ -50,6 +51,8 @@ template <class T, unsigned Bsdfs> struct SurfaceBsdf {
   Vec3<T> wo;     // unit, towards the viewer
   T side;         // +1: the viewer is outside; -1: inside
   T ax, ay;       // Trowbridge-Reitz alphas (conductor, dielectric, the coats): textured or the material's
+  Vec3<T> fiber;  // hair: the fiber's axis (unit) and the hit's offset across it (ShadingPoints::fx.., fh)
+  T fiber_h;
 
   T param(int p) const noexcept { return gather(G->mat_param[p], mat); }
   Rgb3<T> param3(int p) const noexcept { return {param(p), param(p + 1), param(p + 2)}; }
@@ -64,6 +67,40 @@ template <class T, unsigned Bsdfs> struct SurfaceBsdf {
   T relative_eta() const noexcept {
     const T eta = param(mp_eta);
     return sel(side > T(0.f), eta, T(1.f) / eta);
+  }
+
+  // Hair's frame: x along the fiber (made orthogonal to n; where the two are parallel, the
+  // normal's basis), z = n, y = z cross x. Hair reads only azimuth differences, so any
+  // rotation about the fiber is the same BSDF; the offset h is measured to match
+  // (surface_hits.h apply_hair_frames).
+  ShadingFrame<T> hair_frame() const noexcept {
+    ShadingFrame<T> f;
+    f.n = n;
+    Vec3<T> t0, b0;
+    make_basis(n, t0, b0);
+    const Vec3<T> t = fiber - n * dot(fiber, n);
+    const T l2 = dot(t, t);
+    const mask_t<T> ok = l2 > T(1e-12f);
+    f.t = sel(ok, t * (T(1.f) / sqrt(sel(ok, l2, T(1.f)))), t0);
+    f.b = cross(n, f.t);
+    return f;
+  }
+  HairBsdf<T> hair() const noexcept {
+    HairBsdf<T> h;
+    h.h = fiber_h;
+    h.eta = param(mp_eta);
+    h.sigma_a = param3(mp_hair_sa_r);
+    for (int p = 0; p < 3; ++p) {
+      h.inv_v[p] = param(mp_hair_inv_v0 + p);
+      h.log_norm[p] = param(mp_hair_log_norm0 + p);
+      h.exp_m2v[p] = param(mp_hair_exp_m2v0 + p);
+      h.v[p] = param(mp_hair_v0 + p);
+      h.sin2k[p] = param(mp_hair_sin0 + p);
+      h.cos2k[p] = param(mp_hair_cos0 + p);
+    }
+    h.s = param(mp_hair_s);
+    h.e_pi_s = param(mp_hair_e_pi_s);
+    return h;
   }
 
   // Calls f(bsdf, mask) for each non-diffuse kind present in the batch, with its
@@ -117,6 +154,13 @@ template <class T, unsigned Bsdfs> struct SurfaceBsdf {
           for_each_local([&](const auto& bsdf, const mask_t<T>& m) { merge(m, bsdf.eval(wol, wil), r); });
         }
       }
+      if constexpr ((Bsdfs & bsdf_hair) != 0) {
+        const auto m = is(MaterialKind::hair);
+        if (any(m)) {
+          const ShadingFrame<T> fr = hair_frame();
+          merge(m, hair().eval(fr.to_local(wo), fr.to_local(wi)), r);
+        }
+      }
       return r;
     }
   }
@@ -146,6 +190,15 @@ template <class T, unsigned Bsdfs> struct SurfaceBsdf {
             s.wi = fr.to_world(s.wi);
             merge(m, s, r);
           });
+        }
+      }
+      if constexpr ((Bsdfs & bsdf_hair) != 0) {
+        const auto m = is(MaterialKind::hair);
+        if (any(m)) {
+          const ShadingFrame<T> fr = hair_frame();
+          BsdfSample<T> s = hair().sample(fr.to_local(wo), uc, u1, u2);
+          s.wi = fr.to_world(s.wi);
+          merge(m, s, r);
         }
       }
       return r;

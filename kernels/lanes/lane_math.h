@@ -125,6 +125,65 @@ template <class T> inline T exp_nonpositive(const T& x) noexcept {
   return sel(x >= T(-87.f), p * pow2_int(n), T(0.f));
 }
 
+// exp(x) for any x: 0 below -87, clamped at 88 (e^88 is 1.65e38, near float's largest);
+// the same reduction and series as exp_nonpositive (relative error < 1e-7 over the range).
+template <class T> inline T exp_clamped(const T& x) noexcept {
+  const T xc = max(min(x, T(88.f)), T(-87.f));
+  const T n = floor(mul_add(xc, T(1.44269504088896341f), T(0.5f)));
+  const T r = mul_add(n, T(-1.42860677e-6f), mul_add(n, T(-0.693145752f), xc));
+  T p = T(1.f / 40320.f);
+  p = mul_add(p, r, T(1.f / 5040.f));
+  p = mul_add(p, r, T(1.f / 720.f));
+  p = mul_add(p, r, T(1.f / 120.f));
+  p = mul_add(p, r, T(1.f / 24.f));
+  p = mul_add(p, r, T(1.f / 6.f));
+  p = mul_add(p, r, T(0.5f));
+  p = mul_add(p, r, T(1.f));
+  p = mul_add(p, r, T(1.f));
+  return sel(x >= T(-87.f), p * pow2_int(n), T(0.f));
+}
+
+// A positive normal float's biased exponent field (as a float) and its significand with
+// the exponent of 1 (in [1, 2)): the bits, read the same way for every lane type.
+inline void split_float(float x, float& biased_exp, float& m) noexcept {
+  const auto i = std::bit_cast<int32_t>(x);
+  biased_exp = static_cast<float>(i >> 23);
+  m = std::bit_cast<float>((i & 0x007fffff) | 0x3f800000);
+}
+inline void split_float(const vfloat& x, vfloat& biased_exp, vfloat& m) noexcept {
+  const vint i = xsimd::bitwise_cast<vint>(x);
+  biased_exp = xsimd::batch_cast<float>(i >> 23);
+  m = xsimd::bitwise_cast<vfloat>((i & vint(0x007fffff)) | vint(0x3f800000));
+}
+template <class V> inline void split_float(const Twin<V>& x, Twin<V>& biased_exp, Twin<V>& m) noexcept {
+  split_float(x.a, biased_exp.a, m.a);
+  split_float(x.b, biased_exp.b, m.b);
+}
+
+// log(x) for x > 0 (x below the smallest normal float, 1.18e-38, is taken as it; +inf
+// and NaN are not expected). x = m 2^e with m in [sqrt(1/2), sqrt(2)), log m = 2 atanh(s),
+// s = (m - 1) / (m + 1), |s| <= 0.1716, by its series to s^15 (truncation < 1e-13); e ln2
+// in two parts (Cody-Waite). Relative error < 2e-7 away from x = 1, absolute < 1e-7 near it.
+template <class T> inline T log_positive(const T& x) noexcept {
+  const T xc = max(x, T(1.17549435e-38f));
+  T be, m;
+  lane_math::split_float(xc, be, m);
+  const mask_t<T> big = m > T(1.41421356237309505f);
+  m = sel(big, m * T(0.5f), m);
+  const T e = be - T(127.f) + sel(big, T(1.f), T(0.f));
+  const T s = (m - T(1.f)) / (m + T(1.f));
+  const T s2 = s * s;
+  T p = T(2.f / 15.f);
+  p = mul_add(p, s2, T(2.f / 13.f));
+  p = mul_add(p, s2, T(2.f / 11.f));
+  p = mul_add(p, s2, T(2.f / 9.f));
+  p = mul_add(p, s2, T(2.f / 7.f));
+  p = mul_add(p, s2, T(2.f / 5.f));
+  p = mul_add(p, s2, T(2.f / 3.f));
+  const T logm = mul_add(s * s2, p, s * T(2.f));
+  return mul_add(e, T(0.693145752f), mul_add(e, T(1.42860677e-6f), logm));
+}
+
 } // namespace lane_math
 
 }  // namespace tuile

@@ -19,6 +19,8 @@ inline SurfaceBsdf<T, Bsdfs> load_surface_bsdf(const GeomView& G, const ShadingP
     b.wo = Vec3<T>(T(0.f), T(0.f), T(0.f));
     b.side = T(1.f);
     b.ax = b.ay = T(0.f);
+    b.fiber = Vec3<T>(T(1.f), T(0.f), T(0.f));
+    b.fiber_h = T(0.f);
   } else {
     b.mat = load_i32<T>(P.mat + k);
     b.kind = gather(G.mat_kind, b.mat);
@@ -30,6 +32,13 @@ inline SurfaceBsdf<T, Bsdfs> load_surface_bsdf(const GeomView& G, const ShadingP
     } else {
       b.ax = gather(G.mat_param[mp_ax], b.mat);
       b.ay = gather(G.mat_param[mp_ay], b.mat);
+    }
+    if ((Bsdfs & bsdf_hair) != 0 && G.has_hair) {
+      b.fiber = load3<T>(P.fx + k, P.fy + k, P.fz + k);
+      b.fiber_h = load<T>(P.fh + k);
+    } else {
+      b.fiber = Vec3<T>(T(1.f), T(0.f), T(0.f));
+      b.fiber_h = T(0.f);
     }
   }
   return b;

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <type_traits>
 
+#include "wave/hair_frames.h"
 #include "wave/shading_normals.h"
 #include "wave/textures.h"
 #include "wave/tile.h"
@@ -282,7 +283,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     ag = gather(G.mat_g, mat);
     ab = gather(G.mat_b, mat);
   }
-  if (G.shading_normals || G.has_rough_tex) {  // for the scalar passes (apply_shading_normals, roughness)
+  if (G.shading_normals || G.has_rough_tex || G.has_hair) {  // for the scalar passes (shading normals, roughness, hair)
     compress_store(tb.points.geom + n, geom, keep);
     compress_store(tb.points.prim + n, load_i32<T>(reinterpret_cast<const int32_t*>(p.primID + l)), keep);
     compress_store(tb.points.bu + n, load<T>(p.u + l), keep);
@@ -324,8 +325,10 @@ inline void finish_points(const GeomView& G, const Estimator& est, uint32_t samp
   if constexpr (Materials)  // first: the bump map is the chosen material's
     if (G.has_mix) resolve_mixes(G, tb.points);
   if (G.shading_normals) apply_shading_normals<Materials>(G, tb.points);
-  if constexpr (Materials)
+  if constexpr (Materials) {
     if (G.has_rough_tex) apply_roughness_textures(G, tb.points);
+    if (G.has_hair) apply_hair_frames(G, tb.points);
+  }
   if (G.has_textures) apply_texels(G, tb);
   // pad to whole packets with copies of a real point; padding lanes are never active
   const int padded = packet_padded(n);
@@ -338,6 +341,8 @@ inline void finish_points(const GeomView& G, const Estimator& est, uint32_t samp
     tb.points.snx[k] = tb.points.sny[k] = 0.f;
     tb.points.snz[k] = 1.f;
     tb.points.ax[k] = tb.points.ay[k] = 0.f;
+    tb.points.fx[k] = 1.f;
+    tb.points.fy[k] = tb.points.fz[k] = tb.points.fh[k] = 0.f;
     if constexpr (Materials) {
       tb.points.mat[k] = n > 0 ? tb.points.mat[0] : G.geom_material[0];
       tb.points.wox[k] = tb.points.woy[k] = 0.f;

@@ -74,6 +74,9 @@ struct ShadingPoints {
   // scenes with textured roughness only (GeomView::has_rough_tex): the Trowbridge-Reitz
   // alphas at the point
   alignas(64) float ax[lane_array], ay[lane_array];
+  // scenes with hair only (GeomView::has_hair): the fiber's axis (unit) and where the ray
+  // met it across its width, h in [-1, 1] (bsdf/hair.h)
+  alignas(64) float fx[lane_array], fy[lane_array], fz[lane_array], fh[lane_array];
   alignas(64) uint32_t pixel[lane_array];                     // global pixel id
   alignas(64) int32_t lane[lane_array];                       // tile lane
   alignas(64) float choose_light[lane_array];                 // one-sample MIS: 1 = light technique

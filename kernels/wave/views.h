@@ -19,6 +19,15 @@ enum MatParam : int {
   mp_bax, mp_bay,                // coated conductor's base alphas
   mp_thickness,                  // coated: layer thickness
   mp_alb_r, mp_alb_g, mp_alb_b,  // coated: layer albedo
+  // hair (bsdf/hair.h): sigma_a, then HairConstants of beta_m, beta_n, alpha
+  mp_hair_sa_r, mp_hair_sa_g, mp_hair_sa_b,
+  mp_hair_inv_v0, mp_hair_inv_v1, mp_hair_inv_v2,
+  mp_hair_log_norm0, mp_hair_log_norm1, mp_hair_log_norm2,
+  mp_hair_exp_m2v0, mp_hair_exp_m2v1, mp_hair_exp_m2v2,
+  mp_hair_v0, mp_hair_v1, mp_hair_v2,
+  mp_hair_s, mp_hair_e_pi_s,
+  mp_hair_sin0, mp_hair_sin1, mp_hair_sin2,
+  mp_hair_cos0, mp_hair_cos1, mp_hair_cos2,
   mp_count
 };
 
@@ -63,6 +72,11 @@ struct GeomView {
   const float* const* positions = nullptr;     // xyz per vertex
   const float* const* uvs = nullptr;           // nullptr without uv
   const float* const* normals = nullptr;       // shading normals per vertex, nullptr without
+  // per geomID, a curve's control points (Curves::points: x y z r, 4 per segment, the
+  // segment is Embree's primID), nullptr for other kinds; read where a hair material
+  // needs the fiber's axis and the hit's offset across it (surface_hits.h apply_hair_frames)
+  const float* const* curve_points = nullptr;
+  bool has_hair = false;                       // some material (or a mix's) is hair
   bool has_normals = false;                    // some mesh has shading normals
   // Bump mapping (pbrt-v4's "displacement"): per material, the float texture whose
   // gradient tilts the shading normal, or -1 (none, or a constant: build_views drops

@@ -78,18 +78,7 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
   for (const Mesh& m : scene.meshes) {
     const AlphaShape* alpha = nullptr;
     if (m.has_alpha()) {
-      AlphaShape a;
-      a.indices = m.indices.data();
-      a.positions = m.positions.data();
-      a.uvs = m.uvs.empty() ? nullptr : m.uvs.data();
-      a.value = m.alpha.value;
-      if (m.alpha.texture >= 0) {
-        const FloatTexture& t = scene.float_textures[static_cast<size_t>(m.alpha.texture)];
-        a.tex = t.value.data();
-        a.tex_w = t.width;
-        a.tex_h = t.height;
-      }
-      impl_->alpha.push_back(a);
+      impl_->alpha.push_back(alpha_shape(scene, m));
       alpha = &impl_->alpha.back();
     }
     for (RTCScene sc : {impl_->scene, impl_->emitters}) {

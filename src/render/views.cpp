@@ -1,6 +1,7 @@
 // build_views: the scene as the kernels read it (SoA light table with its pick
 // distribution and alias table, flattened triangles, per-geometry lookups, camera).
 #include "render/views.h"
+#include "bsdf/hair.h"
 #include "scene/sky_map.h"
 
 #include <algorithm>
@@ -155,18 +156,8 @@ void build_light_table(SceneViews& v, const Scene& scene, LightPick pick) {
     int32_t* shape = nullptr;
     AlphaShape a;
     if (l.mesh >= 0 && scene.meshes[static_cast<size_t>(l.mesh)].has_alpha()) {
-      const Mesh& m = scene.meshes[static_cast<size_t>(l.mesh)];
       shape = &mesh_shape[static_cast<size_t>(l.mesh)];
-      a.indices = m.indices.data();
-      a.positions = m.positions.data();
-      a.uvs = m.uvs.empty() ? nullptr : m.uvs.data();
-      a.value = m.alpha.value;
-      if (m.alpha.texture >= 0) {
-        const FloatTexture& t = scene.float_textures[static_cast<size_t>(m.alpha.texture)];
-        a.tex = t.value.data();
-        a.tex_w = t.width;
-        a.tex_h = t.height;
-      }
+      a = alpha_shape(scene, scene.meshes[static_cast<size_t>(l.mesh)]);
     } else if (l.sphere >= 0 && scene.spheres[static_cast<size_t>(l.sphere)].alpha < 1) {
       shape = &sphere_shape[static_cast<size_t>(l.sphere)];
       a.value = scene.spheres[static_cast<size_t>(l.sphere)].alpha;
@@ -228,6 +219,7 @@ void build_geometry_table(SceneViews& v, const Scene& scene) {
     v.positions.push_back(m.positions.data());
     v.uvs.push_back(m.uvs.empty() ? nullptr : m.uvs.data());
     v.normals.push_back(m.normals.empty() ? nullptr : m.normals.data());
+    v.curve_points.push_back(nullptr);
     v.geom.has_normals |= !m.normals.empty();
   }
   for (const Sphere& s : scene.spheres) {
@@ -241,6 +233,7 @@ void build_geometry_table(SceneViews& v, const Scene& scene) {
     v.positions.push_back(nullptr);
     v.uvs.push_back(nullptr);
     v.normals.push_back(nullptr);
+    v.curve_points.push_back(nullptr);
   }
   for (const Curves& c : scene.curves) {
     v.geom_kind.push_back(static_cast<int32_t>(c.type == CurveType::flat ? GeomKind::flat_curve : GeomKind::curve));
@@ -253,6 +246,7 @@ void build_geometry_table(SceneViews& v, const Scene& scene) {
     v.positions.push_back(nullptr);
     v.uvs.push_back(nullptr);
     v.normals.push_back(nullptr);
+    v.curve_points.push_back(c.points.data());
   }
   v.geom.geom_count = static_cast<int32_t>(v.geom_kind.size());
   // never empty (a scene without geometry reads row 0 of no hit)
@@ -298,10 +292,19 @@ void build_material_table(SceneViews& v, const Scene& scene) {
     v.mat_b.push_back(r.b);
     v.mat_texture.push_back(m.texture);
     v.mat_kind.push_back(static_cast<int32_t>(m.kind));
+    const HairConstants h = hair_constants(m.beta_m, m.beta_n, m.hair_alpha);
     const float p[mp_count] = {m.transmittance.r, m.transmittance.g, m.transmittance.b, m.eta_rgb.r, m.eta_rgb.g,
                                m.eta_rgb.b,       m.k_rgb.r,         m.k_rgb.g,         m.k_rgb.b,   m.eta,
                                m.alpha_u.value,   m.alpha_v.value,   m.base_alpha_u.value, m.base_alpha_v.value,
-                               m.thickness,       m.albedo.r,        m.albedo.g,        m.albedo.b};
+                               m.thickness,       m.albedo.r,        m.albedo.g,        m.albedo.b,
+                               m.hair_sigma_a.r,  m.hair_sigma_a.g,  m.hair_sigma_a.b,
+                               h.inv_v[0],        h.inv_v[1],        h.inv_v[2],
+                               h.log_norm[0],     h.log_norm[1],     h.log_norm[2],
+                               h.exp_m2v[0],      h.exp_m2v[1],      h.exp_m2v[2],
+                               h.v[0],            h.v[1],            h.v[2],
+                               h.s,               h.e_pi_s,
+                               h.sin2k[0],        h.sin2k[1],        h.sin2k[2],
+                               h.cos2k[0],        h.cos2k[1],        h.cos2k[2]};
     for (int i = 0; i < mp_count; ++i) v.mat_param[i].push_back(p[i]);
     v.mat_alpha_tex.push_back(m.alpha_u.texture);
     v.mat_alpha_tex.push_back(m.alpha_v.texture);
@@ -336,6 +339,7 @@ void build_material_table(SceneViews& v, const Scene& scene) {
       if (c >= 0) v.geom.has_bump |= v.mat_bump[static_cast<size_t>(c)] >= 0;
   }
   v.geom.shading_normals = v.geom.has_normals || v.geom.has_bump;
+  v.geom.has_hair = (v.bsdf_kinds & bsdf_hair) != 0;
   for (const FloatTexture& t : scene.float_textures) {
     v.ftex_value.push_back(t.value.data());
     v.ftex_w.push_back(t.width);
@@ -377,6 +381,7 @@ void build_material_table(SceneViews& v, const Scene& scene) {
   G.positions = v.positions.data();
   G.uvs = v.uvs.data();
   G.normals = v.normals.data();
+  G.curve_points = v.curve_points.data();
   G.tex_rgb = v.tex_rgb.data();
   G.tex_w = v.tex_w.data();
   G.tex_h = v.tex_h.data();

@@ -43,7 +43,7 @@ struct SceneViews {
   std::vector<float> tri_pos;
   std::vector<const uint32_t*> indices;
   std::vector<const float*> positions;
-  std::vector<const float*> uvs, tex_rgb, normals;
+  std::vector<const float*> uvs, tex_rgb, normals, curve_points;
   std::vector<float> mat_r, mat_g, mat_b;
   std::vector<int32_t> mat_kind, mat_mix0, mat_mix1, mat_alpha_tex, mat_remap;
   std::vector<float> mat_mix_amount;

@@ -10,6 +10,7 @@
 #include "light/dispatch.h"
 #include "sample/spherical.h"
 #include "scene/pbrt.h"
+#include "wave/alpha.h"
 
 namespace tuile {
 
@@ -319,6 +320,21 @@ void detect_features(Scene& scene) {
 }
 
 }  // namespace
+
+AlphaShape alpha_shape(const Scene& scene, const Mesh& m) {
+  AlphaShape a;
+  a.indices = m.indices.data();
+  a.positions = m.positions.data();
+  a.uvs = m.uvs.empty() ? nullptr : m.uvs.data();
+  a.value = m.alpha.value;
+  if (m.alpha.texture >= 0) {
+    const FloatTexture& t = scene.float_textures[static_cast<size_t>(m.alpha.texture)];
+    a.tex = t.value.data();
+    a.tex_w = t.width;
+    a.tex_h = t.height;
+  }
+  return a;
+}
 
 void finalize_scene(Scene& scene) {
   validate_scene(scene);

@@ -61,6 +61,11 @@ struct Material {
   float g = 0;                             // coated*: its Henyey-Greenstein asymmetry
   int max_depth = 10, nsamples = 1;        // coated*: pbrt's random-walk settings (recorded)
   int displacement = -1;                   // float texture for bump mapping, or -1
+  // hair: the interior's absorption (from pbrt's sigma_a, reflectance or melanin
+  // concentrations), the longitudinal and azimuthal roughness and the scales' tilt
+  // (degrees); its index is eta (1.55 by default)
+  Rgb hair_sigma_a{0, 0, 0};
+  float beta_m = 0.3f, beta_n = 0.3f, hair_alpha = 2;
   // pbrt's "mix": when mix[0] >= 0 this material is a choice, per hit, between materials
   // mix[0] and mix[1] (indices into Scene::materials, never mixes themselves): the second
   // where a hash of the hit is below amount (pbrt-v4's MixMaterial::ChooseMaterial).
@@ -217,6 +222,10 @@ struct Scene {
 // Throws SceneError naming the mesh on bad data. Degenerate triangles are kept for
 // geometry but never become light sources.
 void finalize_scene(Scene& scene);
+// The kernels' view of a mesh's alpha (wave/alpha.h), pointing into the mesh and the
+// scene's float textures: the Embree filters' and the light stage's.
+struct AlphaShape;
+AlphaShape alpha_shape(const Scene& scene, const Mesh& m);
 
 // Built-in scenes (compiled in). Names: "two-panels" (the default), "cornell".
 Scene builtin_scene(const std::string& name);

@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "bsdf/hair.h"
 #include "lexer.h"
 #include "loader_state.h"
 #include "params.h"
@@ -321,6 +322,68 @@ void Loader::make_mix(Lexer& lx, const Token& t, Params& ps, const std::string& 
   }
 }
 
+// pbrt-v4's "hair" (HairMaterial): the interior's absorption from sigma_a, else from
+// reflectance (Chiang et al.'s inversion, which depends on beta_n), else from eumelanin and
+// pheomelanin concentrations (default: eumelanin 1.3, brown hair); eta 1.55, beta_m and
+// beta_n 0.3 (in [0, 1]), alpha 2 degrees. Textured parameters: the default, with a warning.
+void Loader::make_hair(Params& ps, const std::string& where, Material& m) {
+  m.kind = MaterialKind::hair;
+  auto textured = [&](const Param* p) {
+    if (!p || p->type != "texture") return false;
+    warn("hair:texture", where + ": a texture as the hair's \"" + p->name + "\" is not supported: its default used");
+    return true;
+  };
+  auto number = [&](const char* name, float def, float lo, float hi) {
+    const Param* p = ps.get(name, "float|texture");
+    if (!p || textured(p)) return def;
+    const double v = p->nums.empty() ? def : p->nums[0];
+    if (!(v >= lo && v <= hi))
+      p->fail("\"" + std::string(name) + "\" is " + std::to_string(v),
+              "a value in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    return float(v);
+  };
+  m.eta = number("eta", 1.55f, 1e-3f, 100.f);
+  m.beta_m = number("beta_m", 0.3f, 0.f, 1.f);
+  m.beta_n = number("beta_n", 0.3f, 0.f, 1.f);
+  m.hair_alpha = number("alpha", 2.f, -90.f, 90.f);
+  const Param* sa = ps.get("sigma_a", "rgb|spectrum|texture");
+  const Param* refl = ps.get("reflectance", "rgb|spectrum|texture");
+  if (!refl) refl = ps.get("color", "rgb|spectrum|texture");
+  const Param* eu = ps.get("eumelanin", "float|texture");
+  const Param* ph = ps.get("pheomelanin", "float|texture");
+  if (sa && !textured(sa)) {
+    if (sa->type == "rgb") {
+      if (!(sa->nums[0] >= 0 && sa->nums[1] >= 0 && sa->nums[2] >= 0))
+        sa->fail("\"sigma_a\" has a negative value", "non-negative values");
+      m.hair_sigma_a = {float(sa->nums[0]), float(sa->nums[1]), float(sa->nums[2])};
+    } else {
+      Rgb r{0, 0, 0};
+      ps.spectrum(sa->name, false, r);
+      m.hair_sigma_a = r;
+    }
+    return;
+  }
+  if (refl && !textured(refl)) {
+    Rgb c{0.5f, 0.5f, 0.5f};
+    if (refl->type == "rgb") c = {float(refl->nums[0]), float(refl->nums[1]), float(refl->nums[2])};
+    else ps.spectrum(refl->name, false, c);
+    if (!(c.r >= 0 && c.g >= 0 && c.b >= 0)) refl->fail("the hair's reflectance has a negative value", "values in [0, 1]");
+    auto one = [&](float v) { return hair_sigma_a_from_reflectance(std::clamp(v, 0.f, 1.f), m.beta_n); };
+    m.hair_sigma_a = {one(c.r), one(c.g), one(c.b)};
+    return;
+  }
+  auto concentration = [&](const Param* p, float def) {
+    if (!p || textured(p)) return def;
+    const double v = p->nums.empty() ? def : p->nums[0];
+    if (!std::isfinite(v)) p->fail("a melanin concentration is not a number", "a finite value");
+    return float(std::max(v, 0.0));
+  };
+  const bool melanin = (eu && eu->type != "texture") || (ph && ph->type != "texture");
+  const float ce = concentration(eu, melanin ? 0.f : 1.3f), cp = concentration(ph, 0.f);
+  // pbrt-v4's SigmaAFromConcentration: eumelanin's and pheomelanin's absorption (RGB)
+  m.hair_sigma_a = {ce * 0.419f + cp * 0.187f, ce * 0.697f + cp * 0.4f, ce * 1.37f + cp * 1.05f};
+}
+
 int Loader::make_material(Lexer& lx, const Token& t, const std::string& type, Params& ps) {
   const std::string where = loc_str(lx, t);
   const int index = int(scene.materials.size());
@@ -422,6 +485,8 @@ int Loader::make_material(Lexer& lx, const Token& t, const std::string& type, Pa
     roughness("conductor.", FloatFix::base_alpha_u, FloatFix::base_alpha_v);
     layer();
     surface();
+  } else if (type == "hair") {
+    make_hair(ps, where, m);
   } else if (type == "mix") {
     make_mix(lx, t, ps, where, m, index);
   } else {

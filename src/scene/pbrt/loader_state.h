@@ -167,6 +167,7 @@ class Loader {
 
   void camera(Lexer& lx, const Token& t, Params& ps);
   void film(Lexer& lx, const Token& t, Params& ps);
+  void make_hair(Params& ps, const std::string& where, Material& m);
   int make_material(Lexer& lx, const Token& t, const std::string& type, Params& ps);
   int reflectance_texture(Lexer& lx, const Param& p);
   void texture(Lexer& lx, const Token& t);
