@@ -144,6 +144,7 @@ std::string info_text(const Prepared& p) {
     };
     for (const Mesh& m : scene.meshes) count(m.material);
     for (const Sphere& sp : scene.spheres) count(sp.material);
+    for (const Curves& c : scene.curves) count(c.material);
     say("\nsurfaces:");
     for (int k = 0; k < material_kind_count; ++k)
       if (per_kind[k]) say(" %s (%zu)", material_kind_names[k], per_kind[k]);
