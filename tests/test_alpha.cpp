@@ -247,7 +247,7 @@ TEST(Alpha, PacketsEqualSingleRays) {
   for (int batch = 0; batch < 64; ++batch) {
     RayHit16 a{}, b{};
     Ray16 occ{};
-    int32_t valid[16];
+    alignas(64) int32_t valid[16];  // (Embree reads the mask with aligned 512-bit loads on AVX-512 machines)
     for (int i = 0; i < 16; ++i) {
       valid[i] = -1;
       const float ox = 0.6f * U(rng), oz = 0.6f * U(rng);

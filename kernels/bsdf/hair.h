@@ -211,6 +211,13 @@ template <class T> struct HairBsdf {
     return o;
   }
 
+  // Where lobe p (0, 1, 2) leaves a smooth fiber, relative to phi_o: Phi(p) = 2 p gamma_t -
+  // 2 gamma_o + p pi (p - 1 internal reflections, p + 1 refractions or reflections at the
+  // cuticle; tests/test_materials.cpp traces them through a dielectric cylinder).
+  static T exit_azimuth(const T& p, const OutTerms& o) noexcept {
+    return T(2.f) * p * o.gamma_t - T(2.f) * o.gamma_o + p * T(pi_f);
+  }
+
   // The lobes' sum f |wi.z| (per channel) and the sampling pdf at wi.
   void lobes(const OutTerms& o, const Vec3<T>& wi, Rgb3<T>& fsum, T& pdf) const noexcept {
     using namespace hair_detail;
@@ -221,8 +228,7 @@ template <class T> struct HairBsdf {
     pdf = T(0.f);
     for (int p = 0; p < 3; ++p) {
       const T m = mp(cos_i, o.cos_po[p], sin_i, o.sin_po[p], inv_v[p], log_norm[p]);
-      const T lobe_phi = T(static_cast<float>(2 * p)) * o.gamma_t - T(2.f) * o.gamma_o + T(static_cast<float>(p) * pi_f);
-      const T mn = m * trimmed_logistic(wrap_pi(phi - lobe_phi), s, e_pi_s);
+      const T mn = m * trimmed_logistic(wrap_pi(phi - exit_azimuth(T(static_cast<float>(p)), o)), s, e_pi_s);
       fsum = {mul_add(mn, o.ap[p].r, fsum.r), mul_add(mn, o.ap[p].g, fsum.g), mul_add(mn, o.ap[p].b, fsum.b)};
       pdf = mul_add(mn, o.ap_pdf[p], pdf);
     }
@@ -276,8 +282,7 @@ template <class T> struct HairBsdf {
     const T cos_i = safe_sqrt(T(1.f) - sin_i * sin_i);
     // the azimuth by Np around the lobe's exit angle (p = 3: uniform)
     const T pf = to_f32(p);
-    const T lobe_phi = T(2.f) * pf * o.gamma_t - T(2.f) * o.gamma_o + pf * T(pi_f);
-    const T dphi = sel(is(3), ur * T(two_pi_f), lobe_phi + sample_trimmed_logistic(ur, s, e_pi_s));
+    const T dphi = sel(is(3), ur * T(two_pi_f), exit_azimuth(pf, o) + sample_trimmed_logistic(ur, s, e_pi_s));
     T sp, cp;
     lane_math::sincos(wrap_pi(o.phi_o + dphi), sp, cp);
     const Vec3<T> wi{sin_i, cos_i * cp, cos_i * sp};

@@ -102,6 +102,19 @@ std::string info_text(const Prepared& p) {
         kinds[0], kinds[1], kinds[2]);
   }
   say("lights: %zu (area sources %zu, delta %zu, skies %zu)\n", scene.lights.size(), area, delta, skies);
+  if (!scene.media.empty()) {
+    say("media: %zu (read, not rendered yet)%s\n", scene.media.size(),
+        scene.camera_medium >= 0 ? (", the camera is in \"" + scene.media[size_t(scene.camera_medium)].name + "\"").c_str() : "");
+    for (const Medium& m : scene.media) {
+      if (m.supported)
+        say("  %s (%s, %s): sigma_a (%.4g, %.4g, %.4g), sigma_s (%.4g, %.4g, %.4g)%s%s, g %.3g, Le (%.4g, %.4g, %.4g); bounded by %d shape(s)\n",
+            m.name.c_str(), m.type.c_str(), m.where.c_str(), m.sigma_a.r, m.sigma_a.g, m.sigma_a.b, m.sigma_s.r, m.sigma_s.g,
+            m.sigma_s.b, m.preset.empty() ? "" : ", preset ", m.preset.c_str(), m.g, m.Le.r, m.Le.g, m.Le.b, m.bounding_shapes);
+      else
+        say("  %s (%s, %s): not supported; bounded by %d shape(s)\n", m.name.c_str(), m.type.c_str(), m.where.c_str(),
+            m.bounding_shapes);
+    }
+  }
   // each sky: its map (file, size, power) and how its light samples are drawn
   {
     const Estimator& e = opt.est;
@@ -183,6 +196,7 @@ std::string info_text(const Prepared& p) {
       say("bounce rays: against the %s\n", r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
   }
   for (const std::string& w : scene.warnings) say("approximation: %s\n", w.c_str());
+  for (const std::string& w : scene.notes) say("note: %s\n", w.c_str());
   say("load: %.3f s\nbvh build: %.3f s\n", load, bvh);
   return out;
 }

@@ -36,7 +36,7 @@ struct TraceEvent {
 
 template <class P> struct RecordedPacket {
   P packet;
-  int32_t valid[packet_width];
+  alignas(64) int32_t valid[packet_width];  // (Embree's aligned loads of the mask)
 };
 // The packets one pass traces, in order (profile --roofline).
 struct RayRecord {

@@ -72,6 +72,7 @@ struct Material {
   int mix[2] = {-1, -1};
   FloatParam mix_amount{0.5f, -1};
   std::string approximated_from;  // non-empty when the material was approximated (pbrt type)
+  bool interface = false;         // pbrt's "interface": a boundary between media that does not scatter light
 };
 
 // A diffuse material of reflectance rho, or of the texture's texels when texture >= 0.
@@ -100,6 +101,7 @@ struct Mesh {
   // (turned by ReverseOrientation); they also decide which side is the outside
   std::vector<float> normals;
   int material = -1;
+  int medium_inside = -1, medium_outside = -1;  // Scene::media, -1: none
   Rgb emission;                    // radiance L when emissive (all zero otherwise)
   bool two_sided = false;          // emits on both sides
   bool reverse_orientation = false;  // emission on the side opposite the geometric normal
@@ -120,6 +122,7 @@ struct Sphere {
   Rgb emission;
   bool reverse_orientation = false;  // emit inwards
   float alpha = 1;  // pbrt's "alpha", a constant (wave/alpha.h)
+  int medium_inside = -1, medium_outside = -1;  // Scene::media, -1: none
   int light = -1;  // filled by finalize_scene
   bool emissive() const { return emission.any_positive(); }
 };
@@ -135,12 +138,30 @@ struct Curves {
   std::vector<float> points;       // x y z r per control point, 4 per segment
   std::vector<float> normals;      // ribbons: x y z per control point (then padded by one float)
   int material = -1;
+  int medium_inside = -1, medium_outside = -1;  // Scene::media, -1: none
   size_t segment_count() const { return points.size() / 16; }
   float max_radius() const {
     float r = 0;
     for (size_t i = 3; i < points.size(); i += 4) r = std::max(r, points[i]);
     return r;
   }
+};
+
+// A participating medium as pbrt-v4 describes it (MakeNamedMedium): a homogeneous medium's
+// absorption and scattering coefficients (per unit length, times "scale" already), its
+// Henyey-Greenstein asymmetry and emission. Other types (grids, clouds, nanovdb) are kept by
+// name and type only (supported = false). Which shapes bound a medium: their
+// medium_inside / medium_outside (indices here, -1 for none); the camera's: camera_medium.
+// Parsed and listed by `tuile info`; not rendered yet (the renderer warns).
+struct Medium {
+  std::string name, type;      // MakeNamedMedium's name and "type"
+  std::string where;           // "file:line" of its definition
+  bool supported = false;      // homogeneous
+  std::string preset;          // pbrt-v4's measured preset, if one gave sigma_a and sigma_s
+  Rgb sigma_a{1, 1, 1}, sigma_s{1, 1, 1};
+  float g = 0;
+  Rgb Le{0, 0, 0};
+  int bounding_shapes = 0;     // shapes whose inside or outside it is (interface shapes included)
 };
 
 // An environment map (LightSource "infinite" with "filename"): pbrt-v4's equal-area
@@ -201,12 +222,15 @@ struct Scene {
   std::vector<Mesh> meshes;
   std::vector<Sphere> spheres;
   std::vector<Curves> curves;       // after the spheres in Embree's geomIDs
+  std::vector<Medium> media;        // MakeNamedMedium, in the file's order
+  int camera_medium = -1;           // the medium the camera sits in (pbrt: the outside one at Camera), or -1
   std::vector<Material> materials;  // meshes with material -1 use a default grey 0.5
   std::vector<Texture> textures;
   std::vector<FloatTexture> float_textures;
   std::vector<Light> lights;        // delta lights and skies are added by loaders; area lights by finalize_scene
   std::vector<SkyMap> sky_maps;     // the skies' environment maps (Light::sky_map)
   std::vector<std::string> warnings;  // approximations made at load, one per kind
+  std::vector<std::string> notes;     // what the loader did that changes nothing in the image (zero-area faces dropped)
   // Settings from the file (pbrt Sampler/Film/Integrator); the command line overrides them.
   int file_spp = 0;
   std::string file_sampler;       // "", "independent", "stratified", "sobol"

@@ -29,6 +29,10 @@ void Loader::warn(const std::string& key, const std::string& message) {
   if (warned_.insert(key).second) scene.warnings.push_back(message);
 }
 
+void Loader::note(const std::string& key, const std::string& message) {
+  if (warned_.insert(key).second) scene.notes.push_back(message);
+}
+
 void Loader::warn_unused(Params& ps, const std::string& what, const Lexer& lx, const Token& at) {
   for (Param& p : ps.items)
     if (!p.used)
@@ -244,7 +248,11 @@ void Loader::directive(Lexer& lx, const Token& t) {
       warn("integrator", where + ": Integrator \"" + type + "\" rendered by tuile's path tracer (next-event estimation "
                              "and MIS at every vertex, maxdepth " + std::to_string(depth) + ")");
     ps.mark_all_used();
-  } else if (d == "Accelerator" || d == "ColorSpace" || d == "MakeNamedMedium") {
+  } else if (d == "MakeNamedMedium") {
+    const std::string name = string_arg(lx, "medium name");
+    Params ps = read_params(lx);
+    make_medium(lx, t, name, ps);
+  } else if (d == "Accelerator" || d == "ColorSpace") {
     string_arg(lx, "name");
     read_params(lx);
     warn(std::string(d), where + ": " + std::string(d) + " ignored");
@@ -252,9 +260,10 @@ void Loader::directive(Lexer& lx, const Token& t) {
     read_params(lx);
     warn("Option", where + ": Option ignored");
   } else if (d == "MediumInterface") {
-    string_arg(lx, "medium name");
-    if (lx.peek().kind == Tok::string) lx.next();
-    warn("medium", where + ": participating media are not supported and were ignored");
+    // "inside" "outside", or one name for both; "" is no medium
+    gs_.medium_in = string_arg(lx, "medium name");
+    gs_.medium_out = lx.peek().kind == Tok::string ? string_arg(lx, "medium name") : gs_.medium_in;
+    gs_.medium_where = where;
   } else if (d == "Attribute") {
     string_arg(lx, "attribute target");
     read_params(lx);

@@ -41,6 +41,7 @@ void Loader::camera(Lexer& lx, const Token& t, Params& ps) {
   ps.get("shutteropen", "float");
   ps.get("shutterclose", "float");
   warn_unused(ps, "Camera", lx, t);
+  camera_medium_ = {"", gs_.medium_out, gs_.medium_where};  // pbrt-v4: the outside medium in force
 }
 
 void Loader::film(Lexer& lx, const Token& t, Params& ps) {

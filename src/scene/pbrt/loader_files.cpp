@@ -122,7 +122,8 @@ void Loader::load_files() {
     polygons += j.polygons;
   }
   if (degenerate)
-    warn("plydegenerate", std::to_string(degenerate) + " degenerate PLY faces skipped (first in " + first_degenerate + ")");
+    note("plydegenerate", std::to_string(degenerate) + " degenerate PLY faces (zero area, or a repeated vertex) skipped (first in " +
+                              first_degenerate + ")");
   if (polygons)
     warn("plypolygon", std::to_string(polygons) + " PLY faces with more than 4 vertices were fan-triangulated (first in " +
                            first_polygon + ")");

@@ -33,6 +33,7 @@ size_t Loader::new_mesh(Lexer& lx, const Token& t) {
   om.object = object_;
   om.mesh.name = loc_str(lx, t);
   om.mesh.material = gs_.material;
+  om.media = {gs_.medium_in, gs_.medium_out, gs_.medium_where};
   om.mesh.reverse_orientation = gs_.reverse != gs_.ctm.swaps_handedness();
   set_emission(om, lx, t);
   meshes_.push_back(std::move(om));
@@ -218,6 +219,7 @@ void Loader::sphere_shape(Lexer& lx, const Token& t, Params& ps, const std::stri
   if (!(os.sphere.radius > 0) || !std::isfinite(os.sphere.radius))
     lx.fail(t, "sphere with a degenerate transform", "a transform that keeps the sphere's size finite and non-zero");
   os.sphere.material = gs_.material;
+  os.media = {gs_.medium_in, gs_.medium_out, gs_.medium_where};
   os.sphere.reverse_orientation = gs_.reverse != gs_.ctm.swaps_handedness();
   if (gs_.has_area) {
     if (object_ >= 0) {
@@ -432,6 +434,7 @@ void Loader::curve_shape(Lexer& lx, const Token& t, Params& ps, const std::strin
   c.name = "curve at " + where;
   c.type = type == "flat" ? CurveType::flat : ribbon ? CurveType::ribbon : CurveType::cylinder;
   c.material = gs_.material;
+  oc.media = {gs_.medium_in, gs_.medium_out, gs_.medium_where};
   const double wscale = std::cbrt(std::abs(gs_.ctm.det3()));
   if (!(wscale > 0) || !std::isfinite(wscale))
     lx.fail(t, "curve with a degenerate transform", "a transform that keeps the curve's width finite and non-zero");
@@ -576,10 +579,45 @@ static double mesh_area(const Mesh& m) {
   return a;
 }
 
+void Loader::resolve_media(const MediumNames& n, int& inside, int& outside) {
+  auto find = [&](const std::string& name) {
+    if (name.empty()) return -1;
+    const auto it = named_media_.find(name);
+    if (it == named_media_.end())
+      throw SceneError(n.where + ": error: medium \"" + name + "\" is not defined (expected a name given to MakeNamedMedium)");
+    return it->second;
+  };
+  inside = find(n.in);
+  outside = find(n.out);
+  if (inside >= 0) ++scene.media[size_t(inside)].bounding_shapes;
+  if (outside >= 0 && outside != inside) ++scene.media[size_t(outside)].bounding_shapes;
+}
+
 void Loader::flatten() {
   size_t total = 0;
+  for (OwnedMesh& om : meshes_) resolve_media(om.media, om.mesh.medium_inside, om.mesh.medium_outside);
+  for (OwnedSphere& os : spheres_) resolve_media(os.media, os.sphere.medium_inside, os.sphere.medium_outside);
+  for (OwnedCurves& oc : curves_) resolve_media(oc.media, oc.curves.medium_inside, oc.curves.medium_outside);
+  {  // the camera's medium (not a shape: not counted as bounding it)
+    int in = -1;
+    resolve_media(camera_medium_, in, scene.camera_medium);
+    if (scene.camera_medium >= 0) --scene.media[size_t(scene.camera_medium)].bounding_shapes;
+  }
+  // "interface" shapes bound media and do not scatter light: pbrt-v4's rays pass through
+  // them. Media are not rendered yet, so they are left out of the geometry (an emissive one
+  // stays, a diffuse emitter: pbrt-v4 counts its emission and passes the ray on).
+  size_t interfaces = 0;
+  auto is_interface = [&](int material, bool emits) {
+    const bool interface = material >= 0 && scene.materials[size_t(material)].interface;
+    if (interface && emits)
+      warn("interfaceemit", "an emissive shape with the \"interface\" material is rendered as a diffuse emitter (grey 0.5), "
+                            "where pbrt-v4's rays pass through it");
+    interfaces += interface && !emits;
+    return interface && !emits;
+  };
   for (OwnedMesh& om : meshes_) {
     if (om.object >= 0) continue;
+    if (is_interface(om.mesh.material, om.mesh.emissive())) continue;
     if (om.mesh.indices.empty()) {
       warn("emptymesh", om.mesh.name + ": a mesh without triangles was skipped");
       continue;
@@ -595,15 +633,15 @@ void Loader::flatten() {
     scene.meshes.push_back(std::move(om.mesh));
   }
   for (OwnedSphere& os : spheres_)
-    if (os.object < 0) scene.spheres.push_back(os.sphere);
+    if (os.object < 0 && !is_interface(os.sphere.material, os.sphere.emissive())) scene.spheres.push_back(os.sphere);
   for (OwnedCurves& oc : curves_)
-    if (oc.object < 0) scene.curves.push_back(oc.curves);
+    if (oc.object < 0 && !is_interface(oc.curves.material, false)) scene.curves.push_back(oc.curves);
   if (!instances_.empty())
     warn("instances", "object instances were flattened into copies of their meshes");
   for (const Instance& in : instances_) {
     const bool swaps = in.ctm.swaps_handedness();
     for (const OwnedMesh& om : meshes_) {
-      if (om.object != in.object || om.mesh.indices.empty()) continue;
+      if (om.object != in.object || om.mesh.indices.empty() || is_interface(om.mesh.material, false)) continue;
       total += om.mesh.triangle_count();
       if (total >= max_triangles)
         throw SceneError(om.mesh.name + ": error: too many triangles after flattening object instances (expected fewer than 2^31)");
@@ -624,7 +662,7 @@ void Loader::flatten() {
       scene.meshes.push_back(std::move(m));
     }
     for (const OwnedSphere& os : spheres_) {
-      if (os.object != in.object) continue;
+      if (os.object != in.object || is_interface(os.sphere.material, false)) continue;
       Sphere s = os.sphere;
       const Vec3d c = apply_point(in.ctm, {s.center.x, s.center.y, s.center.z});
       s.center = vec3f(float(c.x), float(c.y), float(c.z));
@@ -633,7 +671,7 @@ void Loader::flatten() {
       scene.spheres.push_back(s);
     }
     for (const OwnedCurves& oc : curves_) {
-      if (oc.object != in.object) continue;
+      if (oc.object != in.object || is_interface(oc.curves.material, false)) continue;
       Curves c = oc.curves;
       const float ws = float(std::cbrt(std::abs(in.ctm.det3())));
       for (size_t i = 0; i + 3 < c.points.size(); i += 4) {
@@ -654,6 +692,9 @@ void Loader::flatten() {
       scene.curves.push_back(std::move(c));
     }
   }
+  if (interfaces)
+    note("interface", std::to_string(interfaces) + " shape(s) with the \"interface\" material (boundaries of media, which do not "
+                      "scatter light) left out of the geometry: rays pass through them, as in pbrt-v4");
 }
 
 }  // namespace tuile::pbrt

@@ -39,6 +39,7 @@ struct GraphicsState {
   Mat4 ctm;
   bool reverse = false;
   int material = -1;
+  std::string medium_in, medium_out, medium_where;  // MediumInterface's names ("": none) and where it was
   bool has_area = false;
   AreaLight area;
 };
@@ -121,8 +122,15 @@ struct PlyJob {
   uintmax_t size = 0;
 };
 
+// A shape's media by name, resolved when parsing ends (pbrt-v4 allows MakeNamedMedium after
+// the shapes that name it).
+struct MediumNames {
+  std::string in, out, where;
+};
+
 struct OwnedMesh {
   Mesh mesh;
+  MediumNames media;
   int object = -1;        // -1 = world, otherwise an object definition
   float power = -1;       // area light power to apply once the area is known
   std::string power_where;
@@ -130,11 +138,13 @@ struct OwnedMesh {
 
 struct OwnedSphere {
   Sphere sphere;
+  MediumNames media;
   int object = -1;
 };
 
 struct OwnedCurves {
   Curves curves;
+  MediumNames media;
   int object = -1;
 };
 
@@ -158,6 +168,8 @@ class Loader {
  private:
   void directive(Lexer& lx, const Token& t);
   void warn(const std::string& key, const std::string& message);
+  // Said once per key, not an approximation: what the loader did changes nothing rendered.
+  void note(const std::string& key, const std::string& message);
   void warn_unused(Params& ps, const std::string& what, const Lexer& lx, const Token& at);
   double number(Lexer& lx);
   void numbers(Lexer& lx, double* out, int n);
@@ -168,6 +180,10 @@ class Loader {
   void camera(Lexer& lx, const Token& t, Params& ps);
   void film(Lexer& lx, const Token& t, Params& ps);
   void make_hair(Params& ps, const std::string& where, Material& m);
+  void make_medium(Lexer& lx, const Token& t, const std::string& name, Params& ps);
+  // a shape's media (names to Scene::media indices; a name no MakeNamedMedium gave is an
+  // error naming where the MediumInterface was), counted as bounding them
+  void resolve_media(const MediumNames& n, int& inside, int& outside);
   int make_material(Lexer& lx, const Token& t, const std::string& type, Params& ps);
   int reflectance_texture(Lexer& lx, const Param& p);
   void texture(Lexer& lx, const Token& t);
@@ -225,6 +241,8 @@ class Loader {
   int object_ = -1;  // object being defined
   std::map<std::string, Mat4> coord_systems_;
   std::unordered_map<std::string, int> named_materials_;
+  std::unordered_map<std::string, int> named_media_;
+  MediumNames camera_medium_;
   std::unordered_map<std::string, int> textures_;       // spectrum textures by name
   std::unordered_map<std::string, int> float_textures_;  // float textures by name: FloatTexDef index
   std::unordered_map<std::string, int> objects_;
