@@ -17,6 +17,24 @@ inline void add_quad(Mesh& m, vec3f p0, vec3f e1, vec3f e2) {
   for (vec3f p : {p0, p0 + e1, p0 + e1 + e2, p0 + e2}) m.positions.insert(m.positions.end(), {p.x, p.y, p.z});
   for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) m.indices.push_back(base + i);
 }
+// A straight curve from (-a, y, z) to (a, y, z) of radius r (4 control points, 1 segment;
+// a ribbon's normals +z).
+inline Curves straight_curve(CurveType type, float a, float y, float r, float z = 0) {
+  Curves c;
+  c.name = "straight";
+  c.type = type;
+  c.points.assign(16, 0.f);
+  for (int k = 0; k < 4; ++k) {
+    c.points[size_t(4 * k)] = -a + 2 * a * static_cast<float>(k) / 3.f;
+    c.points[size_t(4 * k + 1)] = y;
+    c.points[size_t(4 * k + 2)] = z;
+    c.points[size_t(4 * k + 3)] = r;
+  }
+  if (type == CurveType::ribbon)
+    for (int k = 0; k < 4; ++k) c.normals.insert(c.normals.end(), {0.f, 0.f, 1.f});
+  return c;
+}
+
 inline void add_triangle(Mesh& m, vec3f a, vec3f b, vec3f c) {
   const uint32_t base = static_cast<uint32_t>(m.positions.size() / 3);
   for (vec3f p : {a, b, c}) m.positions.insert(m.positions.end(), {p.x, p.y, p.z});

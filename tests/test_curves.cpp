@@ -18,22 +18,6 @@ using namespace tuile::test;
 
 namespace {
 
-// A straight curve from (-a, y, 0) to (a, y, 0) of radius r (4 control points, 1 segment).
-Curves straight(CurveType type, float a, float y, float r) {
-  Curves c;
-  c.name = "straight";
-  c.type = type;
-  c.points.assign(16, 0.f);
-  for (int k = 0; k < 4; ++k) {
-    c.points[size_t(4 * k)] = -a + 2 * a * k / 3.f;
-    c.points[size_t(4 * k + 1)] = y;
-    c.points[size_t(4 * k + 3)] = r;
-  }
-  if (type == CurveType::ribbon)
-    for (int k = 0; k < 4; ++k) c.normals.insert(c.normals.end(), {0.f, 0.f, 1.f});
-  return c;
-}
-
 RenderOptions options(uint32_t spp, int depth = 1) {
   RenderOptions o;
   o.est.strategy = Strategy::mis;
@@ -82,7 +66,7 @@ TEST(Curves, StraightCurveCoversItsExactArea) {
     add_quad(back, {-50, -50, -2}, {100, 0, 0}, {0, 100, 0});  // faces +z
     s.meshes.push_back(back);
     const float a = 1, r = 0.05f;
-    s.curves.push_back(straight(type, a, 0.2f, r));
+    s.curves.push_back(straight_curve(type, a, 0.2f, r));
     s.curves.back().material = 0;
     const int res = 64;
     const double pixel = head_on_camera(s, res, 4, 40);
@@ -110,7 +94,7 @@ TEST(Curves, WhiteFurnaceIsInvisible) {
   s.lights.push_back(sky);
   for (int i = 0; i < 9; ++i) {
     const CurveType type = static_cast<CurveType>(i % 3);
-    Curves c = straight(type, 1.2f, -0.8f + 0.2f * i, 0.02f + 0.01f * i);
+    Curves c = straight_curve(type, 1.2f, -0.8f + 0.2f * i, 0.02f + 0.01f * i);
     // bend it out of its plane so rays meet curves at every angle
     c.points[6] = 0.4f;
     c.points[10] = -0.3f;
@@ -204,7 +188,7 @@ TEST(Curves, FlatCurvesFaceTheRayRibbonsTheirNormalTubesTheirSurface) {
     sun.radiance = {2, 2, 2};
     s.lights.push_back(sun);
     const float a = 1, r = 0.05f;
-    s.curves.push_back(straight(type, a, 0.f, r));
+    s.curves.push_back(straight_curve(type, a, 0.f, r));
     s.curves.back().material = 0;
     const int res = 64;
     const double pixel = head_on_camera(s, res, 6, 30);

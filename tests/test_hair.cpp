@@ -33,23 +33,6 @@ std::string hair_error(const std::string& body) {
   return "(no error)";
 }
 
-// A straight curve from (-a, y, z) to (a, y, z) of radius r.
-Curves straight(CurveType type, float a, float y, float z, float r) {
-  Curves c;
-  c.name = "fiber";
-  c.type = type;
-  c.points.assign(16, 0.f);
-  for (int k = 0; k < 4; ++k) {
-    c.points[size_t(4 * k)] = -a + 2 * a * k / 3.f;
-    c.points[size_t(4 * k + 1)] = y;
-    c.points[size_t(4 * k + 2)] = z;
-    c.points[size_t(4 * k + 3)] = r;
-  }
-  if (type == CurveType::ribbon)
-    for (int k = 0; k < 4; ++k) c.normals.insert(c.normals.end(), {0.f, 0.f, 1.f});
-  return c;
-}
-
 Material hair_material(Rgb sigma_a, float beta_m, float beta_n, float alpha) {
   Material m;
   m.kind = MaterialKind::hair;
@@ -154,7 +137,7 @@ TEST(Hair, WhiteFurnaceIsInvisible) {
   sky.radiance = {1, 1, 1};
   s.lights.push_back(sky);
   for (int i = 0; i < 9; ++i) {
-    Curves c = straight(static_cast<CurveType>(i % 3), 1.2f, -0.8f + 0.2f * i, 0.f, 0.03f + 0.01f * i);
+    Curves c = straight_curve(static_cast<CurveType>(i % 3), 1.2f, -0.8f + 0.2f * i, 0.03f + 0.01f * i);
     c.points[6] = 0.4f;
     c.points[10] = -0.3f;
     c.material = i % 2;
@@ -199,7 +182,7 @@ TEST(Hair, HighlightSitsOnTheSideThatMirrorsTheLight) {
       sun.e1 = {0, side * std::sin(float(M_PI / 3)), std::cos(float(M_PI / 3))};
       sun.radiance = {1, 1, 1};
       s.lights.push_back(sun);
-      s.curves.push_back(straight(CurveType::cylinder, 3.f, 0.f, 0.f, 0.3f));
+      s.curves.push_back(straight_curve(CurveType::cylinder, 3.f, 0.f, 0.3f));
       s.curves.back().material = 0;
       const int res = 48;
       s.camera.width = s.camera.height = res;

@@ -105,12 +105,12 @@ inline vfloat pow2_int(const vfloat& n) noexcept {
 }
 template <class V> inline Twin<V> pow2_int(const Twin<V>& n) noexcept { return {pow2_int(n.a), pow2_int(n.b)}; }
 
-// exp(x) for x <= 0 (0 below -87: e^-87 is 1.6e-38, near the smallest normal float), from +, -, *, floor and mul_add: the same bits in every
-// lane (xsimd's exp and the C library's differ); the one exp of the kernels (the coated
-// BSDFs' layer transmittance, the Gaussian pixel filter). Cody-Waite reduction x = n ln2 + r,
-// |r| <= ln2 / 2, and the Taylor series of e^r to r^8 (truncation < 3e-10 relative).
-template <class T> inline T exp_nonpositive(const T& x) noexcept {
-  const T xc = max(min(x, T(0.f)), T(-87.f));
+// exp(x) for -87 <= x <= hi, clamped to that range (0 below -87: e^-87 is 1.6e-38, near the
+// smallest normal float), from +, -, *, floor and mul_add: the same bits in every lane
+// (xsimd's exp and the C library's differ). Cody-Waite reduction x = n ln2 + r, |r| <= ln2 / 2,
+// and the Taylor series of e^r to r^8 (truncation < 3e-10 relative).
+template <class T> inline T exp_range(const T& x, float hi) noexcept {
+  const T xc = max(min(x, T(hi)), T(-87.f));
   const T n = floor(mul_add(xc, T(1.44269504088896341f), T(0.5f)));
   const T r = mul_add(n, T(-1.42860677e-6f), mul_add(n, T(-0.693145752f), xc));
   T p = T(1.f / 40320.f);
@@ -125,23 +125,13 @@ template <class T> inline T exp_nonpositive(const T& x) noexcept {
   return sel(x >= T(-87.f), p * pow2_int(n), T(0.f));
 }
 
+// exp(x) for x <= 0: the coated BSDFs' layer transmittance, the Gaussian pixel filter, the
+// hair's interior transmittance and logistic.
+template <class T> inline T exp_nonpositive(const T& x) noexcept { return lane_math::exp_range(x, 0.f); }
+
 // exp(x) for any x: 0 below -87, clamped at 88 (e^88 is 1.65e38, near float's largest);
-// the same reduction and series as exp_nonpositive (relative error < 1e-7 over the range).
-template <class T> inline T exp_clamped(const T& x) noexcept {
-  const T xc = max(min(x, T(88.f)), T(-87.f));
-  const T n = floor(mul_add(xc, T(1.44269504088896341f), T(0.5f)));
-  const T r = mul_add(n, T(-1.42860677e-6f), mul_add(n, T(-0.693145752f), xc));
-  T p = T(1.f / 40320.f);
-  p = mul_add(p, r, T(1.f / 5040.f));
-  p = mul_add(p, r, T(1.f / 720.f));
-  p = mul_add(p, r, T(1.f / 120.f));
-  p = mul_add(p, r, T(1.f / 24.f));
-  p = mul_add(p, r, T(1.f / 6.f));
-  p = mul_add(p, r, T(0.5f));
-  p = mul_add(p, r, T(1.f));
-  p = mul_add(p, r, T(1.f));
-  return sel(x >= T(-87.f), p * pow2_int(n), T(0.f));
-}
+// relative error < 1e-7 over the range (the hair's Mp).
+template <class T> inline T exp_clamped(const T& x) noexcept { return lane_math::exp_range(x, 88.f); }
 
 // A positive normal float's biased exponent field (as a float) and its significand with
 // the exponent of 1 (in [1, 2)): the bits, read the same way for every lane type.

@@ -183,25 +183,29 @@ bool Loader::float_param(Params& ps, const std::string& name, Material& m, int m
   return true;
 }
 
-// An unbounded spectrum (eta, k): rgb, (lambda, value) pairs or one of pbrt's named
-// spectra, to linear RGB; a spectrum texture is resolved at the end.
+// An unbounded spectrum given as rgb (non-negative), (lambda, value) pairs or one of pbrt's
+// named spectra, to linear RGB.
+static Rgb unbounded_rgb(const Param& p) {
+  if (p.type == "rgb") {
+    if (!(p.nums[0] >= 0 && p.nums[1] >= 0 && p.nums[2] >= 0))
+      p.fail("parameter \"rgb " + p.name + "\" has a negative value", "non-negative values");
+    return {float(p.nums[0]), float(p.nums[1]), float(p.nums[2])};
+  }
+  if (!p.nums.empty()) {
+    check_pairs(p);
+    return clamp0(unbounded_spectrum_rgb(p.nums.data(), p.nums.size() / 2));
+  }
+  const NamedSpectrum& n = named_spectrum(p);
+  return clamp0({n.r, n.g, n.b});
+}
+
+// An unbounded spectrum (eta, k): unbounded_rgb, or a spectrum texture resolved at the end.
 bool Loader::unbounded_param(Lexer& lx, Params& ps, const std::string& name, int material, SpectrumFix::Field field,
                              const std::string& where, Rgb& out) {
   const Param* p = ps.get(name, "rgb|spectrum|texture");
   if (!p) return false;
-  if (p->type == "texture") {
-    spectrum_fixes_.push_back({field, material, reflectance_texture(lx, *p), 1, where});
-  } else if (p->type == "rgb") {
-    if (p->nums[0] < 0 || p->nums[1] < 0 || p->nums[2] < 0)
-      p->fail("parameter \"rgb " + name + "\" has a negative value", "non-negative values");
-    out = {float(p->nums[0]), float(p->nums[1]), float(p->nums[2])};
-  } else if (!p->nums.empty()) {
-    check_pairs(*p);
-    out = clamp0(unbounded_spectrum_rgb(p->nums.data(), p->nums.size() / 2));
-  } else {
-    const NamedSpectrum& n = named_spectrum(*p);
-    out = clamp0({n.r, n.g, n.b});
-  }
+  if (p->type == "texture") spectrum_fixes_.push_back({field, material, reflectance_texture(lx, *p), 1, where});
+  else out = unbounded_rgb(*p);
   return true;
 }
 
@@ -352,15 +356,7 @@ void Loader::make_hair(Params& ps, const std::string& where, Material& m) {
   const Param* eu = ps.get("eumelanin", "float|texture");
   const Param* ph = ps.get("pheomelanin", "float|texture");
   if (sa && !textured(sa)) {
-    if (sa->type == "rgb") {
-      if (!(sa->nums[0] >= 0 && sa->nums[1] >= 0 && sa->nums[2] >= 0))
-        sa->fail("\"sigma_a\" has a negative value", "non-negative values");
-      m.hair_sigma_a = {float(sa->nums[0]), float(sa->nums[1]), float(sa->nums[2])};
-    } else {
-      Rgb r{0, 0, 0};
-      ps.spectrum(sa->name, false, r);
-      m.hair_sigma_a = r;
-    }
+    m.hair_sigma_a = unbounded_rgb(*sa);
     return;
   }
   if (refl && !textured(refl)) {
@@ -462,19 +458,7 @@ void Loader::make_medium(Lexer& lx, const Token& t, const std::string& name, Par
   } else {
     md.supported = true;
     auto coefficient = [&](const char* pname, Rgb& out) {
-      const Param* p = ps.get(pname, "rgb|spectrum");
-      if (!p) return;
-      if (p->type == "rgb") {
-        for (int c = 0; c < 3; ++c)
-          if (!(p->nums[size_t(c)] >= 0)) p->fail("\"" + std::string(pname) + "\" has a negative value", "non-negative values");
-        out = {float(p->nums[0]), float(p->nums[1]), float(p->nums[2])};
-      } else if (!p->nums.empty()) {
-        check_pairs(*p);
-        out = clamp0(unbounded_spectrum_rgb(p->nums.data(), p->nums.size() / 2));
-      } else {
-        const NamedSpectrum& n = named_spectrum(*p);
-        out = clamp0({n.r, n.g, n.b});
-      }
+      if (const Param* p = ps.get(pname, "rgb|spectrum")) out = unbounded_rgb(*p);
     };
     bool from_preset = false;
     const std::string preset = ps.one_string("preset", "");
