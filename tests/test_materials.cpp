@@ -1367,3 +1367,42 @@ TEST(HairBsdf, AttenuationsAndExitAnglesMatchRaysThroughACylinder) {
     EXPECT_NEAR(ap[3], rest, 2e-5 * rest + 1e-7) << "h " << h;
   }
 }
+
+// Stiff inputs of the hair BSDF: offsets at the edges (h = +-1), views along the fiber and
+// across it, roughness at the loader's limits (beta 0: taken as 0.01) and 1, scales tilted to
+// +-90 degrees, eta from 1 (no refraction) to 100 and below 1, no and extreme absorption:
+// every output finite, pdfs and weights non-negative, f zero where pdf is zero.
+TEST(HairBsdf, StiffCasesStayFinite) {
+  std::mt19937 rng(79);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  const float hs[] = {-1.f, -0.999999f, 0.f, 1.f};
+  const float betas[] = {0.f, 1e-4f, 0.3f, 1.f};
+  const float alphas[] = {-90.f, 0.f, 2.f, 90.f};
+  const float etas[] = {1.f, 1.55f, 100.f, 0.5f};
+  const float sas[] = {0.f, 1e6f};
+  const vec3f views[] = {{1, 0, 0}, {-1, 0, 0}, {0, 0, 1}, {0, 1, 0}, normalize(vec3f{1, 1e-7f, 0}), normalize(vec3f{0.3f, 0.4f, -0.8f})};
+  for (float h : hs)
+    for (float bm : betas)
+      for (float bn : betas)
+        for (float a : alphas)
+          for (float eta : etas)
+            for (float sa : sas) {
+              const HairBsdf<float> b = make_hair(h, eta, {sa, 0.5f * sa, 0.f}, bm, bn, a);
+              for (const vec3f& wo : views) {
+                const vec3f wi = normalize(sph(2 * U(rng) - 1, 2 * kPi * U(rng)));
+                const BsdfEval<float> e = b.eval(wo, wi);
+                const std::string what = "h " + std::to_string(h) + " bm " + std::to_string(bm) + " bn " + std::to_string(bn) +
+                                         " alpha " + std::to_string(a) + " eta " + std::to_string(eta) + " sa " + std::to_string(sa);
+                ASSERT_TRUE(std::isfinite(e.f.r) && std::isfinite(e.f.g) && std::isfinite(e.f.b) && std::isfinite(e.pdf)) << what;
+                ASSERT_TRUE(e.f.r >= 0 && e.f.g >= 0 && e.f.b >= 0 && e.pdf >= 0) << what;
+                const BsdfSample<float> s = b.sample(wo, U(rng), U(rng), U(rng));
+                ASSERT_TRUE(std::isfinite(s.pdf) && std::isfinite(s.weight.r) && std::isfinite(s.weight.g) && std::isfinite(s.weight.b))
+                    << what;
+                ASSERT_TRUE(std::isfinite(s.wi.x) && std::isfinite(s.wi.y) && std::isfinite(s.wi.z)) << what;
+                ASSERT_TRUE(s.weight.r >= 0 && s.weight.g >= 0 && s.weight.b >= 0 && s.pdf >= 0) << what;
+                if (s.valid) {
+                  ASSERT_NEAR(length(s.wi), 1.f, 1e-4f) << what;
+                }
+              }
+            }
+}

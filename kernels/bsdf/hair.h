@@ -48,7 +48,9 @@ struct HairConstants {
 };
 inline HairConstants hair_constants(float beta_m, float beta_n, float alpha_degrees) {
   HairConstants c{};
-  const double bm = beta_m, bn = beta_n;
+  // below 0.01 a lobe is narrower than float can normalise (1/v ~ 2e4 at 0.01; the
+  // exponent of Mp cancels terms of that size): 0.01 stands for 0
+  const double bm = std::max(static_cast<double>(beta_m), 0.01), bn = std::max(static_cast<double>(beta_n), 0.01);
   const double v0 = std::pow(0.726 * bm + 0.812 * bm * bm + 3.7 * std::pow(bm, 20), 2);
   const double vs[3] = {v0, 0.25 * v0, 4 * v0};
   for (int p = 0; p < 3; ++p) {
