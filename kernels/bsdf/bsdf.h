@@ -28,10 +28,15 @@ enum class MaterialKind : int32_t {
   coated_diffuse = 5,        // a dielectric coat (eta, alphas) over a diffuse base (reflectance)
   coated_conductor = 6,      // a dielectric coat over a conductor base (eta_rgb, k_rgb, base alphas)
   hair = 7,                  // pbrt-v4's HairBxDF (bsdf/hair.h): sigma_a, eta, beta_m, beta_n, alpha
+  // a point inside a participating medium (wave/media.h): Henyey-Greenstein's phase function
+  // (medium/homogeneous.h) in place of a BSDF, f = pdf = p(wo, wi) with no cosine; never a
+  // scene's material, one row of the material table per medium (render/views.cpp)
+  phase = 8,
 };
-inline constexpr int material_kind_count = 8;
+inline constexpr int material_kind_count = 9;
 inline constexpr const char* material_kind_names[material_kind_count] = {
-    "diffuse", "conductor", "dielectric", "thindielectric", "diffusetransmission", "coateddiffuse", "coatedconductor", "hair"};
+    "diffuse", "conductor", "dielectric", "thindielectric", "diffusetransmission", "coateddiffuse", "coatedconductor", "hair",
+    "phase"};
 
 // One bit per MaterialKind, in its order.
 enum BsdfBits : unsigned {
@@ -43,10 +48,12 @@ enum BsdfBits : unsigned {
   bsdf_coated_diffuse = 1u << 5,
   bsdf_coated_conductor = 1u << 6,
   bsdf_hair = 1u << 7,
-  bsdf_all = (1u << 8) - 1,
+  bsdf_phase = 1u << 8,
+  bsdf_all = (1u << 9) - 1,
 };
 // Kinds that can send light through the surface, and kinds with a specular (delta) lobe.
-inline constexpr unsigned bsdf_transmits = bsdf_dielectric | bsdf_thin_dielectric | bsdf_diffuse_transmission | bsdf_hair;
+inline constexpr unsigned bsdf_transmits =
+    bsdf_dielectric | bsdf_thin_dielectric | bsdf_diffuse_transmission | bsdf_hair | bsdf_phase;
 inline constexpr unsigned bsdf_delta_capable =
     bsdf_conductor | bsdf_dielectric | bsdf_thin_dielectric | bsdf_coated_diffuse | bsdf_coated_conductor;
 

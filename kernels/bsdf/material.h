@@ -17,6 +17,7 @@
 #include "bsdf/hair.h"
 #include "bsdf/lambert.h"
 #include "bsdf/thin_dielectric.h"
+#include "medium/homogeneous.h"
 #include "wave/views.h"
 
 namespace tuile {
@@ -161,6 +162,13 @@ template <class T, unsigned Bsdfs> struct SurfaceBsdf {
           merge(m, hair().eval(fr.to_local(wo), fr.to_local(wi)), r);
         }
       }
+      if constexpr ((Bsdfs & bsdf_phase) != 0) {
+        const auto m = is(MaterialKind::phase);
+        if (any(m)) {
+          const T p = hg_phase(dot(wo, wi), param(mp_hg_g));
+          merge(m, BsdfEval<T>{{p, p, p}, p}, r);
+        }
+      }
       return r;
     }
   }
@@ -198,6 +206,19 @@ template <class T, unsigned Bsdfs> struct SurfaceBsdf {
           const ShadingFrame<T> fr = hair_frame();
           BsdfSample<T> s = hair().sample(fr.to_local(wo), uc, u1, u2);
           s.wi = fr.to_world(s.wi);
+          merge(m, s, r);
+        }
+      }
+      if constexpr ((Bsdfs & bsdf_phase) != 0) {
+        const auto m = is(MaterialKind::phase);
+        if (any(m)) {
+          const PhaseSample<T> ps = sample_hg(wo, param(mp_hg_g), u1, u2);
+          BsdfSample<T> s;
+          s.wi = ps.wi;
+          s.weight = {T(1.f), T(1.f), T(1.f)};  // p / pdf, no cosine
+          s.pdf = ps.pdf;
+          s.delta = mask_t<T>(false);
+          s.valid = ps.pdf > T(0.f);
           merge(m, s, r);
         }
       }

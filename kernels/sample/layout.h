@@ -12,6 +12,8 @@
 //                               several lobes only)
 //   russian_roulette(d)         paths: whether the path goes on after vertex d (first
 //                               dimension)
+//   medium_flight(d, m)         scenes with media only: the free flight along BSDF sample
+//                               m (m = M at depth 0: the camera ray's)
 // with M = bsdf_samples and light samples j < light_passes (every source times N with
 // --light-pick all). Resampled importance sampling (wave/ris.h) uses light samples j < M'
 // for its light candidates and BSDF samples m < K' for its BSDF candidates, with the
@@ -26,9 +28,12 @@ namespace tuile {
 struct SampleLayout {
   uint32_t bsdf_samples = 1;  // M
   uint32_t light_passes = 1;  // light samples per depth
+  bool media = false;         // the scene has media: M + 1 pairs more per depth (medium_flight)
 
   static constexpr uint32_t camera = 0;
-  constexpr uint32_t per_depth() const noexcept { return 2 + 2 * bsdf_samples + 2 * light_passes; }
+  constexpr uint32_t per_depth() const noexcept {
+    return 2 + 2 * bsdf_samples + 2 * light_passes + (media ? bsdf_samples + 1 : 0);
+  }
   constexpr uint32_t depth_base(uint32_t depth) const noexcept { return 1 + depth * per_depth(); }
   constexpr uint32_t technique_choice(uint32_t depth = 0) const noexcept { return depth_base(depth); }
   constexpr uint32_t bsdf(uint32_t m, uint32_t depth = 0) const noexcept { return depth_base(depth) + 1 + m; }
@@ -40,6 +45,11 @@ struct SampleLayout {
     return depth_base(depth) + 1 + bsdf_samples + 2 * light_passes + m;
   }
   constexpr uint32_t russian_roulette(uint32_t depth) const noexcept { return depth_base(depth) + 1 + 2 * bsdf_samples + 2 * light_passes; }
+  // scenes with media (wave/media.h): the free flight along BSDF sample m < M of depth d
+  // (hero channel, distance); m = M at depth 0 is the camera ray's
+  constexpr uint32_t medium_flight(uint32_t m, uint32_t depth = 0) const noexcept {
+    return depth_base(depth) + 2 + 2 * bsdf_samples + 2 * light_passes + m;
+  }
 };
 
 }  // namespace tuile

@@ -127,10 +127,13 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
   // the shading normal where the scene has them (vertex normals, bump maps: the BSDF's
   // frame and the cosine), the geometric one n for offsets and which side wi leaves by
   const Vec3<T> ns = G.shading_normals ? load3<T>(tb.points.snx + k, tb.points.sny + k, tb.points.snz + k) : n;
-  out.fe = load_surface_bsdf<T, Bsdfs>(G, tb.points, k, ns).eval(s.wi);
+  const SurfaceBsdf<T, Bsdfs> bsdf = load_surface_bsdf<T, Bsdfs>(G, tb.points, k, ns);
+  out.fe = bsdf.eval(s.wi);
   constexpr bool transmits = (Bsdfs & bsdf_transmits) != 0;
   const T cos_s = dot(ns, s.wi);
   out.cos_x = transmits ? abs(cos_s) : cos_s;
+  if constexpr ((Bsdfs & bsdf_phase) != 0)  // a point in a medium: the phase function, no cosine
+    if (G.has_media) out.cos_x = sel(bsdf.is(MaterialKind::phase), T(1.f), out.cos_x);
   // x is on the side the source emits to (one-sided planar sources), and the lanes whose
   // source is at infinity (the shadow ray has no end point)
   auto front = mask_t<T>(true), at_infinity = mask_t<T>(false);

@@ -129,7 +129,9 @@ TUILE_FLATTEN inline HitGeometry<T> hit_geometry_lanes(const GeomView& G, const 
   const auto flat_i = i_mask_from_f(ok) && kind == i32_t<T>(static_cast<int32_t>(GeomKind::flat_curve));
   const auto curve_i = (i_mask_from_f(ok) && kind == i32_t<T>(static_cast<int32_t>(GeomKind::curve))) || flat_i;
   const auto curve = f_mask_from_i(curve_i);
-  const auto sphere = ok && !f_mask_from_i(tri_i) && !curve;
+  // a medium's row: a scattering point on the ray (wave/media.h), exact where it is
+  const auto medium = f_mask_from_i(i_mask_from_f(ok) && kind == i32_t<T>(static_cast<int32_t>(GeomKind::medium)));
+  const auto sphere = ok && !f_mask_from_i(tri_i) && !curve && !medium;
   const bool mesh0 = is_mesh(G, g0);
   const bool one_tri = one_geom && (!mesh0 || all(!ok || f_mask_from_i(prim == i32_t<T>(p0))));
   const int32_t t0 = mesh0 ? G.geom_first[g0] + p0 : 0;
@@ -181,6 +183,10 @@ TUILE_FLATTEN inline HitGeometry<T> hit_geometry_lanes(const GeomView& G, const 
     const T k(0x1p-16f);
     x = sel(curve, xc, x);
     err = sel(curve, Vec3<T>{k * abs(xc.x) + r2, k * abs(xc.y) + r2, k * abs(xc.z) + r2}, err);
+  }
+  if (G.has_media && any(medium)) {
+    x = sel(medium, o + d * t, x);
+    err = sel(medium, Vec3<T>(T(0.f), T(0.f), T(0.f)), err);
   }
   h.x = x;
   h.err = err;
@@ -283,13 +289,14 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     ag = gather(G.mat_g, mat);
     ab = gather(G.mat_b, mat);
   }
-  if (G.shading_normals || G.has_rough_tex || G.has_hair) {  // for the scalar passes (shading normals, roughness, hair)
+  if (G.shading_normals || G.has_rough_tex || G.has_hair || G.has_media) {  // for the scalar passes (shading normals, roughness, hair, media)
     compress_store(tb.points.geom + n, geom, keep);
     compress_store(tb.points.prim + n, load_i32<T>(reinterpret_cast<const int32_t*>(p.primID + l)), keep);
     compress_store(tb.points.bu + n, load<T>(p.u + l), keep);
     compress_store(tb.points.bv + n, load<T>(p.v + l), keep);
   }
   if (G.has_textures) list_textured_points(G, p, l, keep, n, tb);
+  if (G.has_media) compress_store(tb.points.medf + n, load_i32<T>(tb.media.med + i), keep);  // (wave/media.h point_media)
 
   // compaction: n <= i, so a whole batch written at n stays inside the arrays
   compress_store(tb.points.px + n, x.x, keep);
@@ -316,6 +323,24 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   n += std::popcount(keep);
 }
 
+// Each shading point's media (ShadingPoints::medf on its normal's side, medb behind it),
+// from the medium its ray arrived through (medf on entry) and its surface.
+inline void point_media(const GeomView& G, ShadingPoints& P) {
+  const MediumView& M = G.media;
+  for (int k = 0; k < P.count; ++k) {
+    const int32_t g = P.geom[k];
+    const int32_t in = M.geom_in[g], out = M.geom_out[g];
+    if (in != out) {  // (never a medium's own row, whose sides are the same)
+      const bool outside = P.side[k] > 0.f;  // the viewer is on the surface's outside
+      P.medf[k] = outside ? out : in;
+      P.medb[k] = outside ? in : out;
+    } else {
+      P.medb[k] = P.medf[k];
+    }
+  }
+  for (int k = P.count; k < packet_padded(P.count); ++k) P.medf[k] = P.medb[k] = -1;
+}
+
 // What both kinds of hits end with: the scalar passes (mixes, shading normals, textured
 // roughness, texels), padding to whole packets, zero radiance, the one-sample MIS choice.
 template <bool Materials>
@@ -330,6 +355,7 @@ inline void finish_points(const GeomView& G, const Estimator& est, uint32_t samp
     if (G.has_hair) apply_hair_frames(G, tb.points);
   }
   if (G.has_textures) apply_texels(G, tb);
+  if (G.has_media) point_media(G, tb.points);
   // pad to whole packets with copies of a real point; padding lanes are never active
   const int padded = packet_padded(n);
   for (int k = n; k < padded; ++k) {

@@ -77,6 +77,9 @@ struct ShadingPoints {
   // scenes with hair only (GeomView::has_hair): the fiber's axis (unit) and where the ray
   // met it across its width, h in [-1, 1] (bsdf/hair.h)
   alignas(64) float fx[lane_array], fy[lane_array], fz[lane_array], fh[lane_array];
+  // scenes with media only (GeomView::has_media): the medium on the normal's side of the
+  // point and behind it (-1: none; wave/media.h point_media)
+  alignas(64) int32_t medf[lane_array], medb[lane_array];
   alignas(64) uint32_t pixel[lane_array];                     // global pixel id
   alignas(64) int32_t lane[lane_array];                       // tile lane
   alignas(64) float choose_light[lane_array];                 // one-sample MIS: 1 = light technique
@@ -190,6 +193,21 @@ struct OptimalState {
   alignas(64) float pl[lane_array], ur[lane_array], ug[lane_array], ub[lane_array], wb[lane_array];
 };
 
+// Participating media (wave/media.h): the state of one set of rays' flights, per ray (tile lanes for camera rays, shading
+// points for bounce rays).
+struct MediumLanes {
+  alignas(64) int32_t med[lane_array];                 // in: the medium at the origin; out: at the hit
+  alignas(64) float wr[lane_array], wg[lane_array], wb[lane_array];  // out: the flight's weight
+  alignas(64) float er[lane_array], eg[lane_array], eb[lane_array];  // out: emission gathered, relative to the origin
+  alignas(64) float u0[lane_array], u1[lane_array];   // in: hero channel, distance
+  // the flight in progress
+  alignas(64) float tau[lane_array], od[3][lane_array], absorb[3][lane_array];
+  alignas(64) float ox[lane_array], oy[lane_array], oz[lane_array], tbase[lane_array];
+  alignas(64) int32_t hero[lane_array], pending[lane_array];
+  // the camera's flights, per tile lane (kept past the bounce rays' flights)
+  alignas(64) float cwr[lane_array], cwg[lane_array], cwb[lane_array];
+};
+
 struct alignas(64) TileBuffers {
   RayHit16 cam[max_packets];
   Ray16 shadow[max_packets];
@@ -214,6 +232,7 @@ struct alignas(64) TileBuffers {
   EmitterHitQueue queue;
   RisReservoirs ris;
   OptimalState opt;
+  MediumLanes media;  // scenes with media only
   SamplerKeys keys;
   TileCounters stats;
 };

@@ -28,6 +28,7 @@ enum MatParam : int {
   mp_hair_s, mp_hair_e_pi_s,
   mp_hair_sin0, mp_hair_sin1, mp_hair_sin2,
   mp_hair_cos0, mp_hair_cos1, mp_hair_cos2,
+  mp_hg_g,                       // phase (a medium's points): Henyey-Greenstein's asymmetry
   mp_count
 };
 
@@ -35,7 +36,28 @@ enum MatParam : int {
 // shaded: a triangle mesh (its triangles flattened in GeomView::tri_pos), or a sphere.
 // curve: a ribbon or a tube, whose Embree Ng is the surface's normal; flat_curve: a ribbon
 // facing each ray, whose Ng is the curve's tangent (Embree's convention)
-enum class GeomKind : int32_t { triangles = 0, sphere = 1, curve = 2, flat_curve = 3 };
+// medium: no Embree geometry, one row per medium after the scene's (MediumView::geom0 + m):
+// the medium stage (wave/media.h) makes a ray that scatters in medium m a hit of that row,
+// at the scattering point, so the hit stages turn it into a shading point like any other.
+enum class GeomKind : int32_t { triangles = 0, sphere = 1, curve = 2, flat_curve = 3, medium = 4 };
+
+// Participating media as the medium stages read them (wave/media.h): per medium, its
+// coefficients per channel and emission; per geomID, the media on the inside and outside of
+// a surface that changes the medium (else -1 both: a ray keeps its medium through it) and
+// whether it is an interface (no surface at all: rays pass through it).
+struct MediumView {
+  int32_t count = 0;
+  int32_t geom0 = 0;                           // the geomID of medium 0's row
+  const float* sigma_t[3] = {};                // sigma_a + sigma_s
+  const float* sigma_s[3] = {};
+  const float* emit[3] = {};                   // sigma_a Le
+  const int32_t* scatters = nullptr;           // some sigma_s > 0 (else absorption alone: no flights)
+  const int32_t* emits = nullptr;              // some sigma_a Le > 0
+  const int32_t* geom_in = nullptr;            // per geomID
+  const int32_t* geom_out = nullptr;
+  const int32_t* geom_interface = nullptr;
+  int32_t camera = -1;                         // the camera's medium
+};
 
 // Per-geometry data the hit stages look up by Embree's geomID / primID.
 struct GeomView {
@@ -102,6 +124,9 @@ struct GeomView {
   const int32_t* mat_remap = nullptr;
   const float* const* tex_rgb = nullptr;       // per texture
   const int32_t *tex_w = nullptr, *tex_h = nullptr;
+  // Participating media (scenes with some: has_media; wave/media.h)
+  bool has_media = false;
+  MediumView media;
 };
 
 // Whether geometry g is a triangle mesh.

@@ -103,7 +103,7 @@ std::string info_text(const Prepared& p) {
   }
   say("lights: %zu (area sources %zu, delta %zu, skies %zu)\n", scene.lights.size(), area, delta, skies);
   if (!scene.media.empty()) {
-    say("media: %zu (read, not rendered yet)%s\n", scene.media.size(),
+    say("media: %zu%s\n", scene.media.size(),
         scene.camera_medium >= 0 ? (", the camera is in \"" + scene.media[size_t(scene.camera_medium)].name + "\"").c_str() : "");
     for (const Medium& m : scene.media) {
       if (m.supported)
@@ -408,8 +408,8 @@ int run_profile(const ProfileFlags& f, std::string* json) {
        << 1.0 + static_cast<double>(st.path_vertices) / samples << ",\n  \"vertices\": [";
     // stage columns: what each vertex spends where (ms over all threads)
     const Stage cols[] = {Stage::camera_hits,    Stage::sample_lights,    Stage::intersect_shadow, Stage::sample_bsdf,
-                          Stage::intersect_bounce, Stage::mis_weight, Stage::accumulate};
-    const char* col_names[] = {"hits", "lights", "shadow", "BSDF", "bounce", "MIS", "accum"};
+                          Stage::intersect_bounce, Stage::mis_weight, Stage::accumulate, Stage::media};
+    const char* col_names[] = {"hits", "lights", "shadow", "BSDF", "bounce", "MIS", "accum", "media"};
     say("%-6s %10s %8s %7s %7s", "vertex", "paths", "alive", "lanes", "uncomp");
     for (const char* n : col_names) say(" %8s", n);
     say(" %9s %8s\n", "total ms", "ns/path");

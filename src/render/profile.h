@@ -20,8 +20,9 @@ enum class Stage : int {
   intersect_bounce,
   mis_weight,
   accumulate,
+  media,  // scenes with media: free flights, interfaces, shadow transmittance (wave/media.h)
 };
-inline constexpr int stage_count = 9;
+inline constexpr int stage_count = 10;
 // Rows of the per-vertex profile of paths (vertex 1 .. profile_depths; deeper vertices
 // count in the last row).
 inline constexpr int profile_depths = 32;

@@ -51,7 +51,12 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   if (sky && opt_.bounce == BounceTrace::emitters)
     throw std::invalid_argument("--bounce-rays emitters: the scene has a sky (LightSource \"infinite\"), which only rays "
                                 "traced against the whole scene can find; use --bounce-rays scene or auto");
-  if (sky) {
+  // nor a ray that may scatter in a medium or pass an interface on its way
+  const bool media = (scene.features & feat_media) != 0;
+  if (media && opt_.bounce == BounceTrace::emitters)
+    throw std::invalid_argument("--bounce-rays emitters: the scene has participating media, through which only rays "
+                                "traced against the whole scene find their way; use --bounce-rays scene or auto");
+  if (sky || media) {
     bounce_against_emitters_ = false;
   } else if (opt_.bounce == BounceTrace::automatic) {
     size_t all = scene.spheres.size(), emitting = 0;
@@ -135,7 +140,8 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
     }
     c.opt_film = film.optimal.data();
   }
-  c.layout = SampleLayout{static_cast<uint32_t>(ris ? c.bsdf_passes : est.bsdf_samples), static_cast<uint32_t>(c.light_passes)};
+  c.layout = SampleLayout{static_cast<uint32_t>(ris ? c.bsdf_passes : est.bsdf_samples), static_cast<uint32_t>(c.light_passes),
+                          v.geom.has_media};
   std::string why;
   const PipelineEntry pipe = pick_pipeline(v, est, opt_.general_pipeline, why);
   const int all_tiles = c.tiles_x * (div_up(cam.height, ts));

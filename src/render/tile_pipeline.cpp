@@ -47,6 +47,7 @@ Features pipeline_features(const SceneViews& v, const Estimator& est, bool gener
   const Features f = features_for(x);
   why = std::string(area ? "area lights" : "no area light") + ", " + (delta ? "delta lights" : "no delta light") + ", " +
         ((v.features & feat_sky) ? "a sky (the general pipeline), " : "") +
+        ((v.features & feat_media) ? "participating media (the general pipeline), " : "") +
         std::to_string(v.lights.count) + " light(s), pick " + (f.pick ? "per lane" : "none") + ", strategy " +
         (est.strategy == Strategy::mis     ? "mis"
          : est.strategy == Strategy::light ? "light"

@@ -82,7 +82,8 @@ constexpr Features features_for(const PipelineFacts& x) {
   const bool area = x.has(feat_area_lights), delta = x.has(feat_delta_lights);
   // A sky (and the escaped-ray stage it needs) runs in the general pipeline alone: no
   // specialisation for it has been measured to pay yet, and each would add compile time.
-  if (x.has(feat_sky)) return general_features;
+  // Media (their stages, wave/media.h, and the phase functions' points) likewise.
+  if (x.has(feat_sky) || x.has(feat_media)) return general_features;
   Features f;
   f.light = x.lights > 0 && (x.strategy != Strategy::bsdf || delta);
   const bool ris = x.strategy == Strategy::ris && x.lights > 0;

@@ -20,6 +20,7 @@
 #include "wave/emitter_hits.h"
 #include "wave/escaped.h"
 #include "wave/generate.h"
+#include "wave/media.h"
 #include "wave/optimal_mis.h"
 #include "wave/path.h"
 #include "wave/ris.h"
@@ -89,9 +90,17 @@ inline int active_lanes(const int32_t* valid) {
   return n;
 }
 
-// The shadow packets' valid lanes (tb.tech.valid): occlusion queries, counted.
+// The shadow packets' valid lanes (tb.tech.valid): occlusion queries, counted. In a scene
+// with media: nearest hits, through the interfaces, with each medium's transmittance
+// (wave/media.h shadow_media).
 inline void trace_shadow(const TileContext& c, TileBuffers& tb, StageTimer& timer, int packets, bool rec, ThreadProfile* tp) {
   clear_high_vector_registers();
+  if (c.v.geom.has_media) {
+    for (int p = 0; p < packets; ++p) tb.stats.rays_shadow += static_cast<uint64_t>(active_lanes(tb.tech.valid + p * packet_width));
+    shadow_media(c.v.geom, tb, tb.points.count,
+                 [&](const int32_t* valid, RayHit16& q) { c.accel.intersect16(valid, q, false, Bvh::scene); });
+    return;
+  }
   for (int p = 0; p < packets; ++p) {
     const int32_t* valid = tb.tech.valid + p * packet_width;
     const int active = active_lanes(valid);
@@ -201,6 +210,75 @@ template <Features F> void hash_tile_keys(const TileContext& c, TileBuffers& tb,
   }
 }
 
+// Scenes with media: the camera rays' flights (wave/media.h), from the camera's medium;
+// their weights kept per tile lane (MediumLanes::cw*) for the paths' first throughput.
+inline void camera_media(const TileContext& c, TileBuffers& tb, uint32_t s, int lanes) {
+  const GeomView& G = c.v.geom;
+  MediumLanes& ml = tb.media;
+  const int padded = packet_padded(lanes);
+  std::fill_n(ml.med, padded, G.media.camera);
+  lane_pairs(c.est, tb, s, c.layout.medium_flight(c.layout.bsdf_samples, 0), padded, ml.u0, ml.u1);
+  medium_flights(G, tb.cam, tb.lanes.cam_valid, lanes, ml, tb.stats.rejected_camera,
+                 [&](const int32_t* valid, RayHit16& p) { c.accel.intersect16(valid, p, false, Bvh::scene); });
+  std::copy_n(ml.wr, padded, ml.cwr);
+  std::copy_n(ml.wg, padded, ml.cwg);
+  std::copy_n(ml.wb, padded, ml.cwb);
+}
+
+// After the camera hits: what the camera's lanes saw directly (emitters, the sky) through
+// the media, and the emission on the way.
+inline void camera_media_seen(TileBuffers& tb, int lanes) {
+  MediumLanes& ml = tb.media;
+  for (int i = 0; i < lanes; ++i) {
+    tb.lanes.Lr[i] = tb.lanes.Lr[i] * ml.cwr[i] + ml.er[i];
+    tb.lanes.Lg[i] = tb.lanes.Lg[i] * ml.cwg[i] + ml.eg[i];
+    tb.lanes.Lb[i] = tb.lanes.Lb[i] * ml.cwb[i] + ml.eb[i];
+  }
+}
+
+// The paths' first throughput: the camera ray's flight.
+inline void camera_media_paths(TileBuffers& tb) {
+  const MediumLanes& ml = tb.media;
+  for (int k = 0; k < tb.points.count; ++k) {
+    const int i = tb.points.lane[k];
+    tb.path.throughput_r[k] = ml.cwr[i];
+    tb.path.throughput_g[k] = ml.cwg[i];
+    tb.path.throughput_b[k] = ml.cwb[i];
+  }
+}
+
+// Scenes with media: the flights of BSDF sample m's bounce rays (depth d) from the medium
+// on their side of each point; their weights join the samples' throughput (so the emitters
+// and the sky they reach, and the paths that go on, carry them). emission: the ray is the
+// path's continuation, whose medium emission counts (pbrt-v4: the segments before the last
+// vertex).
+inline void bounce_media(const TileContext& c, TileBuffers& tb, const Estimator& e, uint32_t s, uint32_t d, uint32_t m,
+                         bool emission) {
+  const GeomView& G = c.v.geom;
+  MediumLanes& ml = tb.media;
+  const int n = tb.points.count, padded = packet_padded(n);
+  for (int k = 0; k < padded; ++k) {
+    const RayHit16& r = tb.bounce[k / packet_width];
+    const int l = k % packet_width;
+    const float side = tb.points.nx[k] * r.ray.dir_x[l] + tb.points.ny[k] * r.ray.dir_y[l] + tb.points.nz[k] * r.ray.dir_z[l];
+    ml.med[k] = side >= 0.f ? tb.points.medf[k] : tb.points.medb[k];
+  }
+  point_pairs(e, tb, s, c.layout.medium_flight(m, d), padded, ml.u0, ml.u1);
+  medium_flights(G, tb.bounce, tb.tech.valid, n, ml, tb.stats.rejected_bsdf,
+                 [&](const int32_t* valid, RayHit16& p) { c.accel.intersect16(valid, p, false, Bvh::scene); });
+  for (int k = 0; k < n; ++k) {
+    if (!tb.tech.valid[k]) continue;
+    if (emission) {
+      tb.radiance.r[k] += tb.tech.beta_r[k] * ml.er[k];
+      tb.radiance.g[k] += tb.tech.beta_g[k] * ml.eg[k];
+      tb.radiance.b[k] += tb.tech.beta_b[k] * ml.eb[k];
+    }
+    tb.tech.beta_r[k] *= ml.wr[k];
+    tb.tech.beta_g[k] *= ml.wg[k];
+    tb.tech.beta_b[k] *= ml.wb[k];
+  }
+}
+
 // One vertex's light samples (the light technique: c.light_passes of them, each a shadow
 // ray), or resampled importance sampling of its direct light (run_ris).
 template <Features F>
@@ -254,6 +332,10 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
       timer.lap(Stage::sample_bsdf);
       trace_bounce(c, tb, timer, packets, rec, tp, against_emitters ? Bvh::emitters : Bvh::scene);
       timer.lap(Stage::intersect_bounce);
+      if (v.geom.has_media) {
+        bounce_media(c, tb, e, s, d, static_cast<uint32_t>(m), continuation);
+        timer.lap(Stage::media);
+      }
       constexpr bool delta = (F.bsdfs & bsdf_delta_capable) != 0;
       const bool optimal = optimal_mis(e);
       if (optimal) optimal_bsdf_clear(tb);
@@ -322,15 +404,23 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     }
     tb.stats.rays_camera += static_cast<uint64_t>(lanes);
     timer.lap(Stage::intersect_camera);
+    const bool media = v.geom.has_media;
+    if (media) {
+      camera_media(c, tb, s, lanes);
+      timer.lap(Stage::media);
+    }
     camera_hits<F.emitter_lookup, vfloat, F.bsdfs != bsdf_diffuse>(v.geom, v.lights, est, s, layout.technique_choice(),
                                                                    lanes, tb);
     if constexpr ((F.kinds & kind_sky) != 0) escaped_camera(v.lights, tb, lanes);  // the sky, seen directly
+    if (media) camera_media_seen(tb, lanes);
     timer.lap(Stage::camera_hits);
     // Direct lighting is the first vertex; paths (max_depth > 1) go on from the last BSDF
     // sample of each vertex, compacted (bounce_hits), until no path is left or the depth
-    // is reached.
-    const bool paths = est.max_depth > 1;
+    // is reached. In a scene with media every sample runs as a path (the camera ray's
+    // flight is its first throughput).
+    const bool paths = est.max_depth > 1 || media;
     if (paths) start_paths(tb);
+    if (media) camera_media_paths(tb);
     for (int vertex = 1;; ++vertex) {
       const uint32_t d = static_cast<uint32_t>(vertex - 1);
       const bool last = vertex >= est.max_depth;
@@ -346,7 +436,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
       if constexpr (F.light) run_light_samples<F>(c, tb, timer, e, s, d, packets, rec, tp);
       if constexpr (F.bsdf) run_bsdf_samples<F>(c, tb, timer, e, s, d, packets, rec, tp, last);
       if (!paths) break;
-      add_vertex_radiance(tb, vertex == 1);
+      add_vertex_radiance(tb, vertex == 1 && !media);
       timer.lap(Stage::accumulate);
       if constexpr (!F.bsdf) break;  // (pipeline_features gives paths the BSDF stages)
       if (last || tb.points.count == 0) break;

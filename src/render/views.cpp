@@ -304,7 +304,8 @@ void build_material_table(SceneViews& v, const Scene& scene) {
                                h.v[0],            h.v[1],            h.v[2],
                                h.s,               h.e_pi_s,
                                h.sin2k[0],        h.sin2k[1],        h.sin2k[2],
-                               h.cos2k[0],        h.cos2k[1],        h.cos2k[2]};
+                               h.cos2k[0],        h.cos2k[1],        h.cos2k[2],
+                               0.f};
     for (int i = 0; i < mp_count; ++i) v.mat_param[i].push_back(p[i]);
     v.mat_alpha_tex.push_back(m.alpha_u.texture);
     v.mat_alpha_tex.push_back(m.alpha_v.texture);
@@ -391,6 +392,118 @@ void build_material_table(SceneViews& v, const Scene& scene) {
   G.ftex_h = v.ftex_h.data();
 }
 
+// Participating media (GeomView::media, wave/media.h): per medium its coefficients, a
+// material row (its phase function) and a geometry row (GeomKind::medium: where its
+// scattering points are hits); per geomID the media a surface separates. Media of types
+// tuile does not render (warned at load) are vacuum here.
+void build_media_table(SceneViews& v, const Scene& scene) {
+  GeomView& G = v.geom;
+  const auto rendered = [&](int m) { return m >= 0 && scene.media[static_cast<size_t>(m)].supported ? m : -1; };
+  G.has_media = (scene.features & feat_media) != 0;
+  if (!G.has_media) return;
+  const size_t geoms = static_cast<size_t>(G.geom_count);
+  auto sides = [&](int in, int out, bool interface) {
+    in = rendered(in);
+    out = rendered(out);
+    const bool change = in != out;
+    v.med_geom_in.push_back(change ? in : -1);
+    v.med_geom_out.push_back(change ? out : -1);
+    v.med_geom_interface.push_back(interface && change ? 1 : 0);
+  };
+  auto interface = [&](int material) { return material >= 0 && scene.materials[static_cast<size_t>(material)].interface; };
+  for (const Mesh& m : scene.meshes) sides(m.medium_inside, m.medium_outside, interface(m.material) && !m.emissive());
+  for (const Sphere& s : scene.spheres) sides(s.medium_inside, s.medium_outside, interface(s.material) && !s.emissive());
+  for (const Curves& c : scene.curves) sides(c.medium_inside, c.medium_outside, interface(c.material));
+  // the spare row of the geometry table (build_geometry_table) in the tables that lack it,
+  // so that medium m's row is geoms + 1 + m in every one
+  v.geom_material.push_back(static_cast<int32_t>(scene.materials.size()));
+  v.indices.push_back(nullptr);
+  v.positions.push_back(nullptr);
+  v.uvs.push_back(nullptr);
+  v.normals.push_back(nullptr);
+  v.curve_points.push_back(nullptr);
+  sides(-1, -1, false);
+  G.media.geom0 = static_cast<int32_t>(geoms + 1);
+  const int32_t phase0 = static_cast<int32_t>(v.mat_kind.size());
+  for (size_t i = 0; i < scene.media.size(); ++i) {
+    const Medium& md = scene.media[i];
+    const Rgb sa = md.supported ? md.sigma_a : Rgb{0, 0, 0}, ss = md.supported ? md.sigma_s : Rgb{0, 0, 0};
+    const float st[3] = {sa.r + ss.r, sa.g + ss.g, sa.b + ss.b}, s[3] = {ss.r, ss.g, ss.b};
+    const float e[3] = {sa.r * md.Le.r, sa.g * md.Le.g, sa.b * md.Le.b};
+    for (int c = 0; c < 3; ++c) {
+      v.med_sigma_t[c].push_back(st[c]);
+      v.med_sigma_s[c].push_back(s[c]);
+      v.med_emit[c].push_back(md.supported ? e[c] : 0.f);
+    }
+    v.med_scatters.push_back(s[0] > 0 || s[1] > 0 || s[2] > 0 ? 1 : 0);
+    v.med_emits.push_back(md.supported && (e[0] > 0 || e[1] > 0 || e[2] > 0) ? 1 : 0);
+    // its phase function: a material row
+    v.mat_bump.push_back(-1);
+    v.mat_r.push_back(1.f);
+    v.mat_g.push_back(1.f);
+    v.mat_b.push_back(1.f);
+    v.mat_texture.push_back(-1);
+    v.mat_kind.push_back(static_cast<int32_t>(MaterialKind::phase));
+    for (int p = 0; p < mp_count; ++p) v.mat_param[p].push_back(p == mp_hg_g ? md.g : 0.f);
+    v.mat_alpha_tex.push_back(-1);
+    v.mat_alpha_tex.push_back(-1);
+    v.mat_remap.push_back(0);
+    v.mat_mix0.push_back(-1);
+    v.mat_mix1.push_back(-1);
+    v.mat_mix_amount.push_back(0.f);
+    // and a geometry row
+    v.geom_kind.push_back(static_cast<int32_t>(GeomKind::medium));
+    v.geom_material.push_back(phase0 + static_cast<int32_t>(i));
+    v.geom_side.push_back(1.f);
+    v.geom_first.push_back(static_cast<int32_t>(i));
+    v.geom_light.push_back(-1);
+    v.indices.push_back(nullptr);
+    v.positions.push_back(nullptr);
+    v.uvs.push_back(nullptr);
+    v.normals.push_back(nullptr);
+    v.curve_points.push_back(nullptr);
+    const int m = static_cast<int>(i);
+    sides(m, m, false);  // (a point in the medium: the medium on both sides, stage-set)
+  }
+  v.bsdf_kinds |= bsdf_phase;
+  MediumView& M = G.media;
+  M.count = static_cast<int32_t>(scene.media.size());
+  for (int c = 0; c < 3; ++c) {
+    M.sigma_t[c] = v.med_sigma_t[c].data();
+    M.sigma_s[c] = v.med_sigma_s[c].data();
+    M.emit[c] = v.med_emit[c].data();
+  }
+  M.scatters = v.med_scatters.data();
+  M.emits = v.med_emits.data();
+  M.geom_in = v.med_geom_in.data();
+  M.geom_out = v.med_geom_out.data();
+  M.geom_interface = v.med_geom_interface.data();
+  M.camera = rendered(scene.camera_medium);
+  // the tables grew: their views again
+  G.geom_kind = v.geom_kind.data();
+  G.geom_material = v.geom_material.data();
+  G.geom_first = v.geom_first.data();
+  G.geom_light = v.geom_light.data();
+  G.geom_side = v.geom_side.data();
+  G.indices = v.indices.data();
+  G.positions = v.positions.data();
+  G.uvs = v.uvs.data();
+  G.normals = v.normals.data();
+  G.curve_points = v.curve_points.data();
+  G.mat_r = v.mat_r.data();
+  G.mat_g = v.mat_g.data();
+  G.mat_b = v.mat_b.data();
+  G.mat_texture = v.mat_texture.data();
+  G.mat_kind = v.mat_kind.data();
+  G.mat_alpha_tex = v.mat_alpha_tex.data();
+  G.mat_remap = v.mat_remap.data();
+  G.mat_mix0 = v.mat_mix0.data();
+  G.mat_mix1 = v.mat_mix1.data();
+  G.mat_mix_amount = v.mat_mix_amount.data();
+  G.mat_bump = v.mat_bump.data();
+  for (int i = 0; i < mp_count; ++i) G.mat_param[i] = v.mat_param[i].data();
+}
+
 // The camera as the generate stage reads it, and the pixel footprint of bump mapping.
 void build_camera_view(SceneViews& v, const Scene& scene) {
   const Camera& c = scene.camera;
@@ -439,6 +552,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   build_light_table(out, scene, pick);
   build_geometry_table(out, scene);
   build_material_table(out, scene);
+  build_media_table(out, scene);
   build_camera_view(out, scene);
   return out;
 }

@@ -51,6 +51,9 @@ struct SceneViews {
   std::vector<float> geom_side;
   std::vector<int32_t> mat_bump, ftex_w, ftex_h;  // bump mapping (GeomView::mat_bump, ftex_*)
   std::vector<const float*> ftex_value;
+  // participating media (GeomView::media)
+  std::vector<float> med_sigma_t[3], med_sigma_s[3], med_emit[3];
+  std::vector<int32_t> med_scatters, med_emits, med_geom_in, med_geom_out, med_geom_interface;
   GeomView geom;
   CameraView camera;
   std::vector<float> filter_table;  // camera.filter's tables (render/filter_table.h), set by the renderer

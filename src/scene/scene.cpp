@@ -311,6 +311,12 @@ void detect_features(Scene& scene) {
   for (const Material& mt : scene.materials)
     if (mt.texture >= 0) f |= feat_textures;
   if (!scene.spheres.empty()) f |= feat_spheres;
+  auto rendered = [&](int m) { return m >= 0 && scene.media[static_cast<size_t>(m)].supported; };
+  bool media = rendered(scene.camera_medium);
+  for (const Mesh& m : scene.meshes) media = media || rendered(m.medium_inside) || rendered(m.medium_outside);
+  for (const Sphere& s : scene.spheres) media = media || rendered(s.medium_inside) || rendered(s.medium_outside);
+  for (const Curves& c : scene.curves) media = media || rendered(c.medium_inside) || rendered(c.medium_outside);
+  if (media) f |= feat_media;
   // the test light_geom_derive applies to a source's edges (a kernel's rule, in one place)
   bool all_rects = !scene.lights.empty();
   for (const Light& l : scene.lights)

@@ -152,7 +152,8 @@ struct Curves {
 // Henyey-Greenstein asymmetry and emission. Other types (grids, clouds, nanovdb) are kept by
 // name and type only (supported = false). Which shapes bound a medium: their
 // medium_inside / medium_outside (indices here, -1 for none); the camera's: camera_medium.
-// Parsed and listed by `tuile info`; not rendered yet (the renderer warns).
+// Listed by `tuile info`; homogeneous ones are rendered (wave/media.h), others warned of
+// and left out (a shape filled with one renders as if it held nothing).
 struct Medium {
   std::string name, type;      // MakeNamedMedium's name and "type"
   std::string where;           // "file:line" of its definition
@@ -211,10 +212,12 @@ enum SceneFeature : uint32_t {
   feat_visible_emitters = 1u << 5,
   feat_rect_lights_only = 1u << 6,  // every source is a rectangle (Urena's map, no dispatch on kind)
   feat_sky = 1u << 7,               // a light at infinity with a density (LightSource "infinite"): escaped rays see it
+  feat_media = 1u << 8,             // a rendered medium fills some shape or surrounds the camera (wave/media.h)
 };
 // Their names (`tuile info`), bit i named by entry i.
 inline constexpr const char* scene_feature_names[] = {"area-lights", "delta-lights",     "single-light",    "textures",
-                                                      "spheres",     "visible-emitters", "rect-lights-only", "sky"};
+                                                      "spheres",     "visible-emitters", "rect-lights-only", "sky",
+                                                      "media"};
 
 struct Scene {
   std::string source;  // file name or "built-in:NAME"

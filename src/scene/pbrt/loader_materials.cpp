@@ -490,8 +490,6 @@ void Loader::make_medium(Lexer& lx, const Token& t, const std::string& name, Par
     if (!(le_scale >= 0) || !std::isfinite(le_scale))
       ps.get("Lescale", "float")->fail("\"Lescale\" is negative or not finite", "a finite scale >= 0");
     md.Le = mul(md.Le, le_scale);
-    warn("medium", where + ": participating media are read (tuile info lists them) but not rendered yet: the scene renders as if "
-                           "they were absent");
   }
   warn_unused(ps, "MakeNamedMedium", lx, t);
   named_media_[name] = int(scene.media.size());

@@ -604,20 +604,24 @@ void Loader::flatten() {
     if (scene.camera_medium >= 0) --scene.media[size_t(scene.camera_medium)].bounding_shapes;
   }
   // "interface" shapes bound media and do not scatter light: pbrt-v4's rays pass through
-  // them. Media are not rendered yet, so they are left out of the geometry (an emissive one
-  // stays, a diffuse emitter: pbrt-v4 counts its emission and passes the ray on).
+  // them. One that changes the medium (a rendered medium on either side, different sides)
+  // stays in the geometry, where the medium stages pass rays through it (wave/media.h);
+  // one that changes nothing is left out (an emissive one stays, a diffuse emitter: pbrt-v4
+  // counts its emission and passes the ray on).
   size_t interfaces = 0;
-  auto is_interface = [&](int material, bool emits) {
+  auto rendered = [&](int m) { return m >= 0 && scene.media[size_t(m)].supported ? m : -1; };
+  auto is_interface = [&](int material, bool emits, int in, int out) {
     const bool interface = material >= 0 && scene.materials[size_t(material)].interface;
     if (interface && emits)
       warn("interfaceemit", "an emissive shape with the \"interface\" material is rendered as a diffuse emitter (grey 0.5), "
                             "where pbrt-v4's rays pass through it");
-    interfaces += interface && !emits;
-    return interface && !emits;
+    const bool skip = interface && !emits && rendered(in) == rendered(out);
+    interfaces += skip;
+    return skip;
   };
   for (OwnedMesh& om : meshes_) {
     if (om.object >= 0) continue;
-    if (is_interface(om.mesh.material, om.mesh.emissive())) continue;
+    if (is_interface(om.mesh.material, om.mesh.emissive(), om.mesh.medium_inside, om.mesh.medium_outside)) continue;
     if (om.mesh.indices.empty()) {
       warn("emptymesh", om.mesh.name + ": a mesh without triangles was skipped");
       continue;
@@ -633,15 +637,15 @@ void Loader::flatten() {
     scene.meshes.push_back(std::move(om.mesh));
   }
   for (OwnedSphere& os : spheres_)
-    if (os.object < 0 && !is_interface(os.sphere.material, os.sphere.emissive())) scene.spheres.push_back(os.sphere);
+    if (os.object < 0 && !is_interface(os.sphere.material, os.sphere.emissive(), os.sphere.medium_inside, os.sphere.medium_outside)) scene.spheres.push_back(os.sphere);
   for (OwnedCurves& oc : curves_)
-    if (oc.object < 0 && !is_interface(oc.curves.material, false)) scene.curves.push_back(oc.curves);
+    if (oc.object < 0 && !is_interface(oc.curves.material, false, oc.curves.medium_inside, oc.curves.medium_outside)) scene.curves.push_back(oc.curves);
   if (!instances_.empty())
     warn("instances", "object instances were flattened into copies of their meshes");
   for (const Instance& in : instances_) {
     const bool swaps = in.ctm.swaps_handedness();
     for (const OwnedMesh& om : meshes_) {
-      if (om.object != in.object || om.mesh.indices.empty() || is_interface(om.mesh.material, false)) continue;
+      if (om.object != in.object || om.mesh.indices.empty() || is_interface(om.mesh.material, false, om.mesh.medium_inside, om.mesh.medium_outside)) continue;
       total += om.mesh.triangle_count();
       if (total >= max_triangles)
         throw SceneError(om.mesh.name + ": error: too many triangles after flattening object instances (expected fewer than 2^31)");
@@ -662,7 +666,7 @@ void Loader::flatten() {
       scene.meshes.push_back(std::move(m));
     }
     for (const OwnedSphere& os : spheres_) {
-      if (os.object != in.object || is_interface(os.sphere.material, false)) continue;
+      if (os.object != in.object || is_interface(os.sphere.material, false, os.sphere.medium_inside, os.sphere.medium_outside)) continue;
       Sphere s = os.sphere;
       const Vec3d c = apply_point(in.ctm, {s.center.x, s.center.y, s.center.z});
       s.center = vec3f(float(c.x), float(c.y), float(c.z));
@@ -671,7 +675,7 @@ void Loader::flatten() {
       scene.spheres.push_back(s);
     }
     for (const OwnedCurves& oc : curves_) {
-      if (oc.object != in.object || is_interface(oc.curves.material, false)) continue;
+      if (oc.object != in.object || is_interface(oc.curves.material, false, oc.curves.medium_inside, oc.curves.medium_outside)) continue;
       Curves c = oc.curves;
       const float ws = float(std::cbrt(std::abs(in.ctm.det3())));
       for (size_t i = 0; i + 3 < c.points.size(); i += 4) {
@@ -694,7 +698,7 @@ void Loader::flatten() {
   }
   if (interfaces)
     note("interface", std::to_string(interfaces) + " shape(s) with the \"interface\" material (boundaries of media, which do not "
-                      "scatter light) left out of the geometry: rays pass through them, as in pbrt-v4");
+                      "scatter light) between the same media left out of the geometry: rays pass through them, as in pbrt-v4");
 }
 
 }  // namespace tuile::pbrt

@@ -1,0 +1,283 @@
+// Participating media in the wavefront (pbrt-v4's volpath for homogeneous media): the
+// stages a scene with media runs beside the surface stages (GeomView::has_media; a scene
+// without media never calls them).
+//
+// - medium_flights, after a set of rays was traced (the camera's, or one BSDF sample's
+//   bounce rays): each ray travels in a medium (MediumLanes::med, -1 for none) from its
+//   origin to its hit. In a medium that scatters, a free flight is drawn: by one channel's
+//   exponential (the hero channel, uniform over the three) through every scattering
+//   segment of the ray together (an optical depth tau = -log(1 - u) in the hero channel,
+//   spent segment by segment), weighted by the one-sample MIS (balance heuristic) over the
+//   three channels' densities (Miller, Georgiev & Jarosz 2019; medium/homogeneous.h), so
+//   each channel is unbiased whatever the others' coefficients. A homogeneous medium is its
+//   own majorant: every collision is real, and its absorbed share is in the weight
+//   (sigma_s / sigma_t), not a coin. A medium that only absorbs draws nothing: its
+//   transmittance exp(-sigma_t d) multiplies the weight (the expectation of any tracking
+//   estimator, with no variance). A ray that meets an "interface" surface passes it
+//   (pbrt-v4: no vertex, no BSDF), takes the medium of the side it enters and is traced on;
+//   a ray that scatters becomes a hit of its medium's row of the geometry table
+//   (GeomKind::medium) at the collision, so the hit stages make it a shading point whose
+//   BSDF is the medium's phase function (MaterialKind::phase). Emission (sigma_a Le) is
+//   gathered along the ray: at a collision (pbrt-v4's estimator) in scattering media, in
+//   closed form in absorbing ones.
+// - shadow_media, for the shadow rays: the transmittance to the light through every medium
+//   and interface on the way, in closed form; any other surface occludes.
+// - point_media (wave/surface_hits.h, run by the hit stages): which medium lies on each side
+//   of a shading point (ShadingPoints::medf, medb): a surface that separates two media (its
+//   MediumInterface) says; any other keeps the medium its ray came through.
+// Scalar per lane (the media's rays are a minority of the lanes, and their loops differ per
+// lane); the numbers are lane_math's, the same bits on every machine.
+#pragma once
+#include <algorithm>
+#include <cmath>
+
+#include "medium/homogeneous.h"
+#include "wave/surface_hits.h"
+
+namespace tuile {
+
+// How many interfaces one ray may pass before it is dropped (counted as rejected).
+inline constexpr int max_interface_crossings = 64;
+
+namespace media_detail {
+
+inline float expn(float x) { return lane_math::exp_nonpositive(x); }  // e^x, x <= 0 (-inf: 0)
+
+// e^(-sigma * d) with 0 * inf = 0 (a channel that does not extinguish transmits 1).
+inline float transmit(float sigma, float d) { return sigma > 0.f ? expn(-sigma * d) : 1.f; }
+
+// Where a ray (lane l of packet r) that hit an interface at distance t goes on: the medium
+// of the side it enters, and its new origin just past the surface.
+inline void cross_interface(const GeomView& G, RayHit16& r, int l, float t, int32_t& med) {
+  const int32_t g = static_cast<int32_t>(r.geomID[l]);
+  const Vec3<float> o{r.ray.org_x[l], r.ray.org_y[l], r.ray.org_z[l]};
+  const Vec3<float> d{r.ray.dir_x[l], r.ray.dir_y[l], r.ray.dir_z[l]};
+  Vec3<float> ng{r.Ng_x[l], r.Ng_y[l], r.Ng_z[l]};
+  const float len2 = dot(ng, ng);
+  ng = len2 > 0.f ? ng * (1.f / std::sqrt(len2)) : d;
+  // pbrt's outside is Embree's Ng times the geometry's side (reverse orientation)
+  const bool entering = dot(ng, d) * G.geom_side[g] < 0.f;
+  med = entering ? G.media.geom_in[g] : G.media.geom_out[g];
+  const HitGeometry<float> h = hit_geometry_lanes<float>(G, r, l, true, 1u, g, o, d, t);
+  const Vec3<float> n = dot(ng, d) < 0.f ? Vec3<float>(0.f, 0.f, 0.f) - ng : ng;  // the side the ray leaves by
+  const Vec3<float> x = h.x + n * offset_along_normal(h.err, n);
+  r.ray.org_x[l] = x.x;
+  r.ray.org_y[l] = x.y;
+  r.ray.org_z[l] = x.z;
+  r.ray.tfar[l] = 3.0e38f;
+  r.geomID[l] = invalid_id;
+}
+
+}  // namespace media_detail
+
+// The flights of rays [0, count) of the packets (valid[k] != 0: traced), each in medium
+// ml.med[k] at its origin, with ml.u0 / ml.u1 its random numbers. Afterwards each traced
+// ray's hit is where its path goes on: a surface (interfaces passed), a scattering point
+// (GeomKind::medium, the ray's tfar its distance) or none; its origin and tfar are the
+// original origin's (interfaces passed leave the direction as it was); ml.w* is the weight
+// of what happened (per channel), ml.e* the emission gathered on the way (to multiply by
+// the throughput at the origin), ml.med the medium at the hit. trace(valid, packet)
+// re-traces the lanes that passed an interface. Rays dropped (too many interfaces) get
+// valid 0, counted in rejected.
+template <class Trace>
+inline void medium_flights(const GeomView& G, RayHit16* packets, int32_t* valid, int count, MediumLanes& ml,
+                           uint64_t& rejected, Trace&& trace) {
+  using namespace media_detail;
+  const MediumView& M = G.media;
+  bool any = false;
+  for (int k = 0; k < count; ++k) {
+    ml.wr[k] = ml.wg[k] = ml.wb[k] = 1.f;
+    ml.er[k] = ml.eg[k] = ml.eb[k] = 0.f;
+    ml.pending[k] = valid[k] != 0;
+    if (!ml.pending[k]) continue;
+    any = true;
+    const RayHit16& r = packets[k / packet_width];
+    const int l = k % packet_width;
+    ml.tau[k] = -lane_math::log_positive(std::max(1.f - ml.u1[k], 1e-30f));
+    ml.hero[k] = std::min(static_cast<int>(ml.u0[k] * 3.f), 2);
+    for (int c = 0; c < 3; ++c) ml.od[c][k] = 0.f, ml.absorb[c][k] = 1.f;
+    ml.ox[k] = r.ray.org_x[l];
+    ml.oy[k] = r.ray.org_y[l];
+    ml.oz[k] = r.ray.org_z[l];
+    ml.tbase[k] = 0.f;
+  }
+  for (int round = 0; any; ++round) {
+    bool again = false;
+    for (int k = 0; k < count; ++k) {
+      if (!ml.pending[k]) continue;
+      RayHit16& r = packets[k / packet_width];
+      const int l = k % packet_width;
+      const bool hit = r.geomID[l] != invalid_id;
+      const float t = hit ? r.ray.tfar[l] : INFINITY;
+      const int32_t m = ml.med[k];
+      float* od[3] = {&ml.od[0][k], &ml.od[1][k], &ml.od[2][k]};
+      float* ab[3] = {&ml.absorb[0][k], &ml.absorb[1][k], &ml.absorb[2][k]};
+      float* e[3] = {&ml.er[k], &ml.eg[k], &ml.eb[k]};
+      bool scattered = false;
+      float ts = t;
+      if (m >= 0) {
+        const float st[3] = {M.sigma_t[0][m], M.sigma_t[1][m], M.sigma_t[2][m]};
+        if (M.scatters[m]) {
+          const float sh = st[ml.hero[k]];
+          if (sh > 0.f && ml.tau[k] < sh * t) {  // (sh * inf = inf)
+            scattered = true;
+            ts = ml.tau[k] / sh;
+            for (int c = 0; c < 3; ++c) *od[c] += st[c] * ts;
+          } else {
+            if (sh > 0.f) ml.tau[k] -= sh * t;
+            for (int c = 0; c < 3; ++c) *od[c] = st[c] > 0.f ? *od[c] + st[c] * t : *od[c];
+          }
+          if (scattered) {
+            float tr[3], pdf = 0.f;
+            for (int c = 0; c < 3; ++c) {
+              tr[c] = expn(-*od[c]) * *ab[c];
+              pdf += st[c] * expn(-*od[c]);
+            }
+            pdf *= 1.f / 3.f;
+            const float inv = pdf > 0.f ? 1.f / pdf : 0.f;
+            ml.wr[k] = tr[0] * M.sigma_s[0][m] * inv;
+            ml.wg[k] = tr[1] * M.sigma_s[1][m] * inv;
+            ml.wb[k] = tr[2] * M.sigma_s[2][m] * inv;
+            if (M.emits[m])  // pbrt-v4's collision estimator of sigma_a Le
+              for (int c = 0; c < 3; ++c) *e[c] += tr[c] * M.emit[c][m] * inv;
+          }
+        } else {
+          // absorption alone: transmittance (and emission) in closed form
+          float reach = 0.f;  // the probability that the flight came this far
+          for (int c = 0; c < 3; ++c) reach += expn(-*od[c]);
+          reach *= 1.f / 3.f;
+          for (int c = 0; c < 3; ++c) {
+            const float tr = transmit(st[c], t);
+            if (M.emits[m] && st[c] > 0.f && reach > 0.f)
+              *e[c] += *ab[c] * expn(-*od[c]) / reach * M.emit[c][m] * (1.f - tr) / st[c];
+            *ab[c] *= tr;
+          }
+        }
+      }
+      if (scattered) {
+        // the hit of the medium's row, at the collision; the ray as it left its origin
+        const float dx = r.ray.dir_x[l], dy = r.ray.dir_y[l], dz = r.ray.dir_z[l];
+        r.geomID[l] = static_cast<uint32_t>(M.geom0 + m);
+        r.primID[l] = 0;
+        r.u[l] = r.v[l] = 0.f;
+        r.Ng_x[l] = -dx;
+        r.Ng_y[l] = -dy;
+        r.Ng_z[l] = -dz;
+        r.ray.tfar[l] = ml.tbase[k] + ts;
+        r.ray.org_x[l] = ml.ox[k];
+        r.ray.org_y[l] = ml.oy[k];
+        r.ray.org_z[l] = ml.oz[k];
+        ml.pending[k] = 0;
+        continue;
+      }
+      if (hit && M.geom_interface[r.geomID[l]]) {
+        if (round + 1 >= max_interface_crossings) {
+          valid[k] = 0;
+          ++rejected;
+          r.geomID[l] = invalid_id;
+          ml.wr[k] = ml.wg[k] = ml.wb[k] = 0.f;
+          ml.pending[k] = 0;
+          continue;
+        }
+        int32_t next = -1;
+        cross_interface(G, r, l, t, next);
+        ml.med[k] = next;
+        ml.tbase[k] += t;
+        again = true;
+        continue;
+      }
+      // a surface, or nothing: the flight passed every medium on the way
+      float pass = 0.f;
+      for (int c = 0; c < 3; ++c) pass += expn(-*od[c]);
+      pass *= 1.f / 3.f;
+      const float inv = pass > 0.f ? 1.f / pass : 0.f;
+      ml.wr[k] = ml.absorb[0][k] * expn(-*od[0]) * inv;
+      ml.wg[k] = ml.absorb[1][k] * expn(-*od[1]) * inv;
+      ml.wb[k] = ml.absorb[2][k] * expn(-*od[2]) * inv;
+      if (ml.tbase[k] > 0.f) {
+        r.ray.org_x[l] = ml.ox[k];
+        r.ray.org_y[l] = ml.oy[k];
+        r.ray.org_z[l] = ml.oz[k];
+        if (hit) r.ray.tfar[l] = ml.tbase[k] + t;
+      }
+      ml.pending[k] = 0;
+    }
+    if (!again) break;
+    alignas(64) int32_t v[packet_width];
+    for (int p = 0; p < packets_for(count); ++p) {
+      bool some = false;
+      for (int l = 0; l < packet_width; ++l) {
+        const int k = p * packet_width + l;
+        v[l] = k < count && ml.pending[k] ? -1 : 0;
+        some = some || v[l];
+      }
+      if (some) trace(v, packets[p]);
+    }
+  }
+}
+
+// The shadow rays of the shading points [0, count) (valid lanes, tb.shadow) through the
+// media: each starts in the medium on its side of its point (medf / medb by the geometric
+// normal), passes interfaces (taking the medium of the side it enters) and multiplies its
+// contribution (tb.tech.c*) by the transmittance of every segment; a surface that is not an
+// interface occludes it (tfar = -inf, as Embree marks occlusion). trace(valid, packet):
+// nearest hits in the scene.
+template <class Trace>
+inline void shadow_media(const GeomView& G, TileBuffers& tb, int count, Trace&& trace) {
+  using namespace media_detail;
+  const MediumView& M = G.media;
+  alignas(64) RayHit16 q;
+  reset_query_fields(q);
+  alignas(64) int32_t v[packet_width];
+  int32_t med[packet_width];
+  float T[3][packet_width], left[packet_width];
+  for (int p = 0; p < packets_for(count); ++p) {
+    Ray16& s = tb.shadow[p];
+    bool some = false;
+    for (int l = 0; l < packet_width; ++l) {
+      const int k = p * packet_width + l;
+      v[l] = k < count && tb.tech.valid[k] ? -1 : 0;
+      if (!v[l]) continue;
+      some = true;
+      q.ray.org_x[l] = s.org_x[l];
+      q.ray.org_y[l] = s.org_y[l];
+      q.ray.org_z[l] = s.org_z[l];
+      q.ray.dir_x[l] = s.dir_x[l];
+      q.ray.dir_y[l] = s.dir_y[l];
+      q.ray.dir_z[l] = s.dir_z[l];
+      q.ray.tfar[l] = s.tfar[l];
+      left[l] = s.tfar[l];
+      q.geomID[l] = invalid_id;
+      const float side = tb.points.nx[k] * s.dir_x[l] + tb.points.ny[k] * s.dir_y[l] + tb.points.nz[k] * s.dir_z[l];
+      med[l] = side >= 0.f ? tb.points.medf[k] : tb.points.medb[k];
+      T[0][l] = T[1][l] = T[2][l] = 1.f;
+    }
+    for (int round = 0; some; ++round) {
+      trace(v, q);
+      some = false;
+      for (int l = 0; l < packet_width; ++l) {
+        if (!v[l]) continue;
+        const bool hit = q.geomID[l] != invalid_id;
+        const float t = hit ? q.ray.tfar[l] : left[l];
+        if (med[l] >= 0)
+          for (int c = 0; c < 3; ++c) T[c][l] *= transmit(M.sigma_t[c][med[l]], t);
+        if (hit && M.geom_interface[q.geomID[l]] && round + 1 < max_interface_crossings) {
+          cross_interface(G, q, l, t, med[l]);
+          left[l] -= t;
+          q.ray.tfar[l] = left[l];
+          some = true;
+          continue;
+        }
+        if (hit) T[0][l] = T[1][l] = T[2][l] = 0.f;
+        v[l] = 0;
+        const int k = p * packet_width + l;
+        tb.tech.cr[k] *= T[0][l];
+        tb.tech.cg[k] *= T[1][l];
+        tb.tech.cb[k] *= T[2][l];
+        s.tfar[l] = T[0][l] + T[1][l] + T[2][l] > 0.f ? s.tfar[l] : -INFINITY;
+      }
+    }
+  }
+}
+
+}  // namespace tuile
