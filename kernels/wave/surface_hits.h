@@ -337,6 +337,10 @@ inline void point_media(const GeomView& G, ShadingPoints& P) {
     } else {
       P.medb[k] = P.medf[k];
     }
+    // a point in a medium has no surface: its normal is 0 (no offset, both sides the same
+    // medium, and the light BVH's importance without a cosine, as pbrt-v4's medium
+    // interactions); its BSDF, the phase function, reads none
+    if (G.geom_kind[g] == static_cast<int32_t>(GeomKind::medium)) P.nx[k] = P.ny[k] = P.nz[k] = 0.f;
   }
   for (int k = P.count; k < packet_padded(P.count); ++k) P.medf[k] = P.medb[k] = -1;
 }
