@@ -226,7 +226,7 @@ template <class Trace>
 inline void shadow_media(const GeomView& G, TileBuffers& tb, int count, Trace&& trace) {
   using namespace media_detail;
   const MediumView& M = G.media;
-  alignas(64) RayHit16 q;
+  alignas(64) RayHit16 q{};
   reset_query_fields(q);
   alignas(64) int32_t v[packet_width];
   int32_t med[packet_width];
