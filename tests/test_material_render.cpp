@@ -181,11 +181,25 @@ void expect_same(const int32_t* a, const int32_t* b, int n, const std::string& w
 // vfloat4 give the scalar reference's bits in every lane.
 TEST(MaterialStages, LanesEqualScalar) {
   Scene s = every_surface();
+  // and a medium (a sphere of it, off the floor), so that some points are a medium's: the
+  // phase function, with no normal (wave/surface_hits.h point_media)
+  Medium md;
+  md.name = "fog";
+  md.type = "homogeneous";
+  md.supported = true;
+  md.g = 0.6f;
+  s.media.push_back(md);
+  Sphere fog;
+  fog.center = {0, 3, 0};
+  fog.radius = 0.5f;
+  fog.medium_inside = 0;
+  s.spheres.push_back(fog);
   finalize_scene(s);
   const SceneViews views = build_views(s, LightPick::power);
-  // every kind of surface (the phase function of media points is no surface: its lanes are
-  // checked with the medium kernels, tests/test_medium_kernels.cpp)
-  ASSERT_EQ(views.bsdf_kinds, bsdf_all & ~bsdf_phase);
+  ASSERT_TRUE(views.geom.has_media);
+  ASSERT_EQ(views.bsdf_kinds, bsdf_all);  // every kind of surface, and the phase function
+  const int32_t phase_material = views.geom.geom_material[views.geom.media.geom0];
+  ASSERT_EQ(views.mat_kind[static_cast<size_t>(phase_material)], static_cast<int32_t>(MaterialKind::phase));
   ASSERT_TRUE(views.geom.has_normals);
   ASSERT_TRUE(views.geom.has_hair);
   std::mt19937 rng(11);
@@ -194,6 +208,10 @@ TEST(MaterialStages, LanesEqualScalar) {
     est.strategy = st;
     auto a = std::make_unique<TileBuffers>();
     fill_points(s, *a, rng, 256);
+    for (int k = 5; k < 256; k += 9) {  // points in the medium
+      a->points.mat[k] = phase_material;
+      a->points.nx[k] = a->points.ny[k] = a->points.nz[k] = 0.f;
+    }
     auto b = std::make_unique<TileBuffers>(*a), c = std::make_unique<TileBuffers>(*a), d = std::make_unique<TileBuffers>(*a);
     const int n = 256;
     LightPass pass;

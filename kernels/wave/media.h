@@ -55,8 +55,19 @@ inline void cross_interface(const GeomView& G, RayHit16& r, int l, float t, int3
   Vec3<float> ng{r.Ng_x[l], r.Ng_y[l], r.Ng_z[l]};
   const float len2 = dot(ng, ng);
   ng = len2 > 0.f ? ng * (1.f / std::sqrt(len2)) : d;
-  // pbrt's outside is Embree's Ng times the geometry's side (reverse orientation)
-  const bool entering = dot(ng, d) * G.geom_side[g] < 0.f;
+  // pbrt's outside: the side of a mesh's interpolated vertex normals where it has them
+  // (as apply_shading_normals decides a point's side), else Embree's Ng times the
+  // geometry's side (reverse orientation)
+  Vec3<float> out = ng * G.geom_side[g];
+  if (const float* N = G.normals[g]) {
+    const uint32_t* idx = G.indices[g] + 3 * static_cast<size_t>(r.primID[l]);
+    const float b1 = r.u[l], b2 = r.v[l], b0 = 1.f - b1 - b2;
+    const Vec3<float> ni{b0 * N[3 * idx[0]] + b1 * N[3 * idx[1]] + b2 * N[3 * idx[2]],
+                         b0 * N[3 * idx[0] + 1] + b1 * N[3 * idx[1] + 1] + b2 * N[3 * idx[2] + 1],
+                         b0 * N[3 * idx[0] + 2] + b1 * N[3 * idx[1] + 2] + b2 * N[3 * idx[2] + 2]};
+    if (dot(ni, ni) > 1e-20f) out = ni;
+  }
+  const bool entering = dot(out, d) < 0.f;
   med = entering ? G.media.geom_in[g] : G.media.geom_out[g];
   const HitGeometry<float> h = hit_geometry_lanes<float>(G, r, l, true, 1u, g, o, d, t);
   const Vec3<float> n = dot(ng, d) < 0.f ? Vec3<float>(0.f, 0.f, 0.f) - ng : ng;  // the side the ray leaves by
