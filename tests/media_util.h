@@ -5,6 +5,7 @@
 #include <array>
 #include <utility>
 
+#include "render/render.h"
 #include "scene/scene.h"
 #include "render_util.h"
 
@@ -106,6 +107,26 @@ inline Scene furnace_scene(const Medium& md, float L, float fov, int res) {
   camera_look_at(s.camera, {0, 0, -5}, {0, 0, 0}, {0, 1, 0});
   finalize_scene(s);
   return s;
+}
+
+// An estimator the media tests run, and its render options (a uniform pick, independent
+// samples whose per-pixel variances state the error, two threads).
+struct MediaEst {
+  const char* name;
+  Strategy strategy;
+  MisMode mode;
+};
+inline RenderOptions media_options(const MediaEst& e, int depth, uint32_t spp, uint32_t seed) {
+  RenderOptions o;
+  o.est.strategy = e.strategy;
+  o.est.mode = e.mode;
+  o.est.pick = LightPick::uniform;
+  o.est.max_depth = depth;
+  o.est.sampler = SamplerKind::independent;
+  o.est.spp = spp;
+  o.est.seed = seed;
+  o.threads = 2;
+  return o;
 }
 
 }  // namespace tuile::test

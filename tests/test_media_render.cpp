@@ -23,11 +23,6 @@ using namespace tuile::test;
 
 namespace {
 
-struct MediaEst {
-  const char* name;
-  Strategy strategy;
-  MisMode mode;
-};
 const MediaEst media_estimators[] = {
     {"mis", Strategy::mis, MisMode::multi},
     {"mis one-sample", Strategy::mis, MisMode::one},
@@ -35,19 +30,6 @@ const MediaEst media_estimators[] = {
     {"bsdf", Strategy::bsdf, MisMode::multi},
     {"ris", Strategy::ris, MisMode::multi},
 };
-
-RenderOptions media_options(const MediaEst& e, int depth, uint32_t spp, uint32_t seed) {
-  RenderOptions o;
-  o.est.strategy = e.strategy;
-  o.est.mode = e.mode;
-  o.est.pick = LightPick::uniform;
-  o.est.max_depth = depth;
-  o.est.sampler = SamplerKind::independent;
-  o.est.spp = spp;
-  o.est.seed = seed;
-  o.threads = 2;
-  return o;
-}
 
 struct ImageMean {
   double mean[3] = {0, 0, 0}, se[3] = {0, 0, 0};

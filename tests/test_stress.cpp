@@ -2136,18 +2136,9 @@ TEST(StressSky, LargeMap) {
 
 // Participating media at their limits (wave/media.h).
 namespace {
-
 RenderOptions stress_media_options(Strategy st, int depth, uint32_t spp, uint32_t seed) {
-  RenderOptions o;
-  o.est.strategy = st;
-  o.est.max_depth = depth;
-  o.est.sampler = SamplerKind::independent;
-  o.est.spp = spp;
-  o.est.seed = seed;
-  o.threads = 2;
-  return o;
+  return media_options(MediaEst{"", st, MisMode::multi}, depth, spp, seed);
 }
-
 }  // namespace
 
 // Extinction from 1e-6 to 1e6 per unit: a slab of absorber half a unit thick passes

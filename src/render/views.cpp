@@ -188,6 +188,42 @@ void build_light_table(SceneViews& v, const Scene& scene, LightPick pick) {
   }
 }
 
+// The geometry view's pointers into the tables (again after a table grows).
+void point_tables(SceneViews& v) {
+  GeomView& G = v.geom;
+  G.geom_kind = v.geom_kind.data();
+  G.geom_material = v.geom_material.data();
+  G.geom_first = v.geom_first.data();
+  G.geom_light = v.geom_light.data();
+  G.geom_side = v.geom_side.data();
+  G.sphere_center = v.sphere_center.data();
+  G.tri_pos = v.tri_pos.data();
+  G.tri_light = v.tri_light.data();
+  G.mat_r = v.mat_r.data();
+  G.mat_g = v.mat_g.data();
+  G.mat_b = v.mat_b.data();
+  G.mat_texture = v.mat_texture.data();
+  G.mat_kind = v.mat_kind.data();
+  G.mat_alpha_tex = v.mat_alpha_tex.data();
+  G.mat_remap = v.mat_remap.data();
+  G.mat_mix0 = v.mat_mix0.data();
+  G.mat_mix1 = v.mat_mix1.data();
+  G.mat_mix_amount = v.mat_mix_amount.data();
+  for (int i = 0; i < mp_count; ++i) G.mat_param[i] = v.mat_param[i].data();
+  G.indices = v.indices.data();
+  G.positions = v.positions.data();
+  G.uvs = v.uvs.data();
+  G.normals = v.normals.data();
+  G.curve_points = v.curve_points.data();
+  G.tex_rgb = v.tex_rgb.data();
+  G.tex_w = v.tex_w.data();
+  G.tex_h = v.tex_h.data();
+  G.mat_bump = v.mat_bump.data();
+  G.ftex_value = v.ftex_value.data();
+  G.ftex_w = v.ftex_w.data();
+  G.ftex_h = v.ftex_h.data();
+}
+
 // The geometry table (one row per geomID: GeomView::geom_kind and its fields) and the
 // flattened triangles.
 void build_geometry_table(SceneViews& v, const Scene& scene) {
@@ -351,45 +387,15 @@ void build_material_table(SceneViews& v, const Scene& scene) {
     v.tex_w.push_back(t.width);
     v.tex_h.push_back(t.height);
   }
+  v.geom_side.push_back(1.f);  // never empty
+  point_tables(v);
   GeomView& G = v.geom;
-  G.geom_kind = v.geom_kind.data();
-  G.geom_material = v.geom_material.data();
-  G.geom_first = v.geom_first.data();
-  G.geom_light = v.geom_light.data();
-  G.sphere_center = v.sphere_center.data();
-  G.tri_pos = v.tri_pos.data();
-  G.tri_light = v.tri_light.data();
-  G.mat_r = v.mat_r.data();
-  G.mat_g = v.mat_g.data();
-  G.mat_b = v.mat_b.data();
-  G.mat_texture = v.mat_texture.data();
-  G.mat_kind = v.mat_kind.data();
-  G.mat_alpha_tex = v.mat_alpha_tex.data();
-  G.mat_remap = v.mat_remap.data();
   for (const int32_t m : v.geom_material) {  // (a mix's materials: their own textures)
     const auto k = static_cast<size_t>(m);
     for (const int32_t e : {m, v.mat_mix0[k], v.mat_mix1[k]})
       if (e >= 0 && (v.mat_alpha_tex[2 * static_cast<size_t>(e)] >= 0 || v.mat_alpha_tex[2 * static_cast<size_t>(e) + 1] >= 0))
         G.has_rough_tex = true;
   }
-  G.mat_mix0 = v.mat_mix0.data();
-  G.mat_mix1 = v.mat_mix1.data();
-  G.mat_mix_amount = v.mat_mix_amount.data();
-  for (int i = 0; i < mp_count; ++i) G.mat_param[i] = v.mat_param[i].data();
-  v.geom_side.push_back(1.f);  // never empty
-  G.geom_side = v.geom_side.data();
-  G.indices = v.indices.data();
-  G.positions = v.positions.data();
-  G.uvs = v.uvs.data();
-  G.normals = v.normals.data();
-  G.curve_points = v.curve_points.data();
-  G.tex_rgb = v.tex_rgb.data();
-  G.tex_w = v.tex_w.data();
-  G.tex_h = v.tex_h.data();
-  G.mat_bump = v.mat_bump.data();
-  G.ftex_value = v.ftex_value.data();
-  G.ftex_w = v.ftex_w.data();
-  G.ftex_h = v.ftex_h.data();
 }
 
 // Participating media (GeomView::media, wave/media.h): per medium its coefficients, a
@@ -479,29 +485,7 @@ void build_media_table(SceneViews& v, const Scene& scene) {
   M.geom_out = v.med_geom_out.data();
   M.geom_interface = v.med_geom_interface.data();
   M.camera = rendered(scene.camera_medium);
-  // the tables grew: their views again
-  G.geom_kind = v.geom_kind.data();
-  G.geom_material = v.geom_material.data();
-  G.geom_first = v.geom_first.data();
-  G.geom_light = v.geom_light.data();
-  G.geom_side = v.geom_side.data();
-  G.indices = v.indices.data();
-  G.positions = v.positions.data();
-  G.uvs = v.uvs.data();
-  G.normals = v.normals.data();
-  G.curve_points = v.curve_points.data();
-  G.mat_r = v.mat_r.data();
-  G.mat_g = v.mat_g.data();
-  G.mat_b = v.mat_b.data();
-  G.mat_texture = v.mat_texture.data();
-  G.mat_kind = v.mat_kind.data();
-  G.mat_alpha_tex = v.mat_alpha_tex.data();
-  G.mat_remap = v.mat_remap.data();
-  G.mat_mix0 = v.mat_mix0.data();
-  G.mat_mix1 = v.mat_mix1.data();
-  G.mat_mix_amount = v.mat_mix_amount.data();
-  G.mat_bump = v.mat_bump.data();
-  for (int i = 0; i < mp_count; ++i) G.mat_param[i] = v.mat_param[i].data();
+  point_tables(v);  // the tables grew: their views again
 }
 
 // The camera as the generate stage reads it, and the pixel footprint of bump mapping.
