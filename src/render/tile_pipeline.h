@@ -97,7 +97,9 @@ constexpr Features features_for(const PipelineFacts& x) {
             : delta                     ? kind_finite
             : x.has(feat_rect_lights_only) ? kind_area | kind_rects
                                         : kind_area;
-  f.bsdfs = x.materials ? bsdf_all : bsdf_diffuse;
+  // (the phase function of points in a medium: only in the general pipeline, which media
+  // scenes run)
+  f.bsdfs = x.materials ? bsdf_all & ~bsdf_phase : bsdf_diffuse;
   if (x.materials) f.kinds = kind_finite;  // one pipeline per technique for every other surface
   if (x.paths && (area || delta)) {
     // paths go on along a BSDF sample at every vertex, and their bounce rays look up the
