@@ -739,9 +739,45 @@ TEST(Lanes, CameraHitsEqualScalar) {
     }
     s.curves.push_back(c);
   }
+  // an instanced object (a mesh with vertex normals, a sphere and a curve, in object space)
+  // placed twice across the view, once mirrored and squashed: the lanes place the point,
+  // its error bound and its normal by each lane's instance
+  s.objects.push_back("thing");
+  {
+    Mesh m;
+    m.name = "instanced";
+    m.material = 0;
+    test::add_quad(m, {-0.6f, 0, -0.6f}, {0, 0, 1.2f}, {1.2f, 0, 0});
+    m.normals = {0, 1, 0, 0.3f, 0.9f, 0, 0, 1, 0.2f, 0, 1, 0};
+    m.object = 0;
+    s.meshes.push_back(m);
+    Sphere sp;
+    sp.center = {0, 0.4f, 0};
+    sp.radius = 0.3f;
+    sp.material = 0;
+    sp.object = 0;
+    s.spheres.push_back(sp);
+    Curves c = test::straight_curve(CurveType::flat, 0.3f, 0.6f, 0.03f);
+    c.object = 0;
+    s.curves.push_back(c);
+    Instance a;
+    a.world_from_object[0][3] = -0.4f;
+    a.world_from_object[1][3] = 0.1f;
+    a.world_from_object[2][3] = 2.f;
+    s.instances.push_back(a);
+    Instance b;
+    b.world_from_object[0][0] = -1.5f;  // mirrored
+    b.world_from_object[1][1] = 0.7f;
+    b.world_from_object[0][2] = 0.3f;
+    b.world_from_object[0][3] = 1.1f;
+    b.world_from_object[1][3] = 0.1f;
+    b.world_from_object[2][3] = 1.5f;
+    s.instances.push_back(b);
+  }
   finalize_scene(s);
   SceneViews views = build_views(s, LightPick::power);
   ASSERT_TRUE(views.geom.has_textures);
+  ASSERT_TRUE(views.geom.has_instances);
   // the flattened triangle table holds every mesh's vertices and lights
   for (size_t m = 0; m < s.meshes.size(); ++m)
     for (size_t t = 0; t < s.meshes[m].triangle_count(); ++t) {
@@ -768,6 +804,12 @@ TEST(Lanes, CameraHitsEqualScalar) {
         curve_hits += a->cam[i / 16].geomID[i % 16] != invalid_id &&
                       a->cam[i / 16].geomID[i % 16] >= s.meshes.size() + s.spheres.size();
       ASSERT_GT(curve_hits, 4);
+      int inst_hits[2] = {0, 0};
+      for (int i = 0; i < 256; ++i)
+        if (a->cam[i / 16].geomID[i % 16] != invalid_id && a->cam[i / 16].instID[0][i % 16] != invalid_id)
+          ++inst_hits[a->cam[i / 16].instID[0][i % 16]];
+      ASSERT_GT(inst_hits[0], 4);
+      ASSERT_GT(inst_hits[1], 4);
       // degenerate hits: counted as rejected, no shading point
       for (int i : {3, 40, 41, 130, 200}) {
         RayHit16& p = a->cam[i / 16];

@@ -13,7 +13,9 @@
 #include <string>
 #include <vector>
 
+#include "render/views.h"
 #include "scene/pbrt.h"
+#include "wave/instances.h"
 
 namespace fs = std::filesystem;
 using namespace tuile;
@@ -665,30 +667,48 @@ TEST(Pbrt, PlyAscii) {
   expect_vertex(s.meshes[0], 2, 2, 2, 0);
 }
 
-TEST(Pbrt, ObjectInstancesAreFlattened) {
+TEST(Pbrt, ObjectInstancesAreInstances) {
+  // an object's shapes are stored once, in the object's space (the CTM of their
+  // definition), and each ObjectInstance places it by the CTM of the instance
   const Scene s = world("ObjectBegin \"o\"\n" + tri + "Shape \"sphere\"\nObjectEnd\nTranslate 10 0 0\nObjectInstance \"o\"\nTranslate 0 10 0\nObjectInstance \"o\"\n");
-  ASSERT_EQ(s.meshes.size(), 2u);
-  expect_vertex(s.meshes[0], 0, 11, 0, 0);
-  expect_vertex(s.meshes[1], 0, 11, 10, 0);
-  ASSERT_EQ(s.spheres.size(), 2u);
-  EXPECT_FLOAT_EQ(s.spheres[1].center.y, 10);
-  // an instance turns its shading normals with it (by the inverse transpose: a non-uniform
-  // scale tilts them towards the squashed axis)
-  const Scene r = world("ObjectBegin \"n\"\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2] "
-                        "\"normal N\" [0 0 1 0 0 1 1 0 1]\nObjectEnd\nRotate 90 1 0 0\nObjectInstance \"n\"\n"
-                        "Scale 1 1 4\nObjectInstance \"n\"\n");
-  ASSERT_EQ(r.meshes.size(), 2u);
-  ASSERT_EQ(r.meshes[0].normals.size(), 9u);
-  EXPECT_NEAR(r.meshes[0].normals[0], 0, 1e-6);  // +z turned to -y by Rotate 90 about x
-  EXPECT_NEAR(r.meshes[0].normals[1], -1, 1e-6);
-  EXPECT_NEAR(r.meshes[0].normals[2], 0, 1e-6);
-  EXPECT_NEAR(r.meshes[0].normals[6], float(1 / std::sqrt(2.0)), 1e-6);  // (1, 0, 1) / sqrt 2 turned
-  EXPECT_NEAR(r.meshes[0].normals[7], float(-1 / std::sqrt(2.0)), 1e-6);
-  // M = Rotate * Scale 1 1 4: M^-T n = R S^-1 n, (1, 0, 1) to (1, 0, 1/4) to (1, -1/4, 0), unit
-  const double k = 1 / std::sqrt(1 + 1 / 16.0);
-  EXPECT_NEAR(r.meshes[1].normals[6], float(k), 1e-6);
-  EXPECT_NEAR(r.meshes[1].normals[7], float(-k / 4), 1e-6);
-  EXPECT_NEAR(r.meshes[1].normals[8], 0, 1e-6);
+  ASSERT_EQ(s.objects.size(), 1u);
+  ASSERT_EQ(s.meshes.size(), 1u);
+  EXPECT_EQ(s.meshes[0].object, 0);
+  expect_vertex(s.meshes[0], 0, 1, 0, 0);
+  ASSERT_EQ(s.spheres.size(), 1u);
+  EXPECT_EQ(s.spheres[0].object, 0);
+  ASSERT_EQ(s.instances.size(), 2u);
+  EXPECT_EQ(s.instances[0].world_from_object[0][3], 10.f);
+  EXPECT_EQ(s.instances[1].world_from_object[0][3], 10.f);
+  EXPECT_EQ(s.instances[1].world_from_object[1][3], 10.f);
+  EXPECT_EQ(s.instanced_triangle_count(), 2u);
+  EXPECT_EQ(s.instances[1].where.rfind("t.pbrt:", 0), 0u) << s.instances[1].where;
+  // an instance turns shading normals with it (by the inverse transpose: a non-uniform
+  // scale tilts them towards the squashed axis), as the flattened copy of earlier releases
+  // did: M = Rotate 90 about x times Scale 1 1 4, M^-T n = R S^-1 n
+  Scene r = world("ObjectBegin \"n\"\nShape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2] "
+                  "\"normal N\" [0 0 1 0 0 1 1 0 1]\nObjectEnd\nRotate 90 1 0 0\nObjectInstance \"n\"\n"
+                  "Scale 1 1 4\nObjectInstance \"n\"\n");
+  finalize_scene(r);
+  const SceneViews v = build_views(r, LightPick::power);
+  ASSERT_TRUE(v.geom.has_instances);
+  const vec3f n0 = instance_normal(v.geom, 0, {0, 0, 1});
+  EXPECT_NEAR(n0.x, 0, 1e-6);  // +z turned to -y by Rotate 90 about x
+  EXPECT_NEAR(n0.y, -1, 1e-6);
+  EXPECT_NEAR(n0.z, 0, 1e-6);
+  const float h = float(1 / std::sqrt(2.0));
+  const vec3f n1 = instance_normal(v.geom, 0, {h, 0, h});
+  EXPECT_NEAR(n1.x, h, 1e-6);
+  EXPECT_NEAR(n1.y, -h, 1e-6);
+  const double k = 1 / std::sqrt(1 + 1 / 16.0);  // (1, 0, 1) to (1, 0, 1/4) to (1, -1/4, 0), unit
+  const vec3f n2 = instance_normal(v.geom, 1, {h, 0, h});
+  EXPECT_NEAR(n2.x, float(k), 1e-6);
+  EXPECT_NEAR(n2.y, float(-k / 4), 1e-6);
+  EXPECT_NEAR(n2.z, 0, 1e-6);
+  const vec3f p = instance_point(v.geom, 1, {0, 1, 0});  // (0, 1, 0) scaled to (0, 1, 0), turned to (0, 0, 1)
+  EXPECT_NEAR(p.x, 0, 1e-6);
+  EXPECT_NEAR(p.y, 0, 1e-6);
+  EXPECT_NEAR(p.z, 1, 1e-6);
 }
 
 TEST(Pbrt, IncludeImportAndGzipScenes) {

@@ -9,6 +9,7 @@
 // the normal. Writes: fx, fy, fz, fh.
 #pragma once
 #include "bsdf/hair.h"
+#include "wave/instances.h"
 #include "wave/tile.h"
 
 namespace tuile {
@@ -38,6 +39,18 @@ inline void apply_hair_frames(const GeomView& G, ShadingPoints& P) {
     const float* cp = P.geom[k] >= 0 && P.geom[k] < G.geom_count ? G.curve_points[P.geom[k]] : nullptr;
     if (cp) {
       const float* seg = cp + 16 * static_cast<size_t>(P.prim[k]);
+      float placed[16];
+      if (G.has_instances && P.inst[k] >= 0) {  // an instance's fiber, placed in the world
+        const float s = instance_scale(G, P.inst[k]);
+        for (int j = 0; j < 4; ++j) {
+          const vec3f q = instance_point(G, P.inst[k], {seg[4 * j], seg[4 * j + 1], seg[4 * j + 2]});
+          placed[4 * j] = q.x;
+          placed[4 * j + 1] = q.y;
+          placed[4 * j + 2] = q.z;
+          placed[4 * j + 3] = seg[4 * j + 3] * s;
+        }
+        seg = placed;
+      }
       vec3f c, d;
       float r;
       bezier_at(seg, std::clamp(P.bu[k], 0.f, 1.f), c, d, r);

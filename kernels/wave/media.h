@@ -69,7 +69,7 @@ inline void cross_interface(const GeomView& G, RayHit16& r, int l, float t, int3
   }
   const bool entering = dot(out, d) < 0.f;
   med = entering ? G.media.geom_in[g] : G.media.geom_out[g];
-  const HitGeometry<float> h = hit_geometry_lanes<float>(G, r, l, true, 1u, g, o, d, t);
+  const HitGeometry<float> h = hit_geometry_lanes<float>(G, r, l, true, 1u, g, o, d, t, InstanceLanes<float>{});
   const Vec3<float> n = dot(ng, d) < 0.f ? Vec3<float>(0.f, 0.f, 0.f) - ng : ng;  // the side the ray leaves by
   const Vec3<float> x = h.x + n * offset_along_normal(h.err, n);
   r.ray.org_x[l] = x.x;

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "wave/instances.h"
 #include "wave/textures.h"
 
 namespace tuile {
@@ -35,13 +36,15 @@ namespace tuile {
 // (pbrt's ComputeDifferentials). Where that is 0 (or not finite) du = 0.0005, pbrt's
 // fallback. du stays above 2^-16 |u|, so that u + du is not rounded back to u.
 // Returns false (sn untouched) where no normal comes out (degenerate geometry, NaN).
+// inst: the point's instance (its vertices and normals placed in the world first), or -1.
 inline bool bump_normal(const GeomView& G, int32_t t, int32_t g, int32_t prim, float b1, float b2, const vec3f& x,
-                        const vec3f& n_view, vec3f& sn) {
+                        const vec3f& n_view, vec3f& sn, int32_t inst = -1) {
   const uint32_t* idx = G.indices[g] + 3 * static_cast<size_t>(prim);
   const float* pos = G.positions[g];
   const auto vtx = [&](int i) {
     const float* q = pos + 3 * static_cast<size_t>(idx[i]);
-    return vec3f{q[0], q[1], q[2]};
+    const vec3f p{q[0], q[1], q[2]};
+    return inst >= 0 ? instance_point(G, inst, p) : p;
   };
   const vec3f p0 = vtx(0), p1 = vtx(1), p2 = vtx(2);
   float uv[3][2] = {{0, 0}, {1, 0}, {1, 1}};
@@ -76,13 +79,14 @@ inline bool bump_normal(const GeomView& G, int32_t t, int32_t g, int32_t prim, f
   }
   vec3f n;  // pbrt's n: the geometric normal, outwards
   if (!unit(cross(dp02, dp12), n)) return false;
-  n = n * G.geom_side[g];
+  n = n * (inst >= 0 && instance_mirrors(G, inst) ? -G.geom_side[g] : G.geom_side[g]);
   // the shading frame the bump tilts
   vec3f ns = n, ss = dpdu, ts = dpdv, dndu{0, 0, 0}, dndv{0, 0, 0};
   if (const float* N = G.normals[g]) {
     const auto nrm = [&](int i) {
       const float* q = N + 3 * static_cast<size_t>(idx[i]);
-      return vec3f{q[0], q[1], q[2]};
+      const vec3f n{q[0], q[1], q[2]};
+      return inst >= 0 && (n.x != 0.f || n.y != 0.f || n.z != 0.f) ? instance_normal(G, inst, n) : n;
     };
     const vec3f n0 = nrm(0), n1 = nrm(1), n2 = nrm(2);
     const vec3f ni = n0 * b0 + n1 * b1 + n2 * b2;
@@ -152,16 +156,20 @@ template <bool Materials> inline void apply_shading_normals(const GeomView& G, S
     const float gx = P.nx[k], gy = P.ny[k], gz = P.nz[k];
     float sx = gx, sy = gy, sz = gz;
     const int32_t g = P.geom[k];
+    const int32_t inst = G.has_instances ? P.inst[k] : -1;
     const float* N = G.normals[g];  // (nullptr for every kind but meshes)
     if (N) {
       const uint32_t* idx = G.indices[g] + 3 * static_cast<size_t>(P.prim[k]);
       const float b1 = P.bu[k], b2 = P.bv[k], b0 = 1.f - b1 - b2;
-      const float* n0 = N + 3 * idx[0];
-      const float* n1 = N + 3 * idx[1];
-      const float* n2 = N + 3 * idx[2];
-      const float x = b0 * n0[0] + b1 * n1[0] + b2 * n2[0];
-      const float y = b0 * n0[1] + b1 * n1[1] + b2 * n2[1];
-      const float z = b0 * n0[2] + b1 * n1[2] + b2 * n2[2];
+      vec3f nv[3];
+      for (int i = 0; i < 3; ++i) {  // (an instance's placed in the world, unit, as its flattened copy's)
+        const float* q = N + 3 * static_cast<size_t>(idx[i]);
+        nv[i] = {q[0], q[1], q[2]};
+        if (inst >= 0 && (q[0] != 0.f || q[1] != 0.f || q[2] != 0.f)) nv[i] = instance_normal(G, inst, nv[i]);
+      }
+      const float x = b0 * nv[0].x + b1 * nv[1].x + b2 * nv[2].x;
+      const float y = b0 * nv[0].y + b1 * nv[1].y + b2 * nv[2].y;
+      const float z = b0 * nv[0].z + b1 * nv[1].z + b2 * nv[2].z;
       const float l2 = x * x + y * y + z * z;
       if (l2 > 1e-20f && std::isfinite(l2)) {
         const float il = 1.f / std::sqrt(l2);
@@ -181,7 +189,7 @@ template <bool Materials> inline void apply_shading_normals(const GeomView& G, S
       const int32_t m = Materials ? P.mat[k] : G.geom_material[g];
       const int32_t t = G.mat_bump[m];
       vec3f sn;
-      if (t >= 0 && bump_normal(G, t, g, P.prim[k], P.bu[k], P.bv[k], {P.px[k], P.py[k], P.pz[k]}, {gx, gy, gz}, sn)) {
+      if (t >= 0 && bump_normal(G, t, g, P.prim[k], P.bu[k], P.bv[k], {P.px[k], P.py[k], P.pz[k]}, {gx, gy, gz}, sn, inst)) {
         sx = sn.x;
         sy = sn.y;
         sz = sn.z;

@@ -12,6 +12,7 @@
 #include <type_traits>
 
 #include "wave/hair_frames.h"
+#include "wave/instances.h"
 #include "wave/shading_normals.h"
 #include "wave/textures.h"
 #include "wave/tile.h"
@@ -112,9 +113,17 @@ template <class T> struct HitGeometry {
 };
 template <class T>
 TUILE_FLATTEN inline HitGeometry<T> hit_geometry_lanes(const GeomView& G, const RayHit16& p, int l, const mask_t<T>& ok,
-                                                       uint32_t keep, const i32_t<T>& geom, const Vec3<T>& o,
-                                                       const Vec3<T>& d, const T& t) {
+                                                       uint32_t keep, const i32_t<T>& geom, const Vec3<T>& ow,
+                                                       const Vec3<T>& dw, const T& t, const InstanceLanes<T>& in) {
   HitGeometry<T> h;
+  // an instance's lanes: the ray in its object's space, where its rows are (Embree's t is
+  // the same along the ray placed by object_from_world: the point is placed back at the end)
+  const bool any_inst = G.has_instances && any(in.on);
+  Vec3<T> o = ow, d = dw;
+  if (any_inst) {
+    o = sel(in.on, instance_apply<T>(G.inst_inv, in.m12, ow, true), ow);
+    d = sel(in.on, instance_apply<T>(G.inst_inv, in.m12, dw, false), dw);
+  }
   const i32_t<T> gi = max(geom, i32_t<T>(0));
   const i32_t<T> prim = load_i32<T>(reinterpret_cast<const int32_t*>(p.primID + l));
   // Coherent camera rays often hit one geometry, even one triangle, in every lane: then
@@ -188,6 +197,23 @@ TUILE_FLATTEN inline HitGeometry<T> hit_geometry_lanes(const GeomView& G, const 
     x = sel(medium, o + d * t, x);
     err = sel(medium, Vec3<T>(T(0.f), T(0.f), T(0.f)), err);
   }
+  if (any_inst) {
+    // placed in the world with pbrt-v4's error bound of a transformed point:
+    // (gamma(3) + 1) |M| err + gamma(3) (|M| |x| + |translation|), per row
+    const T g3(gamma_err(3)), g31(gamma_err(3) + 1.f);
+    Vec3<T> xw, ew;
+    for (int r = 0; r < 3; ++r) {
+      const float* M = G.inst_m + 4 * r;
+      const T a = gather(M, in.m12), b = gather(M + 1, in.m12), c = gather(M + 2, in.m12), tr = gather(M + 3, in.m12);
+      const T xr = a * x.x + b * x.y + c * x.z + tr;
+      const T er = g31 * (abs(a) * err.x + abs(b) * err.y + abs(c) * err.z) +
+                   g3 * (abs(a * x.x) + abs(b * x.y) + abs(c * x.z) + abs(tr));
+      (r == 0 ? xw.x : r == 1 ? xw.y : xw.z) = xr;
+      (r == 0 ? ew.x : r == 1 ? ew.y : ew.z) = er;
+    }
+    x = sel(in.on, xw, x);
+    err = sel(in.on, ew, err);
+  }
   h.x = x;
   h.err = err;
   h.triangle = f_mask_from_i(tri_i);
@@ -234,6 +260,11 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   const Vec3<T> o = load3<T>(p.ray.org_x + l, p.ray.org_y + l, p.ray.org_z + l);
   const Vec3<T> d = load3<T>(p.ray.dir_x + l, p.ray.dir_y + l, p.ray.dir_z + l);
   Vec3<T> ng = load3<T>(p.Ng_x + l, p.Ng_y + l, p.Ng_z + l);
+  InstanceLanes<T> inst;
+  if (G.has_instances) {
+    inst = instance_lanes<T>(p, l, hit);
+    if (any(inst.on)) ng = instance_normal<T>(G, inst, geom, ng);
+  }
   const T len2 = dot(ng, ng);
   const auto ok = hit && len2 > T(0.f) && is_finite(len2) && is_finite(t);
   (Bounce ? tb.stats.rejected_bsdf : tb.stats.rejected_camera) += static_cast<uint64_t>(std::popcount(lane_bits(hit && !ok)));
@@ -241,7 +272,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   if constexpr (!Bounce) store(tb.lanes.shade_of + i, expand_index<T>(n, keep));
   if (!keep) return;
   ng = ng * rsqrt_nr(sel(ok, len2, T(1.f)));
-  const HitGeometry<T> h = hit_geometry_lanes<T>(G, p, l, ok, keep, geom, o, d, t);
+  const HitGeometry<T> h = hit_geometry_lanes<T>(G, p, l, ok, keep, geom, o, d, t, inst);
   if (any(h.flat_curve)) {
     // a flat curve faces the ray (pbrt-v4's): its normal is -d without its part along the
     // tangent (Embree's Ng there), or -d where the ray runs along the curve
@@ -294,6 +325,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     compress_store(tb.points.prim + n, load_i32<T>(reinterpret_cast<const int32_t*>(p.primID + l)), keep);
     compress_store(tb.points.bu + n, load<T>(p.u + l), keep);
     compress_store(tb.points.bv + n, load<T>(p.v + l), keep);
+    if (G.has_instances) compress_store(tb.points.inst + n, inst.index, keep);
   }
   if (G.has_textures) list_textured_points(G, p, l, keep, n, tb);
   if (G.has_media) compress_store(tb.points.medf + n, load_i32<T>(tb.media.med + i), keep);  // (wave/media.h point_media)

@@ -70,6 +70,8 @@ struct ShadingPoints {
   // stay the geometric normal, for ray offsets and which side a direction is on)
   alignas(64) int32_t geom[lane_array], prim[lane_array];
   alignas(64) float bu[lane_array], bv[lane_array];
+  // with instances (GeomView::has_instances) and those passes: the hit's instance or -1
+  alignas(64) int32_t inst[lane_array];
   alignas(64) float snx[lane_array], sny[lane_array], snz[lane_array];
   // scenes with textured roughness only (GeomView::has_rough_tex): the Trowbridge-Reitz
   // alphas at the point

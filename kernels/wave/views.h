@@ -127,6 +127,15 @@ struct GeomView {
   // Participating media (scenes with some: has_media; wave/media.h)
   bool has_media = false;
   MediumView media;
+  // Instances (scenes with some: has_instances). A hit of instance i (Embree's instID,
+  // which src/accel keeps as i) is of a shape whose rows hold it in its object's space:
+  // the hit stages compute the point there and place it by inst_m (world_from_object, 3
+  // rows of 4 per instance); inst_inv is its inverse (object_from_world), whose transpose
+  // turns normals. Both are what Embree traces with (the same floats).
+  bool has_instances = false;
+  int32_t inst_count = 0;
+  const float* inst_m = nullptr;
+  const float* inst_inv = nullptr;
 };
 
 // Whether geometry g is a triangle mesh.

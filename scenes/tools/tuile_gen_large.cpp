@@ -1,8 +1,11 @@
 // tuile_gen_large: writes a pbrt-v4 scene of a given size for scaling curves: a rolling
 // terrain of N million triangles split over several binary PLY files, lit by K square
-// area lights (one emissive PLY of K separate quads) hovering above it.
+// area lights (one emissive PLY of K separate quads) hovering above it. With --instances N
+// the terrain is an object (ObjectBegin) placed N times over a square field, each copy
+// with its own turn, scale and place (ObjectInstance): N times the triangles rendered for
+// the triangles stored once, and the lights spread over the field.
 //
-//   tuile_gen_large --out DIR [--mtris 2.5] [--lights 64] [--files 4] [--check]
+//   tuile_gen_large --out DIR [--mtris 2.5] [--lights 64] [--files 4] [--instances N] [--check]
 //
 // DIR/scene.pbrt is the scene; --check loads it back with tuile's reader and prints the
 // load time.
@@ -22,10 +25,11 @@
 namespace {
 
 void usage() {
-  std::cerr << "usage: tuile_gen_large --out DIR [--mtris MILLIONS] [--lights K] [--files F] [--check]\n"
+  std::cerr << "usage: tuile_gen_large --out DIR [--mtris MILLIONS] [--lights K] [--files F] [--instances N] [--check]\n"
                "  --mtris   terrain triangles in millions (default 1)\n"
                "  --lights  number of square area lights (default 16)\n"
                "  --files   number of terrain PLY files (default: one per million triangles)\n"
+               "  --instances  place the terrain N times as instances of one object (default 0: once, not an object)\n"
                "  --check   load the written scene with tuile and print the load time\n";
 }
 
@@ -56,7 +60,7 @@ float height(float x, float z) { return 0.4f * std::sin(0.9f * x) * std::cos(1.3
 int main(int argc, char** argv) {
   std::string out;
   double mtris = 1;
-  long lights = 16, files = 0;
+  long lights = 16, files = 0, instances = 0;
   bool check = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -71,6 +75,7 @@ int main(int argc, char** argv) {
     else if (a == "--mtris") mtris = std::atof(value().c_str());
     else if (a == "--lights") lights = std::atol(value().c_str());
     else if (a == "--files") files = std::atol(value().c_str());
+    else if (a == "--instances") instances = std::atol(value().c_str());
     else if (a == "--check") check = true;
     else if (a == "-h" || a == "--help") {
       usage();
@@ -81,7 +86,8 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (out.empty() || !(mtris > 0) || mtris > 2000 || lights < 0 || lights > 10000000 || files < 0) {
+  if (out.empty() || !(mtris > 0) || mtris > 2000 || lights < 0 || lights > 10000000 || files < 0 || instances < 0 ||
+      instances > 10000000) {
     usage();
     return 2;
   }
@@ -130,13 +136,18 @@ int main(int argc, char** argv) {
     shapes += "Shape \"plymesh\" \"string filename\" [ \"" + std::string(name) + "\" ]\n";
   }
 
-  // K lights on a square grid 3 m above the terrain, facing down, radiance varying 10:1.
+  // Instances: a square field of side x side cells of 24 m, each holding one copy of the
+  // terrain (20 m), turned about y, scaled by 0.8 to 1.2 and moved within its cell.
+  const long side_n = instances > 0 ? long(std::ceil(std::sqrt(double(instances)))) : 1;
+  const float field = instances > 0 ? 24.f * float(side_n) : 20.f;
+  // K lights on a square grid 3 m above the terrain (the field), facing down.
   if (lights > 0) {
     const long side = long(std::ceil(std::sqrt(double(lights))));
-    const float pitch = 16.0f / float(side), half = 0.3f * pitch;
+    const float span = 0.8f * field;
+    const float pitch = span / float(side), half = 0.3f * std::min(pitch, 16.f / float(side) * 4.f);
     std::vector<char> data = ply_header(size_t(4 * lights), size_t(lights));
     for (long k = 0; k < lights; ++k) {
-      const float cx = -8 + pitch * (float(k % side) + 0.5f), cz = -8 + pitch * (float(k / side) + 0.5f);
+      const float cx = -span / 2 + pitch * (float(k % side) + 0.5f), cz = -span / 2 + pitch * (float(k / side) + 0.5f);
       const float corners[4][2] = {{cx - half, cz - half}, {cx + half, cz - half}, {cx + half, cz + half}, {cx - half, cz + half}};
       for (const auto& c : corners) {
         put(data, c[0]), put(data, 3.0f), put(data, c[1]);
@@ -158,9 +169,25 @@ int main(int argc, char** argv) {
         << lights << " quad lights.\n"
         << "Film \"rgb\" \"integer xresolution\" [ 960 ] \"integer yresolution\" [ 540 ] \"string filename\" [ \"large.exr\" ]\n"
         << "Sampler \"independent\" \"integer pixelsamples\" [ 4 ]\n"
-        << "Scale -1 1 1\nLookAt 0 9 14  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 45 ]\n\nWorldBegin\n"
-        << "Material \"diffuse\" \"rgb reflectance\" [ 0.55 0.5 0.45 ]\n"
-        << shapes;
+        << "Scale -1 1 1\nLookAt 0 " << 0.45f * field << " " << 0.7f * field << "  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 45 ]\n\nWorldBegin\n"
+        << "Material \"diffuse\" \"rgb reflectance\" [ 0.55 0.5 0.45 ]\n";
+  if (instances > 0) {
+    scene << "LightSource \"distant\" \"point3 from\" [ 1 3 2 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 2 2 2 ]\n"
+          << "ObjectBegin \"terrain\"\n" << shapes << "ObjectEnd\n";
+    uint32_t h = 12345;  // a fixed sequence: the same file every time
+    auto next = [&h] {
+      h ^= h << 13, h ^= h >> 17, h ^= h << 5;
+      return float(h) / 4294967296.f;
+    };
+    for (long k = 0; k < instances; ++k) {
+      const float cx = -field / 2 + 24.f * (float(k % side_n) + 0.5f), cz = -field / 2 + 24.f * (float(k / side_n) + 0.5f);
+      const float jx = 1.5f * (next() - 0.5f), jz = 1.5f * (next() - 0.5f), turn = 360.f * next(), sc = 0.8f + 0.4f * next();
+      scene << "AttributeBegin\n  Translate " << cx + jx << " 0 " << cz + jz << "\n  Rotate " << turn << " 0 1 0\n  Scale " << sc << " "
+            << sc << " " << sc << "\n  ObjectInstance \"terrain\"\nAttributeEnd\n";
+    }
+  } else {
+    scene << shapes;
+  }
   if (lights > 0)
     scene << "AttributeBegin\n    AreaLightSource \"diffuse\" \"rgb L\" [ 8 8 8 ]\n"
              "    Material \"diffuse\" \"rgb reflectance\" [ 0 0 0 ]\n"
@@ -170,7 +197,9 @@ int main(int argc, char** argv) {
     std::cerr << "tuile_gen_large: cannot write scene.pbrt\n";
     return 1;
   }
-  std::cout << out << "/scene.pbrt: " << tris_written << " triangles in " << files << " files, " << lights << " lights\n";
+  std::cout << out << "/scene.pbrt: " << tris_written << " triangles in " << files << " files, " << lights << " lights";
+  if (instances > 0) std::cout << ", " << instances << " instances (" << double(tris_written) * double(instances) << " triangles rendered)";
+  std::cout << "\n";
 
   if (check) {
     const auto t0 = std::chrono::steady_clock::now();

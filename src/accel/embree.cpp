@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstring>
+#include <algorithm>
 #include <mutex>
 #include <vector>
 
@@ -28,7 +29,25 @@ struct Accel::Impl {
   std::once_flag emitters_built;
   std::string error;
   std::vector<AlphaShape> alpha;  // the shapes with an alpha, each geometry's user data (reserved: stable)
+  std::vector<RTCScene> objects;  // one BVH per instanced object (the second level)
+  // Instances: Embree reports an instance's hits with the geometry's ID in its object's
+  // scene and the instance geometry's ID (inst_base + i) in instID; fix_instances turns
+  // them into the scene's row (rows[inst_row0[i] + local ID]) and the instance's index i.
+  uint32_t inst_base = 0;
+  std::vector<uint32_t> rows, inst_row0;
   RTCScene of(Bvh t) const { return t == Bvh::emitters ? emitters : scene; }
+  void fix_instances(const int32_t* valid, RayHit16& p) const noexcept {
+    for (int k = 0; k < packet_width; ++k) {
+      if ((valid && valid[k] != -1) || p.geomID[k] == invalid_id || p.instID[0][k] == invalid_id) continue;
+      const uint32_t i = p.instID[0][k] - inst_base;
+      p.geomID[k] = rows[inst_row0[i] + p.geomID[k]];
+      p.instID[0][k] = i;
+    }
+  }
+  static void clear_instances(const int32_t* valid, RayHit16& p) noexcept {
+    for (int k = 0; k < packet_width; ++k)
+      if (!valid || valid[k] == -1) p.instID[0][k] = invalid_id;
+  }
 };
 
 static void error_callback(void* user, RTCError code, const char* str) {
@@ -74,6 +93,23 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
   // Each emitter is a second geometry object on the same shared buffers, attached to the
   // emitters' scene under the same ID.
   impl_->alpha.reserve(scene.meshes.size() + scene.spheres.size());
+  // Instanced objects' shapes go to their object's scene under local IDs 0, 1, ... (rows
+  // maps them back to the scene's rows); every other shape to the scene under its row.
+  for (size_t o = 0; o < scene.objects.size(); ++o) {
+    impl_->objects.push_back(rtcNewScene(impl_->device));
+    rtcSetSceneFlags(impl_->objects.back(), options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
+    rtcSetSceneBuildQuality(impl_->objects.back(), RTC_BUILD_QUALITY_MEDIUM);
+  }
+  std::vector<std::vector<uint32_t>> object_rows(scene.objects.size());
+  const auto attach = [&](RTCScene sc, RTCGeometry g, unsigned row, int object) {
+    if (sc == impl_->scene && object >= 0) {
+      auto& r = object_rows[static_cast<size_t>(object)];
+      rtcAttachGeometryByID(impl_->objects[static_cast<size_t>(object)], g, static_cast<unsigned>(r.size()));
+      r.push_back(row);
+    } else {
+      rtcAttachGeometryByID(sc, g, row);
+    }
+  };
   unsigned id = 0;
   for (const Mesh& m : scene.meshes) {
     const AlphaShape* alpha = nullptr;
@@ -93,7 +129,7 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
                                  3 * sizeof(uint32_t), nt);
       if (alpha) attach_alpha(g, alpha);
       rtcCommitGeometry(g);
-      rtcAttachGeometryByID(sc, g, id);
+      attach(sc, g, id, m.object);
       rtcReleaseGeometry(g);
     }
     ++id;
@@ -118,7 +154,7 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
       v[3] = s.radius;
       if (alpha) attach_alpha(g, alpha);
       rtcCommitGeometry(g);
-      rtcAttachGeometryByID(sc, g, id);
+      attach(sc, g, id, s.object);
       rtcReleaseGeometry(g);
     }
     ++id;
@@ -140,9 +176,28 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
         rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT, sizeof(uint32_t), ns));
     for (size_t s = 0; s < ns; ++s) first[s] = static_cast<uint32_t>(4 * s);
     rtcCommitGeometry(g);
-    rtcAttachGeometryByID(impl_->scene, g, id);
+    attach(impl_->scene, g, id, c.object);
     rtcReleaseGeometry(g);
     ++id;
+  }
+  // The objects' BVHs, then their instances in the scene under IDs after every row.
+  for (RTCScene o : impl_->objects) rtcCommitScene(o);
+  impl_->inst_base = id;
+  for (const auto& r : object_rows) {
+    impl_->inst_row0.push_back(static_cast<uint32_t>(impl_->rows.size()));
+    impl_->rows.insert(impl_->rows.end(), r.begin(), r.end());
+  }
+  std::vector<uint32_t> object_row0 = std::move(impl_->inst_row0);
+  impl_->inst_row0.clear();
+  impl_->inst_row0.reserve(scene.instances.size());
+  for (const Instance& in : scene.instances) {
+    RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_INSTANCE);
+    rtcSetGeometryInstancedScene(g, impl_->objects[static_cast<size_t>(in.object)]);
+    rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, &in.world_from_object[0][0]);
+    rtcCommitGeometry(g);
+    rtcAttachGeometryByID(impl_->scene, g, id++);
+    rtcReleaseGeometry(g);
+    impl_->inst_row0.push_back(object_row0[static_cast<size_t>(in.object)]);
   }
   rtcCommitScene(impl_->scene);
   if (!impl_->error.empty()) throw SceneError(impl_->error);
@@ -158,6 +213,7 @@ void Accel::prepare_emitters() const {
 
 Accel::~Accel() {
   if (impl_->scene) rtcReleaseScene(impl_->scene);
+  for (RTCScene o : impl_->objects) rtcReleaseScene(o);
   if (impl_->emitters) rtcReleaseScene(impl_->emitters);
   if (impl_->device) rtcReleaseDevice(impl_->device);
 }
@@ -166,7 +222,10 @@ void Accel::intersect16(const int32_t* valid, RayHit16& packet, bool coherent, B
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  const bool inst = !impl_->inst_row0.empty() && bvh == Bvh::scene;
+  if (inst) Impl::clear_instances(valid, packet);
   rtcIntersect16(valid, impl_->of(bvh), &ctx, reinterpret_cast<RTCRayHit16*>(&packet));
+  if (inst) impl_->fix_instances(valid, packet);
 }
 
 void Accel::occluded16(const int32_t* valid, Ray16& packet, bool coherent) const noexcept {
@@ -195,7 +254,15 @@ void Accel::intersect_stream(StreamRays& r, unsigned n, bool coherent, Bvh bvh) 
   rtcInitIntersectContext(&ctx);
   ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
   RTCRayHitNp np = to_np(r);
+  const bool inst = !impl_->inst_row0.empty() && bvh == Bvh::scene;
+  if (inst) std::fill_n(r.instID, n, RTC_INVALID_GEOMETRY_ID);
   rtcIntersectNp(impl_->of(bvh), &ctx, &np, n);
+  if (inst)
+    for (unsigned j = 0; j < n; ++j)
+      if (r.geomID[j] != RTC_INVALID_GEOMETRY_ID && r.instID[j] != RTC_INVALID_GEOMETRY_ID) {
+        r.instID[j] -= impl_->inst_base;
+        r.geomID[j] = impl_->rows[impl_->inst_row0[r.instID[j]] + r.geomID[j]];
+      }
 }
 
 void Accel::occluded_stream(StreamRays& r, unsigned n, bool coherent) const noexcept {
@@ -223,7 +290,14 @@ void Accel::intersect1(RayHit16& p, int i) const noexcept {
   rh.ray.id = 0;
   rh.ray.flags = 0;
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(impl_->scene, &ctx, &rh);
+  if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID) {
+    const uint32_t k = rh.hit.instID[0] - impl_->inst_base;
+    rh.hit.geomID = impl_->rows[impl_->inst_row0[k] + rh.hit.geomID];
+    rh.hit.instID[0] = k;
+  }
+  p.instID[0][i] = rh.hit.instID[0];
   p.ray.tfar[i] = rh.ray.tfar;
   p.geomID[i] = rh.hit.geomID;
   p.primID[i] = rh.hit.primID;

@@ -24,6 +24,9 @@ class Accel {
   // Builds the BVH over every mesh, sphere and curve of the scene, and attaches the
   // emitters to a second scene (built by prepare_emitters). geomID == mesh index for
   // meshes, meshes.size() + i for sphere i, in both; then the curves (the scene alone).
+  // Instanced objects (Scene::instances) are two levels: one BVH per object, placed by
+  // Embree instances; a query's hit of an instance reports the shape's row as geomID, as
+  // for any other shape, and the instance's index in instID[0] (invalid_id elsewhere).
   // Throws SceneError if Embree fails.
   Accel(const Scene& scene, const EmbreeOptions& options = {});
   ~Accel();

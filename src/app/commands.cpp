@@ -92,6 +92,9 @@ std::string info_text(const Prepared& p) {
   say("resolution: %dx%d\n", scene.camera.width, scene.camera.height);
   say("triangles: %zu\nspheres: %zu\nmeshes: %zu\nmaterials: %zu\ntextures: %zu\n", scene.triangle_count(),
               scene.spheres.size(), scene.meshes.size(), scene.materials.size(), scene.textures.size());
+  if (!scene.instances.empty())
+    say("instances: %zu of %zu object(s), %zu triangles rendered\n", scene.instances.size(), scene.objects.size(),
+        scene.instanced_triangle_count());
   if (!scene.curves.empty()) {
     size_t segments = 0, kinds[3] = {0, 0, 0};
     for (const Curves& c : scene.curves) {

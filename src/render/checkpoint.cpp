@@ -87,6 +87,10 @@ std::string render_fingerprint(const Scene& scene, const RenderOptions& options,
     c.add(flags, sizeof(flags));
     if (!m.normals.empty()) c.add_vector(m.normals);  // (absent: the fingerprint of earlier releases)
   }
+  for (const Instance& in : scene.instances) {  // (none: the fingerprint of earlier releases)
+    c.add(&in.object, sizeof(in.object));
+    c.add(&in.world_from_object, sizeof(in.world_from_object));
+  }
   for (const Sphere& s : scene.spheres) {
     c.add(&s.center, sizeof(s.center));
     c.add(&s.radius, sizeof(s.radius));

@@ -59,11 +59,9 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   if (sky || media) {
     bounce_against_emitters_ = false;
   } else if (opt_.bounce == BounceTrace::automatic) {
-    size_t all = scene.spheres.size(), emitting = 0;
-    for (const Mesh& m : scene.meshes) {
-      all += m.triangle_count();
+    size_t all = scene.spheres.size() + scene.instanced_triangle_count(), emitting = 0;
+    for (const Mesh& m : scene.meshes)
       if (m.emissive()) emitting += m.triangle_count();
-    }
     for (const Sphere& sp : scene.spheres) emitting += sp.emissive();
     bounce_against_emitters_ = 2 * emitting <= all;
   } else {

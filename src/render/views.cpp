@@ -529,6 +529,41 @@ void build_camera_view(SceneViews& v, const Scene& scene) {
   }
 }
 
+// The instances' transforms (GeomView::inst_m, inst_inv): the scene's floats, which Embree
+// traces with, and their inverse (in double, then rounded).
+void build_instance_table(SceneViews& v, const Scene& scene) {
+  GeomView& G = v.geom;
+  G.has_instances = !scene.instances.empty();
+  G.inst_count = static_cast<int32_t>(scene.instances.size());
+  v.inst_m.reserve(12 * (scene.instances.size() + 1));
+  v.inst_inv.reserve(12 * (scene.instances.size() + 1));
+  for (const Instance& in : scene.instances) {
+    double a[3][3], t[3];
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) a[r][c] = in.world_from_object[r][c];
+      t[r] = in.world_from_object[r][3];
+      v.inst_m.insert(v.inst_m.end(), in.world_from_object[r], in.world_from_object[r] + 4);
+    }
+    // the inverse of the linear part by cofactors, then -A^-1 t
+    const double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+                       a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+    double inv[3][3];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) {
+        const int r1 = (c + 1) % 3, r2 = (c + 2) % 3, c1 = (r + 1) % 3, c2 = (r + 2) % 3;
+        inv[r][c] = (a[r1][c1] * a[r2][c2] - a[r1][c2] * a[r2][c1]) / det;
+      }
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) v.inst_inv.push_back(static_cast<float>(inv[r][c]));
+      v.inst_inv.push_back(static_cast<float>(-(inv[r][0] * t[0] + inv[r][1] * t[1] + inv[r][2] * t[2])));
+    }
+  }
+  v.inst_m.insert(v.inst_m.end(), 12, 0.f);  // never empty
+  v.inst_inv.insert(v.inst_inv.end(), 12, 0.f);
+  G.inst_m = v.inst_m.data();
+  G.inst_inv = v.inst_inv.data();
+}
+
 }  // namespace
 
 SceneViews build_views(const Scene& scene, LightPick pick) {
@@ -537,6 +572,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   build_geometry_table(out, scene);
   build_material_table(out, scene);
   build_media_table(out, scene);
+  build_instance_table(out, scene);
   build_camera_view(out, scene);
   return out;
 }

@@ -54,6 +54,7 @@ struct SceneViews {
   // participating media (GeomView::media)
   std::vector<float> med_sigma_t[3], med_sigma_s[3], med_emit[3];
   std::vector<int32_t> med_scatters, med_emits, med_geom_in, med_geom_out, med_geom_interface;
+  std::vector<float> inst_m, inst_inv;  // instances (GeomView::inst_m, inst_inv)
   GeomView geom;
   CameraView camera;
   std::vector<float> filter_table;  // camera.filter's tables (render/filter_table.h), set by the renderer

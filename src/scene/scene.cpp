@@ -35,6 +35,14 @@ size_t Scene::triangle_count() const {
   return n;
 }
 
+size_t Scene::instanced_triangle_count() const {
+  std::vector<size_t> per_object(objects.size(), 0);
+  size_t n = 0;
+  for (const Mesh& m : meshes) (m.object < 0 ? n : per_object[static_cast<size_t>(m.object)]) += m.triangle_count();
+  for (const Instance& in : instances) n += per_object[static_cast<size_t>(in.object)];
+  return n;
+}
+
 
 static vec3f vertex(const Mesh& m, uint32_t i) {
   return {m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]};
@@ -194,6 +202,34 @@ void validate_scene(Scene& scene) {
       throw SceneError(c.name + ": error: material index out of range");
     if (c.normals.size() % 3 == 0 && !c.normals.empty()) c.normals.push_back(0.f);  // Embree's float3 read past the end
   }
+  // instanced objects: shapes of a known object that do not emit; placements by finite,
+  // invertible transforms
+  const auto bad_object = [&](int o) { return o < -1 || o >= static_cast<int>(scene.objects.size()); };
+  for (const Mesh& m : scene.meshes) {
+    if (bad_object(m.object)) throw SceneError(m.name + ": error: object index out of range");
+    if (m.object >= 0 && m.emissive())
+      throw SceneError(m.name + ": error: an instanced object's shape cannot emit (pbrt-v4 does not instance area lights)");
+  }
+  for (const Sphere& s : scene.spheres)
+    if (bad_object(s.object) || (s.object >= 0 && s.emissive()))
+      throw SceneError("sphere: error: object index out of range, or an instanced object's sphere emits");
+  for (const Curves& c : scene.curves)
+    if (bad_object(c.object)) throw SceneError(c.name + ": error: object index out of range");
+  for (const Instance& in : scene.instances) {
+    const std::string where = in.where.empty() ? scene.source : in.where;
+    if (in.object < 0 || in.object >= static_cast<int>(scene.objects.size()))
+      throw SceneError(where + ": error: instance of an unknown object");
+    const auto& m = in.world_from_object;
+    for (const auto& row : m)
+      for (float v : row)
+        if (!std::isfinite(v)) throw SceneError(where + ": error: instance transform has a NaN or infinite entry");
+    const double det = double(m[0][0]) * (double(m[1][1]) * m[2][2] - double(m[1][2]) * m[2][1]) -
+                       double(m[0][1]) * (double(m[1][0]) * m[2][2] - double(m[1][2]) * m[2][0]) +
+                       double(m[0][2]) * (double(m[1][0]) * m[2][1] - double(m[1][1]) * m[2][0]);
+    if (!(std::abs(det) > 1e-30) || !std::isfinite(det) || !std::isfinite(1 / det))
+      throw SceneError(where + ": error: singular instance transform (determinant " + std::to_string(det) +
+                       "; expected an invertible transform)");
+  }
   resolve_material_params(scene);
   const Camera& c = scene.camera;
   if (c.width < 1 || c.height < 1 || c.width > 32768 || c.height > 32768 ||
@@ -230,7 +266,7 @@ void derive_lights(Scene& scene) {
   for (size_t mi = 0; mi < scene.meshes.size(); ++mi) {
     Mesh& m = scene.meshes[mi];
     m.prim_light.clear();
-    if (!m.emissive()) continue;
+    if (!m.emissive() || m.object >= 0) continue;
     m.prim_light.assign(m.triangle_count(), -1);
     const float sign = m.reverse_orientation ? -1.f : 1.f;
     for (size_t t = 0; t < m.triangle_count(); ++t) {
@@ -280,11 +316,28 @@ void derive_lights(Scene& scene) {
   }
   // scene bounds for the power of distant lights
   vec3f lo{1e30f, 1e30f, 1e30f}, hi{-1e30f, -1e30f, -1e30f};
-  for (const Mesh& m : scene.meshes)
+  // (an object's bounds once, then its box's corners placed by each instance)
+  std::vector<vec3f> olo(scene.objects.size(), vec3f{1e30f, 1e30f, 1e30f}), ohi(scene.objects.size(), vec3f{-1e30f, -1e30f, -1e30f});
+  for (const Mesh& m : scene.meshes) {
+    vec3f& l = m.object < 0 ? lo : olo[static_cast<size_t>(m.object)];
+    vec3f& h = m.object < 0 ? hi : ohi[static_cast<size_t>(m.object)];
     for (size_t i = 0; i + 2 < m.positions.size(); i += 3) {
-      lo = {std::min(lo.x, m.positions[i]), std::min(lo.y, m.positions[i + 1]), std::min(lo.z, m.positions[i + 2])};
-      hi = {std::max(hi.x, m.positions[i]), std::max(hi.y, m.positions[i + 1]), std::max(hi.z, m.positions[i + 2])};
+      l = {std::min(l.x, m.positions[i]), std::min(l.y, m.positions[i + 1]), std::min(l.z, m.positions[i + 2])};
+      h = {std::max(h.x, m.positions[i]), std::max(h.y, m.positions[i + 1]), std::max(h.z, m.positions[i + 2])};
     }
+  }
+  for (const Instance& in : scene.instances) {
+    const vec3f a = olo[static_cast<size_t>(in.object)], b = ohi[static_cast<size_t>(in.object)];
+    if (!(b.x >= a.x)) continue;
+    const auto& M = in.world_from_object;
+    for (int c = 0; c < 8; ++c) {
+      const vec3f p{c & 1 ? b.x : a.x, c & 2 ? b.y : a.y, c & 4 ? b.z : a.z};
+      const vec3f w{M[0][0] * p.x + M[0][1] * p.y + M[0][2] * p.z + M[0][3], M[1][0] * p.x + M[1][1] * p.y + M[1][2] * p.z + M[1][3],
+                    M[2][0] * p.x + M[2][1] * p.y + M[2][2] * p.z + M[2][3]};
+      lo = {std::min(lo.x, w.x), std::min(lo.y, w.y), std::min(lo.z, w.z)};
+      hi = {std::max(hi.x, w.x), std::max(hi.y, w.y), std::max(hi.z, w.z)};
+    }
+  }
   const float radius = hi.x >= lo.x ? 0.5f * length(hi - lo) : 1.f;
   for (Light& l : lights) {
     for (float v : {l.radiance.r, l.radiance.g, l.radiance.b})

@@ -111,6 +111,7 @@ struct Mesh {
   bool has_alpha() const { return alpha.texture >= 0 || alpha.value < 1; }
   // filled by finalize_scene: light index of each triangle or -1
   std::vector<int32_t> prim_light;
+  int object = -1;  // an instanced object's shape (Scene::instances), in its object space; -1: world
   size_t triangle_count() const { return indices.size() / 3; }
   bool emissive() const { return emission.any_positive(); }
 };
@@ -124,6 +125,7 @@ struct Sphere {
   float alpha = 1;  // pbrt's "alpha", a constant (wave/alpha.h)
   int medium_inside = -1, medium_outside = -1;  // Scene::media, -1: none
   int light = -1;  // filled by finalize_scene
+  int object = -1;  // an instanced object's shape (Scene::instances), in its object space; -1: world
   bool emissive() const { return emission.any_positive(); }
 };
 
@@ -139,6 +141,7 @@ struct Curves {
   std::vector<float> normals;      // ribbons: x y z per control point (then padded by one float)
   int material = -1;
   int medium_inside = -1, medium_outside = -1;  // Scene::media, -1: none
+  int object = -1;  // an instanced object's shape (Scene::instances), in its object space; -1: world
   size_t segment_count() const { return points.size() / 16; }
   float max_radius() const {
     float r = 0;
@@ -190,6 +193,16 @@ struct Light : LightShape {
   int sky_map = -1;   // a sky with an environment map: its index in Scene::sky_maps
 };
 
+// pbrt-v4's ObjectInstance: object `object` (Scene::objects: its shapes are the meshes,
+// spheres and curves whose `object` is that index, in the object's own space) placed in the
+// world by an affine transform. Embree traces it as an instance of one BVH per object (two
+// levels): an object's triangles are stored once however many times it is placed.
+struct Instance {
+  int object = 0;
+  float world_from_object[3][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}};
+  std::string where;  // "file:line" of the ObjectInstance, for messages
+};
+
 // pbrt-v4's perspective camera: world_from_camera is affine (3 rows of 4).
 struct Camera {
   float world_from_camera[3][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}};
@@ -225,6 +238,8 @@ struct Scene {
   std::vector<Mesh> meshes;
   std::vector<Sphere> spheres;
   std::vector<Curves> curves;       // after the spheres in Embree's geomIDs
+  std::vector<std::string> objects;   // instanced objects' names (Mesh::object etc. index them)
+  std::vector<Instance> instances;    // their placements
   std::vector<Medium> media;        // MakeNamedMedium, in the file's order
   int camera_medium = -1;           // the medium the camera sits in (pbrt: the outside one at Camera), or -1
   std::vector<Material> materials;  // meshes with material -1 use a default grey 0.5
@@ -242,7 +257,8 @@ struct Scene {
   std::string file_output;        // Film "filename"
   FilterParams file_filter;       // PixelFilter (pbrt-v4's defaults per filter; none: the box of radius 1/2)
   uint32_t features = 0;
-  size_t triangle_count() const;
+  size_t triangle_count() const;            // triangles stored (an object's once)
+  size_t instanced_triangle_count() const;  // triangles rendered (an object's once per instance)
 };
 
 // Derives the light table and features; validates (NaN/Inf vertices, indices in range).

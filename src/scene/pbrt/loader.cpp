@@ -5,6 +5,7 @@
 // parallel (loader_files.cpp), then textures are resolved (loader_materials.cpp), object
 // instances flattened and area-light powers applied (loader_shapes.cpp). Also the public
 // entry points load_pbrt and load_pbrt_string.
+#include <cmath>
 #include <memory>
 #include <string>
 
@@ -340,7 +341,11 @@ void Loader::directive(Lexer& lx, const Token& t) {
     auto it = objects_.find(name);
     if (it == objects_.end()) lx.fail(nt, "unknown object \"" + name + "\"", "a name defined by ObjectBegin");
     if (instances_.size() >= (size_t(1) << 24)) lx.fail(t, "too many object instances", "fewer than 2^24 instances");
-    instances_.push_back({it->second, gs_.ctm});
+    const double det = gs_.ctm.det3();
+    if (!gs_.ctm.is_affine() || !(std::abs(det) > 1e-30) || !std::isfinite(det))
+      lx.fail(t, "singular or projective transform for the instance of \"" + name + "\" (determinant " + std::to_string(det) + ")",
+              "an invertible affine transform");
+    instances_.push_back({it->second, gs_.ctm, where});
   } else {
     lx.fail(t, "unknown directive " + describe(t), "a pbrt-v4 directive such as Shape, Material or AttributeBegin");
   }

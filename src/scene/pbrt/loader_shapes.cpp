@@ -3,8 +3,8 @@
 // sphere, disk (a 64-gon of the same area, a sector for phimax) and cylinder (a band of 128
 // quads of the same area, radial shading normals), emitting when the graphics state has an
 // area light (triangles oriented by their shading normals, as pbrt-v4 does). At the end,
-// flatten applies area-light powers and copies object instances into world-space meshes
-// and spheres.
+// flatten applies area-light powers and places object instances (place_instances: real
+// instances, or world-space copies of objects that bound media).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -593,56 +593,83 @@ void Loader::resolve_media(const MediumNames& n, int& inside, int& outside) {
   if (outside >= 0 && outside != inside) ++scene.media[size_t(outside)].bounding_shapes;
 }
 
-void Loader::flatten() {
-  size_t total = 0;
-  for (OwnedMesh& om : meshes_) resolve_media(om.media, om.mesh.medium_inside, om.mesh.medium_outside);
-  for (OwnedSphere& os : spheres_) resolve_media(os.media, os.sphere.medium_inside, os.sphere.medium_outside);
-  for (OwnedCurves& oc : curves_) resolve_media(oc.media, oc.curves.medium_inside, oc.curves.medium_outside);
-  {  // the camera's medium (not a shape: not counted as bounding it)
-    int in = -1;
-    resolve_media(camera_medium_, in, scene.camera_medium);
-    if (scene.camera_medium >= 0) --scene.media[size_t(scene.camera_medium)].bounding_shapes;
-  }
-  // "interface" shapes bound media and do not scatter light: pbrt-v4's rays pass through
-  // them. One that changes the medium (a rendered medium on either side, different sides)
-  // stays in the geometry, where the medium stages pass rays through it (wave/media.h);
-  // one that changes nothing is left out (an emissive one stays, a diffuse emitter: pbrt-v4
-  // counts its emission and passes the ray on).
-  size_t interfaces = 0;
-  auto rendered = [&](int m) { return m >= 0 && scene.media[size_t(m)].supported ? m : -1; };
-  auto is_interface = [&](int material, bool emits, int in, int out) {
-    const bool interface = material >= 0 && scene.materials[size_t(material)].interface;
-    if (interface && emits)
-      warn("interfaceemit", "an emissive shape with the \"interface\" material is rendered as a diffuse emitter (grey 0.5), "
-                            "where pbrt-v4's rays pass through it");
-    const bool skip = interface && !emits && rendered(in) == rendered(out);
-    interfaces += skip;
-    return skip;
+// Object instances. An object whose shapes are all plain surfaces becomes a real instance:
+// its shapes join the scene once, in object space (their `object` set), and each
+// ObjectInstance adds a placement (Scene::instances), which Embree traces as an instance of
+// the object's own BVH. An object with a shape that bounds a rendered medium (or is an
+// interface) is flattened into world-space copies as before (the medium stages follow
+// rays through world-space interfaces), with a note. Objects never placed are left out;
+// an object without shapes renders nothing (a warning).
+template <class IsInterface> void Loader::place_instances(IsInterface&& is_interface, size_t& total) {
+  if (instances_.empty()) return;
+  const size_t nobj = object_names_.size();
+  std::vector<int> shapes(nobj, 0), placed(nobj, 0);
+  std::vector<char> flat(nobj, 0);
+  auto rendered = [&](int m) { return m >= 0 && scene.media[size_t(m)].supported; };
+  auto bounds_media = [&](int material, int in, int out) {
+    return rendered(in) || rendered(out) || (material >= 0 && scene.materials[size_t(material)].interface);
   };
-  for (OwnedMesh& om : meshes_) {
-    if (om.object >= 0) continue;
-    if (is_interface(om.mesh.material, om.mesh.emissive(), om.mesh.medium_inside, om.mesh.medium_outside)) continue;
-    if (om.mesh.indices.empty()) {
-      warn("emptymesh", om.mesh.name + ": a mesh without triangles was skipped");
+  for (const OwnedMesh& om : meshes_)
+    if (om.object >= 0 && !om.mesh.indices.empty()) {
+      ++shapes[size_t(om.object)];
+      if (bounds_media(om.mesh.material, om.mesh.medium_inside, om.mesh.medium_outside)) flat[size_t(om.object)] = 1;
+    }
+  for (const OwnedSphere& os : spheres_)
+    if (os.object >= 0) {
+      ++shapes[size_t(os.object)];
+      if (bounds_media(os.sphere.material, os.sphere.medium_inside, os.sphere.medium_outside)) flat[size_t(os.object)] = 1;
+    }
+  for (const OwnedCurves& oc : curves_)
+    if (oc.object >= 0) {
+      ++shapes[size_t(oc.object)];
+      if (bounds_media(oc.curves.material, oc.curves.medium_inside, oc.curves.medium_outside)) flat[size_t(oc.object)] = 1;
+    }
+  for (const Instance& in : instances_) ++placed[size_t(in.object)];
+  // the real objects' shapes, once each, under the scene's object index
+  std::vector<int> index(nobj, -1);
+  for (size_t o = 0; o < nobj; ++o) {
+    if (!placed[o]) continue;
+    if (!shapes[o]) {
+      warn("emptyobject:" + object_names_[o], "object \"" + object_names_[o] + "\" has no shapes: its " +
+                                                  std::to_string(placed[o]) + " instance(s) render nothing");
       continue;
     }
-    if (om.power > 0 && luminance(om.mesh.emission) > 0) {
-      const double area = mesh_area(om.mesh);
-      if (area > 0)
-        om.mesh.emission = mul(om.mesh.emission, float(om.power / ((om.mesh.two_sided ? 2 : 1) * M_PI * area *
-                                                                    luminance(om.mesh.emission))));
-      else warn("zeroarea:" + om.power_where, om.power_where + ": area light of zero area: power ignored");
+    if (flat[o]) {
+      note("flatobject:" + object_names_[o], "object \"" + object_names_[o] + "\" bounds a participating medium: its " +
+                                                std::to_string(placed[o]) + " instance(s) are flattened into world-space copies");
+      continue;
     }
-    total += om.mesh.triangle_count();
-    scene.meshes.push_back(std::move(om.mesh));
+    index[o] = static_cast<int>(scene.objects.size());
+    scene.objects.push_back(object_names_[o]);
   }
-  for (OwnedSphere& os : spheres_)
-    if (os.object < 0 && !is_interface(os.sphere.material, os.sphere.emissive(), os.sphere.medium_inside, os.sphere.medium_outside)) scene.spheres.push_back(os.sphere);
-  for (OwnedCurves& oc : curves_)
-    if (oc.object < 0 && !is_interface(oc.curves.material, false, oc.curves.medium_inside, oc.curves.medium_outside)) scene.curves.push_back(oc.curves);
-  if (!instances_.empty())
-    warn("instances", "object instances were flattened into copies of their meshes");
+  for (OwnedMesh& om : meshes_)
+    if (om.object >= 0 && index[size_t(om.object)] >= 0 && !om.mesh.indices.empty()) {
+      om.mesh.object = index[size_t(om.object)];
+      scene.meshes.push_back(std::move(om.mesh));  // (only flattened objects' meshes are read again)
+    }
+  for (const OwnedSphere& os : spheres_)
+    if (os.object >= 0 && index[size_t(os.object)] >= 0) {
+      scene.spheres.push_back(os.sphere);
+      scene.spheres.back().object = index[size_t(os.object)];
+    }
+  for (const OwnedCurves& oc : curves_)
+    if (oc.object >= 0 && index[size_t(oc.object)] >= 0) {
+      scene.curves.push_back(oc.curves);
+      scene.curves.back().object = index[size_t(oc.object)];
+    }
   for (const Instance& in : instances_) {
+    const int o = index[size_t(in.object)];
+    if (o < 0) continue;
+    tuile::Instance placed_in;
+    placed_in.object = o;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) placed_in.world_from_object[r][c] = static_cast<float>(in.ctm.m[r][c]);
+    placed_in.where = in.where;
+    scene.instances.push_back(std::move(placed_in));
+  }
+  // the flattened objects' copies
+  for (const Instance& in : instances_) {
+    if (!flat[size_t(in.object)] || !placed[size_t(in.object)]) continue;
     const bool swaps = in.ctm.swaps_handedness();
     for (const OwnedMesh& om : meshes_) {
       if (om.object != in.object || om.mesh.indices.empty() || is_interface(om.mesh.material, false, om.mesh.medium_inside, om.mesh.medium_outside)) continue;
@@ -696,6 +723,56 @@ void Loader::flatten() {
       scene.curves.push_back(std::move(c));
     }
   }
+}
+
+void Loader::flatten() {
+  size_t total = 0;
+  for (OwnedMesh& om : meshes_) resolve_media(om.media, om.mesh.medium_inside, om.mesh.medium_outside);
+  for (OwnedSphere& os : spheres_) resolve_media(os.media, os.sphere.medium_inside, os.sphere.medium_outside);
+  for (OwnedCurves& oc : curves_) resolve_media(oc.media, oc.curves.medium_inside, oc.curves.medium_outside);
+  {  // the camera's medium (not a shape: not counted as bounding it)
+    int in = -1;
+    resolve_media(camera_medium_, in, scene.camera_medium);
+    if (scene.camera_medium >= 0) --scene.media[size_t(scene.camera_medium)].bounding_shapes;
+  }
+  // "interface" shapes bound media and do not scatter light: pbrt-v4's rays pass through
+  // them. One that changes the medium (a rendered medium on either side, different sides)
+  // stays in the geometry, where the medium stages pass rays through it (wave/media.h);
+  // one that changes nothing is left out (an emissive one stays, a diffuse emitter: pbrt-v4
+  // counts its emission and passes the ray on).
+  size_t interfaces = 0;
+  auto rendered = [&](int m) { return m >= 0 && scene.media[size_t(m)].supported ? m : -1; };
+  auto is_interface = [&](int material, bool emits, int in, int out) {
+    const bool interface = material >= 0 && scene.materials[size_t(material)].interface;
+    if (interface && emits)
+      warn("interfaceemit", "an emissive shape with the \"interface\" material is rendered as a diffuse emitter (grey 0.5), "
+                            "where pbrt-v4's rays pass through it");
+    const bool skip = interface && !emits && rendered(in) == rendered(out);
+    interfaces += skip;
+    return skip;
+  };
+  for (OwnedMesh& om : meshes_) {
+    if (om.object >= 0) continue;
+    if (is_interface(om.mesh.material, om.mesh.emissive(), om.mesh.medium_inside, om.mesh.medium_outside)) continue;
+    if (om.mesh.indices.empty()) {
+      warn("emptymesh", om.mesh.name + ": a mesh without triangles was skipped");
+      continue;
+    }
+    if (om.power > 0 && luminance(om.mesh.emission) > 0) {
+      const double area = mesh_area(om.mesh);
+      if (area > 0)
+        om.mesh.emission = mul(om.mesh.emission, float(om.power / ((om.mesh.two_sided ? 2 : 1) * M_PI * area *
+                                                                    luminance(om.mesh.emission))));
+      else warn("zeroarea:" + om.power_where, om.power_where + ": area light of zero area: power ignored");
+    }
+    total += om.mesh.triangle_count();
+    scene.meshes.push_back(std::move(om.mesh));
+  }
+  for (OwnedSphere& os : spheres_)
+    if (os.object < 0 && !is_interface(os.sphere.material, os.sphere.emissive(), os.sphere.medium_inside, os.sphere.medium_outside)) scene.spheres.push_back(os.sphere);
+  for (OwnedCurves& oc : curves_)
+    if (oc.object < 0 && !is_interface(oc.curves.material, false, oc.curves.medium_inside, oc.curves.medium_outside)) scene.curves.push_back(oc.curves);
+  place_instances(is_interface, total);
   if (interfaces)
     note("interface", std::to_string(interfaces) + " shape(s) with the \"interface\" material (boundaries of media, which do not "
                       "scatter light) between the same media left out of the geometry: rays pass through them, as in pbrt-v4");

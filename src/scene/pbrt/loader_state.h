@@ -151,6 +151,7 @@ struct OwnedCurves {
 struct Instance {
   int object;
   Mat4 ctm;
+  std::string where;  // file:line of the ObjectInstance
 };
 
 struct Resolved {
@@ -233,6 +234,7 @@ class Loader {
   int add_float_texture(FloatTexture t);
   void bake_materials();
   void flatten();
+  template <class IsInterface> void place_instances(IsInterface&& is_interface, size_t& total);
 
   std::vector<std::unique_ptr<Lexer>> lexers_;
   GraphicsState gs_;
