@@ -820,8 +820,16 @@ TEST(Lanes, CameraHitsEqualScalar) {
       a->keys.keyed = (1u << SamplerKeys::pairs) - 1u;
       for (int p = 0; p < SamplerKeys::pairs; ++p) make_pair_keys(est.seed, a->lanes.pixel, p, 256, a->keys.lane_keys(p));
       auto b = std::make_unique<TileBuffers>(*a);
+      auto c = std::make_unique<TileBuffers>(*a);
       camera_hits<true, vfloat>(views.geom, views.lights, est, 0, SampleLayout{}.technique_choice(), lanes, *a);
       camera_hits<true, float>(views.geom, views.lights, est, 0, SampleLayout{}.technique_choice(), lanes, *b);
+      // without the flattened triangle table (large scenes): the same points, bit for bit
+      GeomView unflat = views.geom;
+      unflat.flat_triangles = false;
+      camera_hits<true, vfloat>(unflat, views.lights, est, 0, SampleLayout{}.technique_choice(), lanes, *c);
+      ASSERT_EQ(c->points.count, a->points.count);
+      for (auto arr : {&ShadingPoints::px, &ShadingPoints::py, &ShadingPoints::pz, &ShadingPoints::eps, &ShadingPoints::nx})
+        ASSERT_EQ(std::memcmp(c->points.*arr, a->points.*arr, sizeof(float) * size_t(a->points.count)), 0);
       auto name = [&] { return std::string(mode == MisMode::one ? "one" : "multi") + " lanes " + std::to_string(lanes); };
       ASSERT_EQ(a->points.count, b->points.count) << name();
       ASSERT_EQ(a->stats.rejected_camera, b->stats.rejected_camera) << name();

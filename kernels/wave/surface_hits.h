@@ -146,7 +146,31 @@ TUILE_FLATTEN inline HitGeometry<T> hit_geometry_lanes(const GeomView& G, const 
   const int32_t t0 = mesh0 ? G.geom_first[g0] + p0 : 0;
   i32_t<T> tri;
   Vec3<T> v0, v1, v2;
-  if (one_tri) {
+  if (!G.flat_triangles) {
+    // large scenes keep no flattened table (GeomView::flat_triangles): each lane reads its
+    // triangle's vertices through its mesh's indices (the same floats)
+    constexpr int W = lane_traits<T>::width;
+    alignas(64) float buf[9][W];
+    const uint32_t tris = lane_bits(f_mask_from_i(tri_i));
+    for (int k = 0; k < W; ++k) {
+      if (!(tris >> k & 1u)) {
+        for (auto& b : buf) b[k] = 0.f;
+        continue;
+      }
+      const uint32_t g = p.geomID[l + k];
+      const uint32_t* idx = G.indices[g] + 3 * static_cast<size_t>(p.primID[l + k]);
+      for (int c = 0; c < 3; ++c) {
+        const float* q = G.positions[g] + 3 * static_cast<size_t>(idx[c]);
+        buf[3 * c][k] = q[0];
+        buf[3 * c + 1][k] = q[1];
+        buf[3 * c + 2][k] = q[2];
+      }
+    }
+    tri = sel(tri_i, gather(G.geom_first, gi) + prim, i32_t<T>(0));
+    v0 = {load<T>(buf[0]), load<T>(buf[1]), load<T>(buf[2])};
+    v1 = {load<T>(buf[3]), load<T>(buf[4]), load<T>(buf[5])};
+    v2 = {load<T>(buf[6]), load<T>(buf[7]), load<T>(buf[8])};
+  } else if (one_tri) {
     const float* P = G.tri_pos + 9 * static_cast<size_t>(t0);
     tri = i32_t<T>(t0);
     v0 = {T(P[0]), T(P[1]), T(P[2])};

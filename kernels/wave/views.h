@@ -74,7 +74,10 @@ struct GeomView {
   const int32_t* geom_light = nullptr;         // a sphere's light or -1 (a mesh's lights are per triangle)
   const float* sphere_center = nullptr;        // per sphere: centre xyz and radius; per curve: 0 0 0 and its largest radius
   bool has_textures = false;
-  // Every triangle of every mesh, flattened.
+  // Every triangle of every mesh, flattened (flat_triangles: scenes below 2^23 stored
+  // triangles; larger ones read vertices through the meshes' indices, 36 bytes per
+  // triangle less).
+  bool flat_triangles = true;
   const float* tri_pos = nullptr;              // per triangle: v0 v1 v2, xyz each (9 floats)
   const int32_t* tri_light = nullptr;          // per triangle: light or -1
   const float *mat_r = nullptr, *mat_g = nullptr, *mat_b = nullptr;

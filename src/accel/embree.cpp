@@ -85,8 +85,13 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
   rtcSetDeviceErrorFunction(impl_->device, error_callback, impl_.get());
   impl_->scene = rtcNewScene(impl_->device);
   impl_->emitters = rtcNewScene(impl_->device);
+  // Large scenes (2^23 stored triangles and more) build compact BVHs: leaves that index the
+  // scene's shared vertex buffers instead of copying the triangles, 29 bytes per triangle
+  // less and a faster build (16 M triangles: 1603 against 2071 MiB at peak, BVH 3.0 against
+  // 4.5 s), for ~30% fewer samples per second (bench/results.md, "Large scenes").
+  const bool compact = options.compact == 1 || (options.compact < 0 && scene.triangle_count() >= (size_t(1) << 23));
   for (RTCScene sc : {impl_->scene, impl_->emitters}) {
-    rtcSetSceneFlags(sc, options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
+    rtcSetSceneFlags(sc, RTCSceneFlags((options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE) | (compact ? RTC_SCENE_FLAG_COMPACT : 0)));
     rtcSetSceneBuildQuality(sc, RTC_BUILD_QUALITY_MEDIUM);
   }
 

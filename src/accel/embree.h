@@ -13,6 +13,7 @@ namespace tuile {
 struct EmbreeOptions {
   bool robust = false;        // RTC_SCENE_FLAG_ROBUST: watertight traversal, at a cost in speed
   std::string device_config;  // e.g. "max_isa=avx2"
+  int compact = -1;           // RTC_SCENE_FLAG_COMPACT: 1 on, 0 off, -1 for scenes of 2^23 triangles and more
 };
 
 // Which BVH a query runs against: the whole scene, or only its emissive meshes and

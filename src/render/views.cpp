@@ -231,10 +231,12 @@ void build_geometry_table(SceneViews& v, const Scene& scene) {
   // Flattened triangles, gathered by the camera-hit stage at 9 * triangle in int32 lanes.
   size_t tris = 0;
   for (const Mesh& m : scene.meshes) tris += m.triangle_count();
-  if (9 * (tris + 1) > static_cast<size_t>(INT32_MAX))
+  if (tris + 1 > static_cast<size_t>(INT32_MAX))
     throw std::runtime_error("scene has " + std::to_string(tris) + " triangles; at most " +
-                             std::to_string(INT32_MAX / 9 - 1) + " are supported");
-  v.tri_pos.reserve(9 * (tris + 1));
+                             std::to_string(INT32_MAX - 1) + " are supported");
+  // (GeomView::flat_triangles: the table for scenes below 2^23 triangles, 300 MB)
+  v.geom.flat_triangles = tris < (size_t(1) << 23);
+  if (v.geom.flat_triangles) v.tri_pos.reserve(9 * (tris + 1));
   v.tri_light.reserve(tris + 1);
   // The geometry table, one row per Embree geomID (src/accel/embree.cpp attaches the meshes,
   // then the spheres, then the curves, in scene order).
@@ -244,13 +246,14 @@ void build_geometry_table(SceneViews& v, const Scene& scene) {
     v.geom_side.push_back(m.reverse_orientation ? -1.f : 1.f);
     v.geom_first.push_back(static_cast<int32_t>(v.tri_light.size()));
     v.geom_light.push_back(-1);  // per triangle: tri_light
-    for (size_t t = 0; t < m.triangle_count(); ++t) {
-      for (int k = 0; k < 3; ++k) {
-        const float* p = m.positions.data() + 3 * static_cast<size_t>(m.indices[3 * t + k]);
-        v.tri_pos.insert(v.tri_pos.end(), p, p + 3);
-      }
-      v.tri_light.push_back(m.prim_light.empty() ? -1 : m.prim_light[t]);
-    }
+    if (v.geom.flat_triangles)
+      for (size_t t = 0; t < m.triangle_count(); ++t)
+        for (int k = 0; k < 3; ++k) {
+          const float* p = m.positions.data() + 3 * static_cast<size_t>(m.indices[3 * t + k]);
+          v.tri_pos.insert(v.tri_pos.end(), p, p + 3);
+        }
+    if (m.prim_light.empty()) v.tri_light.insert(v.tri_light.end(), m.triangle_count(), -1);
+    else v.tri_light.insert(v.tri_light.end(), m.prim_light.begin(), m.prim_light.end());
     v.indices.push_back(m.indices.data());
     v.positions.push_back(m.positions.data());
     v.uvs.push_back(m.uvs.empty() ? nullptr : m.uvs.data());
