@@ -211,6 +211,29 @@ TEST(Bump, PbrtFloatImagemapDisplacement) {
   const RenderResult a = render_scene(bumped, o), b = render_scene(flat, o);
   for (float v : a.mean) ASSERT_TRUE(std::isfinite(v));
   EXPECT_FALSE(same_bits(a.mean, b.mean));
+  // the bumped quads as an instance (squashed, mirrored and turned) render as the same
+  // quads flattened by hand, to rounding: the bump's frame is built from the vertices and
+  // vertex normals placed in the world
+  {
+    const std::string xf = "Translate 0.1 0 0\nScale -0.8 1.3 0.9\nRotate 20 0 1 0\n";
+    const std::string shapes = "Material \"diffuse\" \"texture displacement\" \"bumps\"\n" + quad_uv;
+    const Scene inst = load("ObjectBegin \"b\"\n" + shapes + "ObjectEnd\nAttributeBegin\n" + xf +
+                            "ObjectInstance \"b\"\nAttributeEnd\n");
+    const Scene hand = load("AttributeBegin\n" + xf + shapes + "AttributeEnd\n");
+    ASSERT_EQ(inst.instances.size(), 1u);
+    const RenderResult x = render_scene(inst, o), y = render_scene(hand, o);
+    ASSERT_EQ(x.mean.size(), y.mean.size());
+    size_t close = 0;
+    double sx = 0, sy = 0;
+    for (size_t i = 0; i < x.mean.size(); ++i) {
+      close += std::fabs(x.mean[i] - y.mean[i]) <= 1e-4f * std::max(1e-3f, std::fabs(y.mean[i]));
+      sx += x.mean[i];
+      sy += y.mean[i];
+    }
+    EXPECT_GE(close, x.mean.size() * 98 / 100) << "of " << x.mean.size();
+    EXPECT_NEAR(sx / sy, 1.0, 1e-4);
+    EXPECT_FALSE(same_bits(x.mean, render_scene(flat, o).mean));
+  }
   const Scene sphere = load("Material \"diffuse\" \"texture displacement\" \"bumps\"\nShape \"sphere\"\n");
   bool warned = false;
   for (const std::string& w : sphere.warnings) warned = warned || w.find("spheres") != std::string::npos;

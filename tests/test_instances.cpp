@@ -19,10 +19,13 @@ using namespace tuile::test;
 
 namespace {
 
-// A floor, an area light and a sky; two objects with their own definition transforms
+// A floor, an area light and a sky; three objects with their own definition transforms
 // (a coated tetrahedron with vertex normals beside a conductor triangle; a dielectric
-// sphere over a textured-free diffuse quad with uv), placed five times: a translation, a
-// non-uniform scale, a mirror, a uniform scale turned about z, and nested attribute blocks.
+// sphere over a diffuse quad with uv; two hair fibres, a tube and a flat ribbon), placed
+// seven times: a translation, a non-uniform scale, a mirror, a uniform scale turned about
+// z, nested attribute blocks, and the fibres moved, and scaled and turned (uniformly: a
+// curve flattened by hand under a non-uniform scale is a round tube of the mean width, an
+// instance of it an elliptic one, as in pbrt-v4).
 const char* inst_head = R"(LookAt 0 3 -8  0 0.5 0  0 1 0
 Camera "perspective" "float fov" [45]
 Film "rgb" "integer xresolution" [48] "integer yresolution" [36]
@@ -55,6 +58,11 @@ Shape "sphere" "float radius" 0.3
 Material "diffuse" "rgb reflectance" [0.2 0.6 0.3]
 Shape "trianglemesh" "point3 P" [-0.6 -0.29 -0.6 0.6 -0.29 -0.6 0.6 -0.29 0.6 -0.6 -0.29 0.6] "integer indices" [0 1 2 0 2 3] "point2 uv" [0 0 1 0 1 1 0 1]
 )"},
+    {"fur", "Translate 0 0.05 0\n",
+     R"(Material "hair" "float eumelanin" 1.3
+Shape "curve" "point3 P" [-0.4 0 0 -0.1 0.6 0.1 0.2 0.3 -0.1 0.4 0.9 0] "float width" 0.06 "string type" "cylinder"
+Shape "curve" "point3 P" [-0.4 0 0.3 -0.1 0.5 0.4 0.2 0.2 0.2 0.4 0.8 0.3] "float width" 0.05 "string type" "flat"
+)"},
 };
 struct Placement {
   int object;
@@ -67,10 +75,19 @@ const Placement inst_placements[] = {
     {0, "AttributeBegin\nTranslate 2 0 0\nScale -1 1 1\n", "AttributeEnd\n"},
     {1, "AttributeBegin\nTranslate 0.4 0.1 -1.8\nRotate 45 0 0 1\nScale 0.8 0.8 0.8\n", "AttributeEnd\n"},
     {1, "AttributeBegin\nTranslate -1 0 -2\nAttributeBegin\nRotate -30 0 1 0\n", "AttributeEnd\nAttributeEnd\n"},
+    {2, "AttributeBegin\nTranslate -0.9 0 -3.5\n", "AttributeEnd\n"},
+    {2, "AttributeBegin\nTranslate 1.2 0 -3\nScale 1.3 1.3 1.3\nRotate 60 0 1 0\n", "AttributeEnd\n"},
 };
 
-std::string instanced_text() {
+// (sky: with the constant sky; without it, the bounce rays of the automatic choice are
+// traced against the emitters' BVH, then an occlusion ray)
+std::string with_sky(bool sky) {
   std::string t = inst_head;
+  if (!sky) t.erase(t.find("LightSource \"infinite\""), t.find("AttributeBegin") - t.find("LightSource \"infinite\""));
+  return t;
+}
+std::string instanced_text(bool sky = true) {
+  std::string t = with_sky(sky);
   for (const Obj& o : inst_objects) t += std::string("ObjectBegin \"") + o.name + "\"\n" + o.def + o.shapes + "ObjectEnd\n";
   for (const Placement& p : inst_placements)
     t += std::string(p.open) + "ObjectInstance \"" + inst_objects[p.object].name + "\"\n" + p.close;
@@ -78,8 +95,8 @@ std::string instanced_text() {
 }
 // The same scene flattened by hand: each placement's transforms, then the object's
 // definition transform and shapes, in the world.
-std::string flattened_text() {
-  std::string t = inst_head;
+std::string flattened_text(bool sky = true) {
+  std::string t = with_sky(sky);
   for (const Placement& p : inst_placements) {
     const Obj& o = inst_objects[p.object];
     t += std::string(p.open) + "AttributeBegin\n" + o.def + o.shapes + "AttributeEnd\n" + p.close;
@@ -127,23 +144,31 @@ RenderOptions est_options(const Est& e, int depth, uint32_t spp) {
 // copy's vertices by the composed matrix in double, then rounded), so a pixel differs by a
 // few ulps, unless one of its paths meets a decision (a Fresnel choice, Russian roulette,
 // an edge) on the other side of the rounding and goes elsewhere: then the pixel is another
-// sample of the same estimate (the caustics under the glass spheres differ most). Measured
-// (48x36, 8 spp, depth 5, every estimator): 99.3-99.5% of the values agree to 1e-4
-// relative, the largest difference 0.78 relative (a caustic pixel: at 256 spp the ball's
-// 4x4 regions agree to 1e-3), the sums within 1 standard error (counting the two images
-// as independent, which overstates it). Bounds: 98% and 4 standard errors, so that a wrong
-// normal, side or offset on any instance (each covers 2-5% of the values) fails.
+// sample of the same estimate (the caustics under the glass spheres differ most, then the
+// hair, whose lobes magnify the rounding of where a ray meets a fibre). Measured (48x36,
+// 8 spp, depth 5, every estimator, AMD EPYC with AVX-512): 98.1-98.8% of the values agree
+// to 1e-4 relative (99.3-99.5% without the fibres), the largest difference 0.78 relative
+// (a caustic pixel: at 256 spp the ball's 4x4 regions agree to 1e-3), the sums within 0.25
+// standard errors (counting the two images as independent, which overstates it). Bounds:
+// 97% and 4 standard errors, so that a wrong normal, side or offset on an instance (each
+// covers 2-5% of the values, most of which would change) fails.
 TEST(Instances, SameImageAsFlattenedByHand) {
   const Scene inst = load_text(instanced_text());
   const Scene flat = load_text(flattened_text());
-  ASSERT_EQ(inst.instances.size(), 5u);
-  ASSERT_EQ(inst.objects.size(), 2u);
+  ASSERT_EQ(inst.instances.size(), 7u);
+  ASSERT_EQ(inst.objects.size(), 3u);
   ASSERT_TRUE(flat.instances.empty());
   ASSERT_EQ(inst.instanced_triangle_count(), flat.triangle_count());
   ASSERT_LT(inst.triangle_count(), flat.triangle_count());
-  for (const Est& e : inst_estimators) {
-    const RenderResult a = render_scene(inst, est_options(e, 5, 8));
-    const RenderResult b = render_scene(flat, est_options(e, 5, 8));
+  // (bounce rays against the whole scene, and in the last two runs, without the sky,
+  // against the emitters' BVH then an occlusion ray)
+  const Scene inst_nosky = load_text(instanced_text(false)), flat_nosky = load_text(flattened_text(false));
+  for (int run = 0; run < 8; ++run) {
+    const Est& e = inst_estimators[run >= 6 ? run - 6 : run];
+    const RenderOptions o = est_options(e, 5, 8);
+    const RenderResult a = render_scene(run >= 6 ? inst_nosky : inst, o);
+    const RenderResult b = render_scene(run >= 6 ? flat_nosky : flat, o);
+    ASSERT_EQ(a.stats.bounce_against_emitters, run >= 6) << e.name;
     ASSERT_EQ(a.mean.size(), b.mean.size());
     const std::vector<float> va = a.film.variance_of_mean(), vb = b.film.variance_of_mean();
     double sa = 0, sb = 0, worst = 0, var = 0;
@@ -161,7 +186,7 @@ TEST(Instances, SameImageAsFlattenedByHand) {
     std::printf("[ instances ] %s: sums %.4f / %.4f (z %.2f), %.2f%% of the values within 1e-4, largest %.3g\n", e.name, sa,
                 sb, z, 100 * frac, worst);
     EXPECT_LT(std::fabs(z), 4.0) << e.name;
-    EXPECT_GT(frac, 0.98) << e.name;
+    EXPECT_GT(frac, 0.97) << e.name;
     EXPECT_EQ(a.stats.rejected_camera, b.stats.rejected_camera) << e.name;
   }
 }

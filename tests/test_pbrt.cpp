@@ -15,6 +15,7 @@
 
 #include "render/views.h"
 #include "scene/pbrt.h"
+#include "scene/pbrt/ply.h"
 #include "wave/instances.h"
 
 namespace fs = std::filesystem;
@@ -657,6 +658,71 @@ TEST(Pbrt, PlyBinaryBothEndiansAndGzip) {
     EXPECT_FALSE(has_warning(s, "degenerate")) << f;
     EXPECT_EQ(m.name, "t.pbrt:3");
   }
+}
+
+// A grid of n x n quads as 2 n^2 triangles (binary, either endian, normals and uv), with a
+// repeated index in face 5 (dropped) and, optionally, a quad face or an index out of range.
+std::string ply_grid(int n, bool big, const char* twist = "") {
+  const int nv = (n + 1) * (n + 1), nf = 2 * n * n;
+  std::string s = std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") +
+                  " 1.0\nelement vertex " + std::to_string(nv) +
+                  "\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\n"
+                  "property float nz\nproperty float u\nproperty float v\nelement face " + std::to_string(nf) +
+                  "\nproperty list uchar int vertex_indices\nend_header\n";
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i)
+      for (float x : {float(i), float(j), 0.01f * float(i * j), 0.f, 0.f, 1.f, float(i) / n, float(j) / n}) put(s, x, big);
+  const std::string tw = twist;
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const int a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1, f = 2 * (j * n + i);
+      if (tw == "quad" && f == 2 * n * n - 2) {
+        put(s, uint8_t(4), big);
+        for (int k : {a, b, d, c}) put(s, int32_t(k), big);
+        put(s, uint8_t(3), big);
+        for (int k : {a, b, d}) put(s, int32_t(k), big);
+        continue;
+      }
+      put(s, uint8_t(3), big);
+      for (int k : {a, f == 4 ? a : b, d}) put(s, int32_t(k), big);
+      put(s, uint8_t(3), big);
+      for (int k : {a, d, tw == "range" && f == 2 * n * n - 6 ? nv + 7 : c}) put(s, int32_t(k), big);
+    }
+  return s;
+}
+
+// Large binary PLY elements are decoded in parallel blocks: the same mesh (every float and
+// index), the same count of dropped faces and the same error as the sequential reader, for
+// either endian, with a non-triangle face (the block reader hands the element back) and an
+// index out of range (the first one is named, as sequentially).
+TEST(Pbrt, PlyInParallelBlocksEqualsSequential) {
+  for (bool big : {false, true})
+    for (const char* twist : {"", "quad", "range"}) {
+      const std::string data = ply_grid(40, big, twist);
+      auto parse = [&](uint64_t chunk, std::string& err) {
+        try {
+          return pbrt::parse_ply(data, true, chunk);
+        } catch (const pbrt::PlyError& e) {
+          err = e.what();
+        }
+        return pbrt::PlyMesh{};
+      };
+      std::string e1, e2;
+      const pbrt::PlyMesh a = parse(UINT64_MAX, e1), b = parse(7, e2);
+      EXPECT_EQ(e1, e2) << twist;
+      if (std::string(twist) == "range") {
+        EXPECT_NE(e1.find("out of range"), std::string::npos) << e1;
+        continue;
+      }
+      ASSERT_TRUE(e1.empty()) << e1;
+      EXPECT_EQ(a.positions, b.positions);
+      EXPECT_EQ(a.normals, b.normals);
+      EXPECT_EQ(a.uvs, b.uvs);
+      EXPECT_EQ(a.indices, b.indices);
+      EXPECT_EQ(a.degenerate, b.degenerate);
+      EXPECT_EQ(a.degenerate, 1u);
+      EXPECT_EQ(a.indices.size(), 3u * (2 * 40 * 40 - 1 + (std::string(twist) == "quad" ? 1 : 0)));
+    }
 }
 
 TEST(Pbrt, PlyAscii) {

@@ -225,18 +225,16 @@ TUILE_FLATTEN inline HitGeometry<T> hit_geometry_lanes(const GeomView& G, const 
     // placed in the world with pbrt-v4's error bound of a transformed point:
     // (gamma(3) + 1) |M| err + gamma(3) (|M| |x| + |translation|), per row
     const T g3(gamma_err(3)), g31(gamma_err(3) + 1.f);
-    Vec3<T> xw, ew;
+    T xr[3], er[3];
     for (int r = 0; r < 3; ++r) {
       const float* M = G.inst_m + 4 * r;
       const T a = gather(M, in.m12), b = gather(M + 1, in.m12), c = gather(M + 2, in.m12), tr = gather(M + 3, in.m12);
-      const T xr = a * x.x + b * x.y + c * x.z + tr;
-      const T er = g31 * (abs(a) * err.x + abs(b) * err.y + abs(c) * err.z) +
-                   g3 * (abs(a * x.x) + abs(b * x.y) + abs(c * x.z) + abs(tr));
-      (r == 0 ? xw.x : r == 1 ? xw.y : xw.z) = xr;
-      (r == 0 ? ew.x : r == 1 ? ew.y : ew.z) = er;
+      xr[r] = a * x.x + b * x.y + c * x.z + tr;
+      er[r] = g31 * (abs(a) * err.x + abs(b) * err.y + abs(c) * err.z) +
+              g3 * (abs(a * x.x) + abs(b * x.y) + abs(c * x.z) + abs(tr));
     }
-    x = sel(in.on, xw, x);
-    err = sel(in.on, ew, err);
+    x = sel(in.on, Vec3<T>(xr[0], xr[1], xr[2]), x);
+    err = sel(in.on, Vec3<T>(er[0], er[1], er[2]), err);
   }
   h.x = x;
   h.err = err;

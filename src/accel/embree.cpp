@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstring>
 #include <algorithm>
+#include <atomic>
 #include <mutex>
 #include <vector>
 
@@ -35,6 +36,8 @@ struct Accel::Impl {
   // them into the scene's row (rows[inst_row0[i] + local ID]) and the instance's index i.
   uint32_t inst_base = 0;
   std::vector<uint32_t> rows, inst_row0;
+  // Embree's own memory (its device's allocations: BVHs, and the builds' transient data)
+  std::atomic<int64_t> bytes{0}, peak{0};
   RTCScene of(Bvh t) const { return t == Bvh::emitters ? emitters : scene; }
   void fix_instances(const int32_t* valid, RayHit16& p) const noexcept {
     for (int k = 0; k < packet_width; ++k) {
@@ -49,6 +52,15 @@ struct Accel::Impl {
       if (!valid || valid[k] == -1) p.instID[0][k] = invalid_id;
   }
 };
+
+static bool memory_callback(void* user, ssize_t bytes, bool) {
+  auto* impl = static_cast<Accel::Impl*>(user);
+  const int64_t now = impl->bytes += bytes;
+  int64_t p = impl->peak.load();
+  while (now > p && !impl->peak.compare_exchange_weak(p, now)) {
+  }
+  return true;
+}
 
 static void error_callback(void* user, RTCError code, const char* str) {
   auto* impl = static_cast<Accel::Impl*>(user);
@@ -83,6 +95,7 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
   impl_->device = rtcNewDevice(options.device_config.empty() ? nullptr : options.device_config.c_str());
   if (!impl_->device) throw SceneError("Embree: cannot create a device (config '" + options.device_config + "')");
   rtcSetDeviceErrorFunction(impl_->device, error_callback, impl_.get());
+  rtcSetDeviceMemoryMonitorFunction(impl_->device, memory_callback, impl_.get());
   impl_->scene = rtcNewScene(impl_->device);
   impl_->emitters = rtcNewScene(impl_->device);
   // Large scenes (2^23 stored triangles and more) build compact BVHs: leaves that index the
@@ -215,6 +228,8 @@ void Accel::prepare_emitters() const {
     if (!impl_->error.empty()) throw SceneError(impl_->error);
   });
 }
+
+Accel::Memory Accel::embree_memory() const { return {impl_->bytes.load(), impl_->peak.load()}; }
 
 Accel::~Accel() {
   if (impl_->scene) rtcReleaseScene(impl_->scene);

@@ -53,6 +53,11 @@ class Accel {
   void intersect_stream(StreamRays& rays, unsigned n, bool coherent, Bvh bvh = Bvh::scene) const noexcept;
   void occluded_stream(StreamRays& rays, unsigned n, bool coherent) const noexcept;
   double build_seconds() const { return build_seconds_; }
+  // Embree's own allocations (its BVHs; at peak, its builds' transient data too), in bytes
+  struct Memory {
+    int64_t now = 0, peak = 0;
+  };
+  Memory embree_memory() const;
 
  public:
   struct Impl;  // opaque (public so Embree's C callbacks can name it)

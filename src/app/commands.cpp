@@ -274,6 +274,9 @@ int run_bench(const BenchFlags& f, std::string* json) {
   const int threads = p.opt.threads > 0 ? p.opt.threads : static_cast<int>(std::thread::hardware_concurrency());
   say("scene: %s (%zu triangles, %zu lights)\n", p.scene.source.c_str(), p.scene.triangle_count(),
               p.scene.lights.size());
+  if (!p.scene.instances.empty())
+    say("instances: %zu of %zu object(s): %zu triangles rendered for the %zu stored\n", p.scene.instances.size(),
+        p.scene.objects.size(), p.scene.instanced_triangle_count(), p.scene.triangle_count());
   say("pipeline: %s, bounce rays against the %s\nestimator: %s\n", last.pipeline.c_str(),
               last.bounce_against_emitters ? "emitters" : "scene", describe(p.opt.est).c_str());
   say("resolution %dx%d, %u spp, %d thread(s), %d runs after %d warm-up\n", p.scene.camera.width,
@@ -285,7 +288,22 @@ int run_bench(const BenchFlags& f, std::string* json) {
                 vertices, median(vps));
   say("rays/s (median): camera %.4g  shadow %.4g  bounce %.4g\n", median(cam), median(sh), median(bo));
   say("time to first pixel: %.3f s (load %.3f s, BVH %.3f s)\n", first_pixel, p.load_seconds, p.bvh_seconds);
-  say("peak memory: %.1f MiB\n", static_cast<double>(peak_memory_bytes()) / (1024.0 * 1024.0));
+  const double per_triangle =
+      static_cast<double>(peak_memory_bytes()) / static_cast<double>(std::max<size_t>(1, p.scene.triangle_count()));
+  say("peak memory: %.1f MiB (%.1f bytes per stored triangle)\n", static_cast<double>(peak_memory_bytes()) / (1024.0 * 1024.0),
+      per_triangle);
+  {  // where the bytes go: the scene's shapes, Embree's BVHs (and at peak their builds)
+    size_t shapes = 0;
+    for (const Mesh& m : p.scene.meshes)
+      shapes += 4 * (m.positions.capacity() + m.uvs.capacity() + m.normals.capacity() + m.indices.capacity() +
+                     m.prim_light.capacity());
+    for (const Curves& c : p.scene.curves) shapes += 4 * (c.points.capacity() + c.normals.capacity());
+    const Accel::Memory em = p.accel->embree_memory();
+    const double tris = static_cast<double>(std::max<size_t>(1, p.scene.triangle_count()));
+    say("memory per stored triangle: shapes %.1f B, Embree %.1f B (%.1f B at its peak), the rest %.1f B at the process's peak\n",
+        static_cast<double>(shapes) / tris, static_cast<double>(em.now) / tris, static_cast<double>(em.peak) / tris,
+        per_triangle - static_cast<double>(shapes) / tris - static_cast<double>(em.now) / tris);
+  }
   if (f.print) std::fputs(text.c_str(), stdout);
   if (!f.json.empty() || json) {
     std::ostringstream js;
@@ -302,6 +320,8 @@ int run_bench(const BenchFlags& f, std::string* json) {
     js << "  \"peak_memory_bytes\": " << peak_memory_bytes() << ",\n";
     js << "  \"scene\": \"" << json_escape(p.scene.source) << "\",\n";
     js << "  \"triangles\": " << p.scene.triangle_count() << ",\n";
+    js << "  \"triangles_rendered\": " << p.scene.instanced_triangle_count() << ", \"instances\": " << p.scene.instances.size()
+       << ", \"peak_bytes_per_triangle\": " << per_triangle << ",\n";
     js << "  \"lights\": " << p.scene.lights.size() << ",\n";
     js << "  \"width\": " << p.scene.camera.width << ", \"height\": " << p.scene.camera.height << ",\n";
     js << "  \"spp\": " << spp << ", \"threads\": " << threads << ", \"repeat\": " << f.repeat

@@ -5,11 +5,15 @@
 #include "ply.h"
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <charconv>
 #include <cmath>
 #include <cstring>
 #include <string>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 namespace tuile::pbrt {
 namespace {
@@ -253,7 +257,70 @@ void store_vertex(PlyMesh& m, uint64_t i, Slot s, double v) {
   }
 }
 
-void parse_binary(std::string_view data, const Header& h, PlyMesh& m, bool want_normals, uint64_t vcount) {
+// A face element that is one list of exactly 3 indices per face (the usual triangle mesh):
+// fixed records, decoded in parallel blocks of `chunk` faces. Returns false (nothing
+// consumed, indices cleared) where some face is not a triangle or the data is short: the
+// sequential reader then takes the element. Repeated indices drop the face, as the
+// sequential reader does; an index out of range is its error for the first such face.
+bool parse_triangles(const char* p, const char* end, const Element& e, bool swap, uint64_t chunk, PlyMesh& m,
+                     uint64_t vcount, uint64_t face0) {
+  const Prop& pr = e.props[0];
+  const size_t csz = type_size(pr.count_type), isz = type_size(pr.type), rec = csz + 3 * isz;
+  if (e.count > size_t(end - p) / rec) return false;
+  m.indices.resize(3 * e.count);
+  std::atomic<bool> not_triangles{false};
+  std::atomic<uint64_t> first_bad{UINT64_MAX};
+  constexpr uint32_t dropped = 0xffffffffu;
+  tbb::parallel_for(tbb::blocked_range<uint64_t>(0, e.count, chunk), [&](const tbb::blocked_range<uint64_t>& r) {
+    for (uint64_t i = r.begin(); i < r.end(); ++i) {
+      const char* q = p + i * rec;
+      if (load_int(q, pr.count_type, swap) != 3) {
+        not_triangles = true;
+        return;
+      }
+      int64_t v[3];
+      for (int j = 0; j < 3; ++j) v[j] = load_int(q + csz + j * isz, pr.type, swap);
+      bool in_range = true;
+      for (int64_t x : v) in_range = in_range && x >= 0 && uint64_t(x) < vcount;
+      if (!in_range) {
+        uint64_t cur = first_bad.load();
+        while (i < cur && !first_bad.compare_exchange_weak(cur, i)) {
+        }
+        return;
+      }
+      const bool degenerate = v[0] == v[1] || v[1] == v[2] || v[0] == v[2];
+      for (int j = 0; j < 3; ++j) m.indices[3 * i + j] = degenerate ? dropped : uint32_t(v[j]);
+    }
+  });
+  if (not_triangles) {
+    m.indices.clear();
+    return false;
+  }
+  if (first_bad.load() != UINT64_MAX) {
+    const uint64_t i = first_bad.load();
+    const char* q = p + i * rec + csz;
+    for (int j = 0; j < 3; ++j) {
+      const int64_t x = load_int(q + j * isz, pr.type, swap);
+      if (x < 0 || uint64_t(x) >= vcount)
+        bad("face " + std::to_string(face0 + i) + " has vertex index " + std::to_string(x) + " out of range",
+            "an index below the vertex count " + std::to_string(vcount));
+    }
+  }
+  size_t out = 0;
+  for (size_t t = 0; t < m.indices.size(); t += 3) {
+    if (m.indices[t] == dropped) {
+      ++m.degenerate;
+      continue;
+    }
+    if (out != t) std::copy_n(m.indices.begin() + std::ptrdiff_t(t), 3, m.indices.begin() + std::ptrdiff_t(out));
+    out += 3;
+  }
+  m.indices.resize(out);
+  return true;
+}
+
+void parse_binary(std::string_view data, const Header& h, PlyMesh& m, bool want_normals, uint64_t vcount,
+                  uint64_t chunk) {
   const bool swap = (h.format == 2) != (std::endian::native == std::endian::big);
   const char* p = data.data() + h.body;
   const char* end = data.data() + data.size();
@@ -282,6 +349,27 @@ void parse_binary(std::string_view data, const Header& h, PlyMesh& m, bool want_
     if (is_face) m.indices.reserve(std::min<uint64_t>(e.count, left / 4) * 3);
     if (fixed && !is_vertex) {  // nothing to read: skip the block
       p += e.count * stride;
+      continue;
+    }
+    // large elements in parallel blocks (oneTBB): fixed-size vertices, and faces that are all
+    // triangles (one list property); the records are independent
+    if (fixed && is_vertex && stride > 0 && e.count >= chunk) {
+      tbb::parallel_for(tbb::blocked_range<uint64_t>(0, e.count, chunk), [&](const tbb::blocked_range<uint64_t>& r) {
+        for (uint64_t i = r.begin(); i < r.end(); ++i) {
+          const char* q = p + i * stride;
+          for (size_t k = 0; k < e.props.size(); ++k) {
+            if (slots[k] != none) store_vertex(m, i, slots[k], load_num(q, e.props[k].type, swap));
+            q += type_size(e.props[k].type);
+          }
+        }
+      });
+      p += e.count * stride;
+      continue;
+    }
+    if (is_face && e.count >= chunk && e.props.size() == 1 && is_face_list(e.props[0]) &&
+        m.indices.empty() && parse_triangles(p, end, e, swap, chunk, m, vcount, sink.face)) {
+      p += e.count * (type_size(e.props[0].count_type) + 3 * type_size(e.props[0].type));
+      sink.face += e.count;
       continue;
     }
     for (uint64_t i = 0; i < e.count; ++i) {
@@ -375,7 +463,7 @@ void parse_ascii(std::string_view data, const Header& h, PlyMesh& m, bool want_n
 
 }  // namespace
 
-PlyMesh parse_ply(std::string_view data, bool want_normals) {
+PlyMesh parse_ply(std::string_view data, bool want_normals, uint64_t chunk) {
   const Header h = parse_header(data);
   uint64_t vcount = 0;
   bool have_vertex = false, have_xyz = false;
@@ -392,7 +480,7 @@ PlyMesh parse_ply(std::string_view data, bool want_normals) {
   if (vcount > 0xffffffffull) bad("PLY file has more than 2^32 vertices");
   PlyMesh m;
   if (h.format == 0) parse_ascii(data, h, m, want_normals, vcount);
-  else parse_binary(data, h, m, want_normals, vcount);
+  else parse_binary(data, h, m, want_normals, vcount, std::max<uint64_t>(chunk, 1));
   // Drop triangles of exactly zero area (collinear or coincident vertices).
   const float* P = m.positions.data();
   size_t out = 0;

@@ -23,7 +23,9 @@ struct PlyError : std::runtime_error {
   std::string expected;
 };
 
-// Throws PlyError.
-PlyMesh parse_ply(std::string_view data, bool want_normals);
+// Throws PlyError. Binary elements of at least `chunk` records (vertices; faces that are
+// all triangles) are decoded in parallel blocks of that many (oneTBB): the same mesh, the
+// same errors as the sequential reader.
+PlyMesh parse_ply(std::string_view data, bool want_normals, uint64_t chunk = uint64_t(1) << 18);
 
 }  // namespace tuile::pbrt
