@@ -242,6 +242,7 @@ bool is_face_list(const Prop& p) { return p.list && (p.name == "vertex_indices" 
 
 void prepare(PlyMesh& m, const Element& e, bool is_vertex, bool has_uv, bool has_n) {
   if (is_vertex) {
+    m.positions.reserve(3 * e.count + 1);  // (+1: the padding finalize_scene adds for Embree, without a copy)
     m.positions.resize(3 * e.count);
     if (has_uv) m.uvs.resize(2 * e.count);
     if (has_n) m.normals.resize(3 * e.count);
