@@ -15,6 +15,7 @@
 
 #include "wave/accumulate.h"
 #include "wave/generate.h"
+#include "wave/instances.h"
 #include "wave/surface_hits.h"
 #include "accel/embree.h"
 #include "wave/sample_bsdf.h"
@@ -747,7 +748,7 @@ TEST(Lanes, CameraHitsEqualScalar) {
     Mesh m;
     m.name = "instanced";
     m.material = 0;
-    test::add_quad(m, {-0.6f, 0, -0.6f}, {0, 0, 1.2f}, {1.2f, 0, 0});
+    test::add_quad(m, {-0.6f, 0, -0.6f}, {0, 0.5f, 1.2f}, {1.2f, 0, 0});  // tilted: its normal is no axis of the placements
     m.normals = {0, 1, 0, 0.3f, 0.9f, 0, 0, 1, 0.2f, 0, 1, 0};
     m.object = 0;
     s.meshes.push_back(m);
@@ -856,6 +857,28 @@ TEST(Lanes, CameraHitsEqualScalar) {
         }
       }
       for (int k = 0; k < n; ++k) ASSERT_EQ(a->lanes.shade_of[a->points.lane[k]], k) << name() << " point " << k;
+      // an instance's triangle hits: the point on the placed triangle's plane and the
+      // normal across its edges (the normal turned by the inverse transpose, not the matrix)
+      int placed = 0;
+      for (int k = 0; k < n; ++k) {
+        const int i = a->points.lane[k];
+        const RayHit16& p = a->cam[i / 16];
+        const uint32_t g = p.geomID[i % 16], inst = p.instID[0][i % 16];
+        if (inst == invalid_id || !is_mesh(views.geom, int32_t(g))) continue;
+        const uint32_t* idx = views.geom.indices[g] + 3 * p.primID[i % 16];
+        vec3f w[3];
+        for (int c = 0; c < 3; ++c) {
+          const float* q = views.geom.positions[g] + 3 * idx[c];
+          w[c] = instance_point(views.geom, int32_t(inst), {q[0], q[1], q[2]});
+        }
+        const vec3f nn{a->points.nx[k], a->points.ny[k], a->points.nz[k]};
+        const vec3f e1 = w[1] - w[0], e2 = w[2] - w[0], x{a->points.px[k], a->points.py[k], a->points.pz[k]};
+        EXPECT_LT(std::fabs(dot(nn, e1)), 1e-5f * length(e1)) << name() << " point " << k;
+        EXPECT_LT(std::fabs(dot(nn, e2)), 1e-5f * length(e2)) << name() << " point " << k;
+        EXPECT_LT(std::fabs(dot(nn, x - w[0])), 1e-5f) << name() << " point " << k;
+        ++placed;
+      }
+      EXPECT_GT(placed, 4) << name();
       // each point's cached keys are its pixel's, and the pairs drawn from them are too
       for (int p = 1; p < SamplerKeys::pairs; ++p) {
         std::vector<uint32_t> key(padded), ku(padded), kv(padded);
