@@ -117,16 +117,7 @@ struct MediaEst {
   MisMode mode;
 };
 inline RenderOptions media_options(const MediaEst& e, int depth, uint32_t spp, uint32_t seed) {
-  RenderOptions o;
-  o.est.strategy = e.strategy;
-  o.est.mode = e.mode;
-  o.est.pick = LightPick::uniform;
-  o.est.max_depth = depth;
-  o.est.sampler = SamplerKind::independent;
-  o.est.spp = spp;
-  o.est.seed = seed;
-  o.threads = 2;
-  return o;
+  return independent_options(e.strategy, LightPick::uniform, e.mode, depth, spp, seed);
 }
 
 }  // namespace tuile::test

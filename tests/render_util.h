@@ -108,6 +108,22 @@ inline double exact_floor_radiance(const PlaneScene& p, double x, double z) {
 // by q x q Gauss-Legendre quadrature in raster space of the smooth floor radiance.
 std::vector<double> exact_image(const PlaneScene& p, int q = 4);
 
+// Options for tests that weigh images in standard errors: the independent sampler (whose
+// per-pixel variances estimate the error), two threads.
+inline RenderOptions independent_options(Strategy strategy, LightPick pick, MisMode mode, int depth, uint32_t spp,
+                                         uint32_t seed) {
+  RenderOptions o;
+  o.est.strategy = strategy;
+  o.est.pick = pick;
+  o.est.mode = mode;
+  o.est.max_depth = depth;
+  o.est.sampler = SamplerKind::independent;
+  o.est.spp = spp;
+  o.est.seed = seed;
+  o.threads = 2;
+  return o;
+}
+
 struct RenderResult {
   Film film;
   RenderStats stats;

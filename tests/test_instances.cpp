@@ -125,16 +125,7 @@ const Est inst_estimators[] = {
     {"ris", Strategy::ris, LightPick::power, MisMode::multi},
 };
 RenderOptions est_options(const Est& e, int depth, uint32_t spp) {
-  RenderOptions o;
-  o.est.strategy = e.strategy;
-  o.est.pick = e.pick;
-  o.est.mode = e.mode;
-  o.est.max_depth = depth;
-  o.est.sampler = SamplerKind::independent;
-  o.est.spp = spp;
-  o.est.seed = 3;
-  o.threads = 2;
-  return o;
+  return independent_options(e.strategy, e.pick, e.mode, depth, spp, 3);
 }
 
 }  // namespace
