@@ -64,11 +64,28 @@ TEST(Cli, BadInputIsAClearErrorWithExitOne) {
   EXPECT_NE(r.out.find("/nonexistent/scene.pbrt"), std::string::npos) << r.out;
   for (const char* args : {"--res 0x10", "--res 100000x100000", "--beta nan", "--strategy maybe", "--spp 0",
                            "--light-samples 0", "--threads -1", "--aov unknown", "--pipeline fast",
-                           "--bounce-rays nearest"}) {
+                           "--bounce-rays nearest", "--bvh tiny"}) {
     r = run(std::string("render built-in:cornell --quiet -o ") + tmp("cli_x.exr") + " " + args);
     EXPECT_EQ(r.code, 1) << args << ": " << r.out;
     EXPECT_NE(r.out.find("error"), std::string::npos) << args << ": " << r.out;
   }
+}
+
+// --bvh chooses Embree's layout (the built-in scenes are small: auto is the fast one), and
+// the image does not depend on it
+TEST(Cli, BvhLayoutIsChosenAndLeavesTheImageAlone) {
+  for (const char* layout : {"auto", "fast", "compact"}) {
+    const CmdResult r = run(std::string("info built-in:cornell --bvh ") + layout);
+    ASSERT_EQ(r.code, 0) << r.out;
+    const std::string want = std::string(layout) == "compact" ? "(compact layout)" : "(fast layout)";
+    EXPECT_NE(r.out.find(want), std::string::npos) << layout << ": " << r.out;
+  }
+  const CmdResult a = run("render built-in:cornell --quiet --spp 4 --res 32x32 --max-depth 3 --bvh fast -o " + tmp("cli_fast.exr"));
+  const CmdResult b = run("render built-in:cornell --quiet --spp 4 --res 32x32 --max-depth 3 --bvh compact -o " + tmp("cli_compact.exr"));
+  ASSERT_EQ(a.code, 0) << a.out;
+  ASSERT_EQ(b.code, 0) << b.out;
+  const CmdResult d = run("diff " + tmp("cli_fast.exr") + " " + tmp("cli_compact.exr"));
+  EXPECT_EQ(d.code, 0) << d.out;
 }
 
 TEST(Cli, InfoNamesThePipeline) {

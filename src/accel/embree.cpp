@@ -103,6 +103,7 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
   // less and a faster build (16 M triangles: 1603 against 2071 MiB at peak, BVH 3.0 against
   // 4.5 s), for ~30% fewer samples per second (bench/results.md, "Large scenes").
   const bool compact = options.compact == 1 || (options.compact < 0 && scene.triangle_count() >= (size_t(1) << 23));
+  compact_ = compact;
   for (RTCScene sc : {impl_->scene, impl_->emitters}) {
     rtcSetSceneFlags(sc, RTCSceneFlags((options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE) | (compact ? RTC_SCENE_FLAG_COMPACT : 0)));
     rtcSetSceneBuildQuality(sc, RTC_BUILD_QUALITY_MEDIUM);
@@ -115,7 +116,8 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
   // maps them back to the scene's rows); every other shape to the scene under its row.
   for (size_t o = 0; o < scene.objects.size(); ++o) {
     impl_->objects.push_back(rtcNewScene(impl_->device));
-    rtcSetSceneFlags(impl_->objects.back(), options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
+    rtcSetSceneFlags(impl_->objects.back(), RTCSceneFlags((options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE) |
+                                                          (compact ? RTC_SCENE_FLAG_COMPACT : 0)));
     rtcSetSceneBuildQuality(impl_->objects.back(), RTC_BUILD_QUALITY_MEDIUM);
   }
   std::vector<std::vector<uint32_t>> object_rows(scene.objects.size());

@@ -53,6 +53,7 @@ class Accel {
   void intersect_stream(StreamRays& rays, unsigned n, bool coherent, Bvh bvh = Bvh::scene) const noexcept;
   void occluded_stream(StreamRays& rays, unsigned n, bool coherent) const noexcept;
   double build_seconds() const { return build_seconds_; }
+  bool compact() const { return compact_; }  // the BVHs were built with RTC_SCENE_FLAG_COMPACT
   // Embree's own allocations (its BVHs; at peak, its builds' transient data too), in bytes
   struct Memory {
     int64_t now = 0, peak = 0;
@@ -65,6 +66,7 @@ class Accel {
  private:
   std::unique_ptr<Impl> impl_;
   double build_seconds_ = 0;
+  bool compact_ = false;
 };
 
 }  // namespace tuile

@@ -19,6 +19,7 @@ struct RenderFlags {
   int ris_light = 8, ris_bsdf = 1;
   std::string strategy = "mis", light_pick, light_point = "solid-angle", heuristic = "power", mis_mode = "multi";
   std::string sampler, res, output, aov, pipeline = "auto", bounce_rays = "auto";
+  std::string bvh = "auto";  // --bvh: Embree's layout (EmbreeOptions::compact)
   std::string filter;  // pixel filter; "": the scene file's PixelFilter, else box
   float beta = 2.f, alpha = 0.1f;
   int light_samples = 1, bsdf_samples = 1, spp = 0, threads = 0, tile = 16;

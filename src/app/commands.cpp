@@ -50,12 +50,16 @@ std::string with_extension(const std::string& path, const char* ext) {
 
 Prepared prepare(const RenderFlags& f) {
   Prepared p;
+  EmbreeOptions eo;
+  if (f.bvh == "fast") eo.compact = 0;
+  else if (f.bvh == "compact") eo.compact = 1;
+  else if (f.bvh != "auto") throw std::invalid_argument("--bvh '" + f.bvh + "': expected auto, fast or compact");
   const auto t0 = std::chrono::steady_clock::now();
   p.scene = load_scene(f.scene, LoadOptions{f.strict});
   p.opt = resolve_options(f, p.scene);
   p.load_seconds = seconds_since(t0);
   const auto t1 = std::chrono::steady_clock::now();
-  p.accel = std::make_unique<Accel>(p.scene);
+  p.accel = std::make_unique<Accel>(p.scene, eo);
   p.bvh_seconds = seconds_since(t1);
   return p;
 }
@@ -200,7 +204,7 @@ std::string info_text(const Prepared& p) {
   }
   for (const std::string& w : scene.warnings) say("approximation: %s\n", w.c_str());
   for (const std::string& w : scene.notes) say("note: %s\n", w.c_str());
-  say("load: %.3f s\nbvh build: %.3f s\n", load, bvh);
+  say("load: %.3f s\nbvh build: %.3f s (%s layout)\n", load, bvh, accel.compact() ? "compact" : "fast");
   return out;
 }
 
