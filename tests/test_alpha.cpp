@@ -58,13 +58,7 @@ double bilinear_ref(const std::vector<float>& tex, int n, double u, double v) {
 }
 
 RenderOptions options(Strategy st, uint32_t spp, uint32_t seed = 7) {
-  RenderOptions o;
-  o.est.strategy = st;
-  o.est.sampler = SamplerKind::independent;
-  o.est.spp = spp;
-  o.est.seed = seed;
-  o.threads = 2;
-  return o;
+  return independent_options(st, LightPick::power, MisMode::multi, 1, spp, seed);  // (the estimator's defaults)
 }
 
 double image_mean(const RenderResult& r) {
