@@ -221,3 +221,51 @@ TEST(Cli, PathDepthFlagsAndFileMaxDepth) {
   EXPECT_NE(r.out.find("estimator: "), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("max-depth"), std::string::npos) << r.out;
 }
+
+// pbrt-v4's regularization: from the file's Integrator "bool regularize", overridden by
+// --regularize on|off; the estimator line says it (it is biased); bad values are errors.
+TEST(Cli, RegularizeFromTheFileOrTheFlag) {
+  const std::string scene_text =
+      "LookAt 0 0 5  0 0 0  0 1 0\n"
+      "Camera \"perspective\" \"float fov\" 45\n"
+      "Film \"rgb\" \"integer xresolution\" 8 \"integer yresolution\" 8\n"
+      "Integrator \"path\" \"integer maxdepth\" [ 4 ] REG\n"
+      "WorldBegin\n"
+      "AttributeBegin\n"
+      "AreaLightSource \"diffuse\" \"rgb L\" [ 1 1 1 ]\n"
+      "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 0  1 -1 0  1 1 0  -1 1 0 ] \"integer indices\" [ 0 1 2  0 2 3 ]\n"
+      "AttributeEnd\n"
+      "Material \"conductor\" \"float roughness\" 0\n"
+      "Shape \"sphere\" \"float radius\" 0.3\n";
+  auto write_scene = [&](const std::string& name, const std::string& reg) {
+    const std::string path = tmp(name);
+    std::string text = scene_text;
+    text.replace(text.find("REG"), 3, reg);
+    std::ofstream(path) << text;
+    return path;
+  };
+  auto estimator = [](const std::string& out) {
+    const size_t at = out.find("estimator: ");
+    return at == std::string::npos ? std::string() : out.substr(at, out.find('\n', at) - at);
+  };
+  const std::string on = write_scene("cli_reg_on.pbrt", "\"bool regularize\" true");
+  const std::string none = write_scene("cli_reg_none.pbrt", "");
+  CmdResult r = run("info " + on);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(estimator(r.out).find("regularize=on"), std::string::npos) << r.out;
+  r = run("info " + on + " --regularize off");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(estimator(r.out).find("regularize"), std::string::npos) << r.out;
+  r = run("info " + none);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(estimator(r.out).find("regularize"), std::string::npos) << r.out;
+  r = run("info " + none + " --regularize on");
+  EXPECT_NE(estimator(r.out).find("regularize=on"), std::string::npos) << r.out;
+  r = run("info " + none + " --regularize maybe");
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("--regularize"), std::string::npos) << r.out;
+  const std::string bad = write_scene("cli_reg_bad.pbrt", "\"bool regularize\" \"yes\"");
+  r = run("info " + bad);
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("cli_reg_bad.pbrt:4"), std::string::npos) << r.out;
+}

@@ -14,6 +14,7 @@
 // sampling map used here, equivalent in distribution to Heitz 2018 and without its basis);
 // pbrt-v4 (roughness_to_alpha, EffectivelySmooth).
 #pragma once
+#include <algorithm>
 #include "bsdf/bsdf.h"
 #include "lanes/lane_math.h"
 
@@ -24,6 +25,10 @@ inline constexpr float min_alpha = 1e-5f;     // the distribution clamps its alp
 
 // pbrt-v4's TrowbridgeReitzDistribution::RoughnessToAlpha.
 template <class T> inline T roughness_to_alpha(const T& roughness) noexcept { return sqrt(max(roughness, T(0.f))); }
+
+// pbrt-v4's regularization of one alpha (TrowbridgeReitzDistribution::Regularize;
+// Estimator::regularize): below 0.3, twice it within [0.1, 0.3] (0 becomes 0.1).
+inline float regularized_alpha(float a) noexcept { return a < 0.3f ? std::clamp(2.f * a, 0.1f, 0.3f) : a; }
 
 // Lanes whose lobe is a delta (pbrt-v4 EffectivelySmooth, the later form with max).
 template <class T> inline mask_t<T> effectively_smooth(const T& alpha_x, const T& alpha_y) noexcept {

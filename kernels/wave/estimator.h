@@ -38,6 +38,11 @@ struct Estimator {
   // after the BSDF sample of vertex 2 on, i.e. rr_depth 1).
   int max_depth = 1;
   int rr_depth = 1;
+  // pbrt-v4's `regularize` (biased, off by default): once a path has taken a non-specular
+  // BSDF sample, every later vertex's Trowbridge-Reitz alphas below 0.3 become
+  // clamp(2 alpha, 0.1, 0.3) (smooth surfaces turn glossy), so that light sampling finds the
+  // caustics through them (GeomView::mat_reg, wave/surface_hits.h regularize_points).
+  bool regularize = false;
 
   // probability of choosing the light technique in one-sample MIS
   float one_sample_light_prob() const {

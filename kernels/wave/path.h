@@ -20,6 +20,7 @@ inline void start_paths(TileBuffers& tb) {
   std::fill_n(tb.path.throughput_g, padded, 1.f);
   std::fill_n(tb.path.throughput_b, padded, 1.f);
   std::fill_n(tb.path.eta_scale, padded, 1.f);
+  std::fill_n(tb.path.rough, padded, 0.f);
 }
 
 // The radiance the vertex's techniques found (TileBuffers::radiance), times the path's
@@ -99,6 +100,9 @@ TUILE_FLATTEN inline void continue_path_lanes(const GeomView& G, TileBuffers& tb
   store(tb.path.throughput_g + k, sel(go, bg, T(0.f)));
   store(tb.path.throughput_b + k, sel(go, bb, T(0.f)));
   store(tb.path.eta_scale + k, eta_scale);
+  // (a diffuse pipeline's samples are never specular; its paths are never regularized)
+  const auto specular = f_mask_from_i(load_i32<T>(tb.tech.delta + k) != i32_t<T>(0));
+  store(tb.path.rough + k, sel(specular, load<T>(tb.path.rough + k), T(1.f)));
   store_valid(tb.tech.valid + k, go);
 }
 

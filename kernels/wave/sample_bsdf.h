@@ -40,10 +40,9 @@ TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& 
     store_rays(tb.bounce, k, x + n * eps, bs.wi, T(3.0e38f));
   }
   auto valid = active && bs.valid;
-  if constexpr ((Bsdfs & bsdf_delta_capable) != 0) {
+  if constexpr ((Bsdfs & bsdf_delta_capable) != 0)
     if (only_delta && !continuation) valid = valid && bs.delta;
-    store_valid(tb.tech.delta + k, bs.delta);
-  }
+  store_valid(tb.tech.delta + k, bs.delta);  // (every pipeline: the paths' rough flag reads it, wave/path.h)
   store_valid(tb.tech.valid + k, valid);
   store(tb.tech.beta_r + k, bs.weight.r);
   store(tb.tech.beta_g + k, bs.weight.g);

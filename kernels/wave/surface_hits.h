@@ -269,13 +269,14 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   const i32_t<T> pixel_id = load_i32<T>(reinterpret_cast<const int32_t*>((Bounce ? tb.points.pixel : tb.lanes.pixel) + i));
   const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(p.geomID + l));
   auto hit = f_mask_from_i(geom >= i32_t<T>(0) && index < i32_t<T>(lanes));  // invalid_id reads as -1
-  T beta_r(1.f), beta_g(1.f), beta_b(1.f), eta_scale(1.f);
+  T beta_r(1.f), beta_g(1.f), beta_b(1.f), eta_scale(1.f), rough(0.f);
   if constexpr (Bounce) {
     hit = hit && f_mask_from_i(load_i32<T>(tb.tech.valid + i) != i32_t<T>(0));
     beta_r = load<T>(tb.path.throughput_r + i);
     beta_g = load<T>(tb.path.throughput_g + i);
     beta_b = load<T>(tb.path.throughput_b + i);
     eta_scale = load<T>(tb.path.eta_scale + i);
+    rough = load<T>(tb.path.rough + i);
   }
   const i32_t<T> gi = max(geom, i32_t<T>(0));
   const T t = load<T>(p.ray.tfar + l);
@@ -370,6 +371,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     compress_store(tb.path.throughput_g + n, beta_g, keep);
     compress_store(tb.path.throughput_b + n, beta_b, keep);
     compress_store(tb.path.eta_scale + n, eta_scale, keep);
+    compress_store(tb.path.rough + n, rough, keep);
     n += std::popcount(keep);
     return;
   }
@@ -437,6 +439,7 @@ inline void finish_points(const GeomView& G, const Estimator& est, uint32_t samp
     tb.points.lane[k] = -1;
     tb.path.throughput_r[k] = tb.path.throughput_g[k] = tb.path.throughput_b[k] = 0.f;
     tb.path.eta_scale[k] = 1.f;
+    tb.path.rough[k] = 0.f;
     if (!tb.keys.points_are_lanes)  // (padded > n means n > 0; as lanes, the padding pixels are pixel 0 already)
       for (uint32_t bits = tb.keys.keyed & ~1u; bits; bits &= bits - 1)
         for (int f = 0; f < 3; ++f) tb.keys.point_key[std::countr_zero(bits)][f][k] = tb.keys.point_key[std::countr_zero(bits)][f][0];
@@ -465,6 +468,24 @@ inline void camera_hits(const GeomView& G, const LightView& L, const Estimator& 
   finish_points<Materials>(G, est, sample, choice_pair, n, tb);
 }
 
+// pbrt-v4's regularization (Estimator::regularize): the shading points whose path has
+// taken a non-specular BSDF sample take their material's regularized twin
+// (GeomView::mat_reg), and textured alphas (has_rough_tex: per point) the same rule
+// (regularized_alpha). After finish_points: a mix has chosen, the texels are looked up.
+inline void regularize_points(const GeomView& G, TileBuffers& tb) {
+  ShadingPoints& P = tb.points;
+  for (int k = 0; k < P.count; ++k) {
+    if (tb.path.rough[k] == 0.f) continue;
+    const int32_t m = P.mat[k], r = G.mat_reg[m];
+    if (r == m) continue;
+    P.mat[k] = r;
+    if (G.has_rough_tex) {
+      P.ax[k] = regularized_alpha(P.ax[k]);
+      P.ay[k] = regularized_alpha(P.ay[k]);
+    }
+  }
+}
+
 // Paths: the hits of the bounce rays of the shading points (the vertex before) become
 // the next vertex's shading points, in place (camera_hit_lanes with Bounce). The
 // emission of the hits is not added: the vertex before counted it. Returns the count.
@@ -478,6 +499,8 @@ inline int bounce_hits(const GeomView& G, const LightView& L, const Estimator& e
   tb.keys.points_are_lanes = false;
   for (int i = 0; i < padded; i += lane_traits<T>::width) camera_hit_lanes<T, false, Materials, true>(G, L, tb, i, count, n);
   finish_points<Materials>(G, est, sample, choice_pair, n, tb);
+  if constexpr (Materials)
+    if (est.regularize) regularize_points(G, tb);
   return n;
 }
 

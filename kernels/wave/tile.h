@@ -94,6 +94,9 @@ struct ShadingPoints {
 struct PathStates {
   alignas(64) float throughput_r[lane_array], throughput_g[lane_array], throughput_b[lane_array];
   alignas(64) float eta_scale[lane_array];
+  // 1 once the path has taken a non-specular BSDF sample (pbrt-v4's anyNonSpecularBounces),
+  // else 0: where Estimator::regularize turns the next vertices' BSDFs rough
+  alignas(64) float rough[lane_array];
 };
 
 // The radiance the light and BSDF techniques add to each shading point in this sample:

@@ -89,6 +89,11 @@ struct GeomView {
   bool has_mix = false;
   const int32_t *mat_mix0 = nullptr, *mat_mix1 = nullptr;
   const float* mat_mix_amount = nullptr;
+  // pbrt-v4's regularization (Estimator::regularize): per material, the row that is its
+  // regularized twin (alphas below 0.3 as clamp(2 alpha, 0.1, 0.3), the coated conductor's
+  // base too; every other column the same), or itself where nothing changes (no alphas,
+  // all at 0.3 or more, a mix: resolved before, a phase function)
+  const int32_t* mat_reg = nullptr;
   // per geomID: +1, or -1 where the surface's outside (pbrt's normal, which decides which
   // side of a dielectric is inside) is opposite Embree's Ng
   const float* geom_side = nullptr;

@@ -43,6 +43,11 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
   app.add_option("--rr-depth", f.rr_depth,
                  "Russian roulette may end a path after its vertex rr-depth + 1 (pbrt-v4's rule: 1)")
       ->capture_default_str();
+  app.add_option("--regularize", f.regularize,
+                 "on | off: pbrt-v4's path regularization, biased: after a path's first non-specular bounce, "
+                 "Trowbridge-Reitz alphas below 0.3 become clamp(2 alpha, 0.1, 0.3), smooth surfaces glossy, so "
+                 "light sampling finds caustics through them (fewer fireflies, a blurred image of them); default: the "
+                 "scene file's Integrator \"regularize\", else off");
   app.add_option("--spp", f.spp, "samples per pixel (default: the scene file's, else 16)")
       ->each([&f](const std::string&) { f.spp_given = true; });
   app.add_option("--seed", f.seed, "random seed")->capture_default_str();
@@ -127,6 +132,10 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   e.bsdf_samples = f.bsdf_samples;
   e.max_depth = f.max_depth_given ? f.max_depth : scene.file_max_depth > 0 ? scene.file_max_depth : 1;
   e.rr_depth = f.rr_depth;
+  if (f.regularize.empty()) e.regularize = scene.file_regularize;
+  else if (f.regularize == "on") e.regularize = true;
+  else if (f.regularize == "off") e.regularize = false;
+  else throw std::invalid_argument("--regularize: '" + f.regularize + "' is not on or off");
   if (f.spp_given && f.spp < 1) throw std::invalid_argument("--spp must be >= 1");
   const int spp = f.spp_given ? f.spp : scene.file_spp > 0 ? scene.file_spp : 16;
   e.spp = static_cast<uint32_t>(spp);

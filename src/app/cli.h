@@ -21,6 +21,7 @@ struct RenderFlags {
   std::string sampler, res, output, aov, pipeline = "auto", bounce_rays = "auto";
   std::string bvh = "auto";  // --bvh: Embree's layout (EmbreeOptions::compact)
   std::string filter;  // pixel filter; "": the scene file's PixelFilter, else box
+  std::string regularize;  // --regularize on|off; "": the scene file's Integrator
   float beta = 2.f, alpha = 0.1f;
   int light_samples = 1, bsdf_samples = 1, spp = 0, threads = 0, tile = 16;
   int max_depth = 0;  // when not given: the scene file's (else 1)

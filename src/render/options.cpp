@@ -109,6 +109,7 @@ std::string describe(const Estimator& e) {
        " sampler=" + samplers[static_cast<int>(e.sampler)] + " spp=" + std::to_string(e.spp) +
        " seed=" + std::to_string(e.seed);
   if (e.max_depth > 1) s += " max-depth=" + std::to_string(e.max_depth) + " rr-depth=" + std::to_string(e.rr_depth);
+  if (e.regularize) s += " regularize=on";  // (off: the description, and checkpoints' fingerprint, of earlier releases)
   return s;
 }
 

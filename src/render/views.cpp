@@ -2,6 +2,7 @@
 // distribution and alias table, flattened triangles, per-geometry lookups, camera).
 #include "render/views.h"
 #include "bsdf/hair.h"
+#include "bsdf/microfacet.h"
 #include "scene/sky_map.h"
 
 #include <algorithm>
@@ -209,6 +210,7 @@ void point_tables(SceneViews& v) {
   G.mat_mix0 = v.mat_mix0.data();
   G.mat_mix1 = v.mat_mix1.data();
   G.mat_mix_amount = v.mat_mix_amount.data();
+  G.mat_reg = v.mat_reg.data();
   for (int i = 0; i < mp_count; ++i) G.mat_param[i] = v.mat_param[i].data();
   G.indices = v.indices.data();
   G.positions = v.positions.data();
@@ -567,6 +569,48 @@ void build_instance_table(SceneViews& v, const Scene& scene) {
   G.inst_inv = v.inst_inv.data();
 }
 
+// Regularization's twin rows (GeomView::mat_reg), appended after every other material
+// (the media's phase rows too), one per material whose BSDF has Trowbridge-Reitz alphas
+// that regularization changes. A textured alpha changes per point (regularize_points);
+// its material gets a twin anyway, for its constant columns.
+void build_regularized_twins(SceneViews& v) {
+  const size_t n = v.mat_kind.size();
+  v.mat_reg.resize(n);
+  for (size_t m = 0; m < n; ++m) {
+    v.mat_reg[m] = static_cast<int32_t>(m);
+    const auto kind = static_cast<MaterialKind>(v.mat_kind[m]);
+    const bool top = kind == MaterialKind::conductor || kind == MaterialKind::dielectric ||
+                     kind == MaterialKind::coated_diffuse || kind == MaterialKind::coated_conductor;
+    if (!top || v.mat_mix0[m] >= 0) continue;
+    float p[mp_count];
+    for (int i = 0; i < mp_count; ++i) p[i] = v.mat_param[i][m];
+    bool changes = v.mat_alpha_tex[2 * m] >= 0 || v.mat_alpha_tex[2 * m + 1] >= 0;
+    for (const int i : {int(mp_ax), int(mp_ay), int(mp_bax), int(mp_bay)}) {
+      if (i >= mp_bax && kind != MaterialKind::coated_conductor) continue;
+      const float r = regularized_alpha(p[i]);
+      changes |= r != p[i];
+      p[i] = r;
+    }
+    if (!changes) continue;
+    v.mat_reg[m] = static_cast<int32_t>(v.mat_kind.size());
+    v.mat_reg.push_back(v.mat_reg[m]);  // a twin is its own twin (regularizing twice changes nothing more)
+    v.mat_bump.push_back(v.mat_bump[m]);
+    v.mat_r.push_back(v.mat_r[m]);
+    v.mat_g.push_back(v.mat_g[m]);
+    v.mat_b.push_back(v.mat_b[m]);
+    v.mat_texture.push_back(v.mat_texture[m]);
+    v.mat_kind.push_back(v.mat_kind[m]);
+    for (int i = 0; i < mp_count; ++i) v.mat_param[i].push_back(p[i]);
+    v.mat_alpha_tex.push_back(v.mat_alpha_tex[2 * m]);
+    v.mat_alpha_tex.push_back(v.mat_alpha_tex[2 * m + 1]);
+    v.mat_remap.push_back(v.mat_remap[m]);
+    v.mat_mix0.push_back(-1);
+    v.mat_mix1.push_back(-1);
+    v.mat_mix_amount.push_back(0.f);
+  }
+  point_tables(v);
+}
+
 }  // namespace
 
 SceneViews build_views(const Scene& scene, LightPick pick) {
@@ -575,6 +619,7 @@ SceneViews build_views(const Scene& scene, LightPick pick) {
   build_geometry_table(out, scene);
   build_material_table(out, scene);
   build_media_table(out, scene);
+  build_regularized_twins(out);
   build_instance_table(out, scene);
   build_camera_view(out, scene);
   return out;

@@ -245,6 +245,7 @@ void Loader::directive(Lexer& lx, const Token& t) {
       lx.fail(t, "Integrator maxdepth out of range", "1..100000");
     }
     scene.file_max_depth = depth;
+    scene.file_regularize = ps.one_bool("regularize", false);
     if (type != "path" && type != "volpath" && type != "simplepath")
       warn("integrator", where + ": Integrator \"" + type + "\" rendered by tuile's path tracer (next-event estimation "
                              "and MIS at every vertex, maxdepth " + std::to_string(depth) + ")");
