@@ -90,6 +90,26 @@ Scene floor_and_panels(bool reg_by_hand) {
     add_quad(m, {1, 0, z0[i]}, {0, 0, 1}, {0, 3, 0});  // x = 1, facing -x
     s.meshes.push_back(m);
   }
+  // a conductor whose alphas are float textures (per point: regularize_points), of values
+  // in [1/16, 1/8] (doubled by hand: twice the bilinear lookup, bit for bit, and inside
+  // regularization's [0.1, 0.3])
+  FloatTexture t;
+  t.name = "alpha";
+  t.width = t.height = 2;
+  t.value = {0.0625f, 0.125f, 0.09375f, 0.0625f};
+  if (reg_by_hand)
+    for (float& x : t.value) x *= 2;
+  s.float_textures.push_back(t);
+  Material tex = conductor(0.0625f);
+  tex.alpha_u.texture = tex.alpha_v.texture = static_cast<int>(s.float_textures.size()) - 1;
+  tex.remap_roughness = false;
+  s.materials.push_back(tex);
+  Mesh tp;
+  tp.name = "textured panel";
+  tp.material = static_cast<int>(s.materials.size()) - 1;
+  add_quad(tp, {1, 0, 4}, {0, 0, 1}, {0, 3, 0});
+  tp.uvs = {0, 0, 1, 0, 1, 1, 0, 1};
+  s.meshes.push_back(tp);
   Mesh sheet;
   sheet.name = "glass";
   sheet.material = first + 2;
@@ -157,7 +177,8 @@ TEST(Regularize, TwinRowsHoldTheRegularizedAlphas) {
     EXPECT_EQ(G.mat_param[mp_eta][r], G.mat_param[mp_eta][m]);
     EXPECT_EQ(G.mat_param[mp_eta_r][r], G.mat_param[mp_eta_r][m]);
   }
-  EXPECT_EQ(twins, 5);
+  EXPECT_EQ(twins, 6);  // (the textured conductor's too: its constant columns)
+  EXPECT_TRUE(G.has_rough_tex);
 }
 
 // Regularized, the scene renders the bits of the same scene with its alphas regularized
