@@ -32,6 +32,7 @@ CASES = [
     dict(spp=4, res=(40, 30), strategy="mis", light_pick="bvh", heuristic="balance", max_depth=5, sampler="independent"),
     dict(spp=4, res="40x30", strategy="light", light_pick="uniform", light_point="area", filter="gaussian", tile=8),
     dict(spp=4, res="40x30", strategy="ris", ris_light=4, max_depth=3, beta=1.5),
+    dict(spp=4, res="40x30", strategy="mis", max_depth=4, regularize="on"),
 ]
 
 
@@ -84,6 +85,7 @@ def test_arrays_share_memory_with_the_film(cornell):
     (dict(threads=[1, 2]), "threads"),
     (dict(frobnicate=1), "frobnicate"),
     (dict(max_depth=-3), "max_depth"),
+    (dict(regularize="maybe"), "regularize"),
 ])
 def test_bad_arguments_raise_value_error_naming_the_argument(cornell, kw, name):
     with pytest.raises(ValueError, match=name):
