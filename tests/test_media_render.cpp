@@ -292,3 +292,52 @@ TEST(MediaRender, ShadowAndCameraRaysThroughNestedMedia) {
     }
   }
 }
+
+// Shadow rays in a scene with media but no interface take occlusion queries and the
+// transmittance of the medium at their origin (wave/media.h shadow_transmittance); with an
+// interface anywhere, nearest hits through the interfaces (shadow_media). The foggy room
+// with and without an interface quad far outside it, which no ray reaches: the same bits,
+// for every estimator.
+TEST(MediaRender, ShadowRaysWithoutInterfacesGiveTheBitsOfTracingThroughThem) {
+  Scene s;
+  s.source = "test:foggy-room";
+  s.media.push_back(homogeneous({0.05f, 0.1f, 0.2f}, {0.3f, 0.25f, 0.2f}, 0.3f));
+  s.media.push_back(homogeneous({0.5f, 0.2f, 0.4f}, {0, 0, 0}));
+  s.camera_medium = 0;
+  s.materials.push_back(diffuse_material(Rgb{0.6f, 0.6f, 0.6f}));
+  s.materials.push_back(interface_material());
+  Mesh room = media_box({-2, 0, -2}, {2, 3, 2});
+  room.material = 0;
+  s.meshes.push_back(room);
+  Mesh block = media_box({-0.5f, 0, -0.5f}, {0.5f, 1, 0.5f});  // an absorbing block behind a diffuse skin
+  block.material = 0;
+  block.medium_inside = 1;
+  block.medium_outside = 0;
+  s.meshes.push_back(block);
+  Mesh lamp;
+  lamp.name = "lamp";
+  lamp.material = 0;
+  add_quad(lamp, {-0.3f, 2.9f, -0.3f}, {0.6f, 0, 0}, {0, 0, 0.6f});
+  lamp.emission = {8, 8, 8};
+  lamp.two_sided = true;
+  s.meshes.push_back(lamp);
+  s.camera.width = s.camera.height = 12;
+  s.camera.fov_deg = 70;
+  camera_look_at(s.camera, {0, 1.5f, -1.8f}, {0, 1.2f, 0}, {0, 1, 0});
+  Scene with = s;
+  Mesh far = media_box({10, 0, 10}, {11, 1, 11});  // outside the closed room
+  far.material = 1;
+  far.medium_inside = 1;
+  far.medium_outside = 0;
+  with.meshes.push_back(far);
+  finalize_scene(s);
+  finalize_scene(with);
+  for (const MediaEst& e : media_estimators) {
+    const RenderOptions o = media_options(e, 5, 8, 21);
+    const RenderResult a = render_scene(s, o), b = render_scene(with, o);
+    if (e.strategy != Strategy::bsdf) {
+      EXPECT_GT(a.stats.rays_shadow, 0u) << e.name;
+    }
+    EXPECT_EQ(a.mean, b.mean) << e.name;
+  }
+}

@@ -95,17 +95,30 @@ inline void medium_flights(const GeomView& G, RayHit16* packets, int32_t* valid,
                            uint64_t& rejected, Trace&& trace) {
   using namespace media_detail;
   const MediumView& M = G.media;
+  // the weight of a flight that met no medium (the general rule below with no optical
+  // depth: the same bits), for the rays that start in none and stop at their first hit
+  const float pass0 = (expn(-0.f) + expn(-0.f) + expn(-0.f)) * (1.f / 3.f);
+  const float w0 = expn(-0.f) * (pass0 > 0.f ? 1.f / pass0 : 0.f);
+  // every ray's optical depth to its collision and hero channel (a loop the compiler
+  // vectorises: the log of the rays that never need it costs less than a branch per ray)
+  for (int k = 0; k < count; ++k) {
+    ml.tau[k] = -lane_math::log_positive(std::max(1.f - ml.u1[k], 1e-30f));
+    ml.hero[k] = std::min(static_cast<int>(ml.u0[k] * 3.f), 2);
+  }
   bool any = false;
   for (int k = 0; k < count; ++k) {
     ml.wr[k] = ml.wg[k] = ml.wb[k] = 1.f;
     ml.er[k] = ml.eg[k] = ml.eb[k] = 0.f;
     ml.pending[k] = valid[k] != 0;
     if (!ml.pending[k]) continue;
-    any = true;
     const RayHit16& r = packets[k / packet_width];
     const int l = k % packet_width;
-    ml.tau[k] = -lane_math::log_positive(std::max(1.f - ml.u1[k], 1e-30f));
-    ml.hero[k] = std::min(static_cast<int>(ml.u0[k] * 3.f), 2);
+    if (ml.med[k] < 0 && (r.geomID[l] == invalid_id || !M.geom_interface[r.geomID[l]])) {
+      ml.wr[k] = ml.wg[k] = ml.wb[k] = w0;
+      ml.pending[k] = 0;
+      continue;
+    }
+    any = true;
     for (int c = 0; c < 3; ++c) ml.od[c][k] = 0.f, ml.absorb[c][k] = 1.f;
     ml.ox[k] = r.ray.org_x[l];
     ml.oy[k] = r.ray.org_y[l];
@@ -224,6 +237,34 @@ inline void medium_flights(const GeomView& G, RayHit16* packets, int32_t* valid,
       }
       if (some) trace(v, packets[p]);
     }
+  }
+}
+
+// The shadow rays of a scene with media but no interface (MediumView::has_interfaces
+// false), after their occlusion queries (Embree's tfar -inf: occluded): every surface
+// occludes, so an unoccluded ray runs in the medium at its origin alone, whose
+// transmittance over its length multiplies its contribution; an occluded one's is 0. The
+// numbers of shadow_media, which traces nearest hits instead, for the same rays.
+inline void shadow_transmittance(const GeomView& G, TileBuffers& tb, int count) {
+  using namespace media_detail;
+  const MediumView& M = G.media;
+  for (int k = 0; k < count; ++k) {
+    if (!tb.tech.valid[k]) continue;
+    const Ray16& s = tb.shadow[k / packet_width];
+    const int l = k % packet_width;
+    if (s.tfar[l] == -INFINITY) {
+      tb.tech.cr[k] = tb.tech.cg[k] = tb.tech.cb[k] = 0.f;
+      continue;
+    }
+    const float side = tb.points.nx[k] * s.dir_x[l] + tb.points.ny[k] * s.dir_y[l] + tb.points.nz[k] * s.dir_z[l];
+    const int32_t m = side >= 0.f ? tb.points.medf[k] : tb.points.medb[k];
+    if (m < 0) continue;
+    float T[3];
+    for (int c = 0; c < 3; ++c) T[c] = transmit(M.sigma_t[c][m], s.tfar[l]);
+    tb.tech.cr[k] *= T[0];
+    tb.tech.cg[k] *= T[1];
+    tb.tech.cb[k] *= T[2];
+    if (!(T[0] + T[1] + T[2] > 0.f)) tb.shadow[k / packet_width].tfar[l] = -INFINITY;
   }
 }
 

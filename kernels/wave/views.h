@@ -56,6 +56,7 @@ struct MediumView {
   const int32_t* geom_in = nullptr;            // per geomID
   const int32_t* geom_out = nullptr;
   const int32_t* geom_interface = nullptr;
+  bool has_interfaces = false;                 // some geomID is an interface (else every surface occludes shadow rays)
   int32_t camera = -1;                         // the camera's medium
 };
 

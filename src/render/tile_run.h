@@ -92,10 +92,11 @@ inline int active_lanes(const int32_t* valid) {
 
 // The shadow packets' valid lanes (tb.tech.valid): occlusion queries, counted. In a scene
 // with media: nearest hits, through the interfaces, with each medium's transmittance
-// (wave/media.h shadow_media).
+// (wave/media.h shadow_media); where no surface is an interface, occlusion queries and the
+// transmittance of the medium at each ray's origin (shadow_transmittance: the same numbers).
 inline void trace_shadow(const TileContext& c, TileBuffers& tb, StageTimer& timer, int packets, bool rec, ThreadProfile* tp) {
   clear_high_vector_registers();
-  if (c.v.geom.has_media) {
+  if (c.v.geom.has_media && c.v.geom.media.has_interfaces) {
     for (int p = 0; p < packets; ++p) tb.stats.rays_shadow += static_cast<uint64_t>(active_lanes(tb.tech.valid + p * packet_width));
     shadow_media(c.v.geom, tb, tb.points.count,
                  [&](const int32_t* valid, RayHit16& q) { c.accel.intersect16(valid, q, false, Bvh::scene); });
@@ -109,6 +110,7 @@ inline void trace_shadow(const TileContext& c, TileBuffers& tb, StageTimer& time
     c.accel.occluded16(valid, tb.shadow[p], false);
     tb.stats.rays_shadow += static_cast<uint64_t>(active);
   }
+  if (c.v.geom.has_media) shadow_transmittance(c.v.geom, tb, tb.points.count);
 }
 
 // The bounce packets' valid lanes: nearest hits in the scene or among the emitters, counted.

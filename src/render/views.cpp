@@ -489,6 +489,7 @@ void build_media_table(SceneViews& v, const Scene& scene) {
   M.geom_in = v.med_geom_in.data();
   M.geom_out = v.med_geom_out.data();
   M.geom_interface = v.med_geom_interface.data();
+  M.has_interfaces = std::any_of(v.med_geom_interface.begin(), v.med_geom_interface.end(), [](int32_t i) { return i != 0; });
   M.camera = rendered(scene.camera_medium);
   point_tables(v);  // the tables grew: their views again
 }
