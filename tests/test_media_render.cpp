@@ -202,12 +202,12 @@ TEST(MediaRender, AbsorbingSphereMatchesARandomWalk) {
   }
 }
 
-// A foggy room: a closed diffuse box with a small lamp under its ceiling, filled with a
-// scattering, absorbing medium in which the camera sits (the camera's medium; no interface
-// anywhere). Light-only, phase/BSDF-only, one-sample MIS and RIS each agree with multi-sample
-// MIS within 4 combined standard errors of the image mean, per channel (the channels'
-// coefficients differ), depth 6.
-TEST(MediaRender, FoggyRoomEstimatorsAgree) {
+namespace {
+
+// A foggy room: a closed diffuse box (material 0) with a small lamp under its ceiling,
+// filled with a scattering, absorbing medium (medium 0) in which the camera sits (the
+// camera's medium; no interface anywhere); not finalized.
+Scene foggy_room(int res) {
   Scene s;
   s.source = "test:foggy-room";
   s.media.push_back(homogeneous({0.05f, 0.1f, 0.2f}, {0.3f, 0.25f, 0.2f}, 0.3f));
@@ -223,9 +223,19 @@ TEST(MediaRender, FoggyRoomEstimatorsAgree) {
   lamp.emission = {8, 8, 8};
   lamp.two_sided = true;
   s.meshes.push_back(lamp);
-  s.camera.width = s.camera.height = 16;
+  s.camera.width = s.camera.height = res;
   s.camera.fov_deg = 70;
   camera_look_at(s.camera, {0, 1.5f, -1.8f}, {0, 1.2f, 0}, {0, 1, 0});
+  return s;
+}
+
+}  // namespace
+
+// The foggy room: light-only, phase/BSDF-only, one-sample MIS and RIS each agree with
+// multi-sample MIS within 4 combined standard errors of the image mean, per channel (the
+// channels' coefficients differ), depth 6.
+TEST(MediaRender, FoggyRoomEstimatorsAgree) {
+  Scene s = foggy_room(16);
   finalize_scene(s);
   const uint32_t spp = scaled(256u, 32u);
   const RenderResult ref = render_scene(s, media_options(media_estimators[0], 6, spp, 7));
@@ -299,31 +309,14 @@ TEST(MediaRender, ShadowAndCameraRaysThroughNestedMedia) {
 // with and without an interface quad far outside it, which no ray reaches: the same bits,
 // for every estimator.
 TEST(MediaRender, ShadowRaysWithoutInterfacesGiveTheBitsOfTracingThroughThem) {
-  Scene s;
-  s.source = "test:foggy-room";
-  s.media.push_back(homogeneous({0.05f, 0.1f, 0.2f}, {0.3f, 0.25f, 0.2f}, 0.3f));
+  Scene s = foggy_room(12);
   s.media.push_back(homogeneous({0.5f, 0.2f, 0.4f}, {0, 0, 0}));
-  s.camera_medium = 0;
-  s.materials.push_back(diffuse_material(Rgb{0.6f, 0.6f, 0.6f}));
   s.materials.push_back(interface_material());
-  Mesh room = media_box({-2, 0, -2}, {2, 3, 2});
-  room.material = 0;
-  s.meshes.push_back(room);
   Mesh block = media_box({-0.5f, 0, -0.5f}, {0.5f, 1, 0.5f});  // an absorbing block behind a diffuse skin
   block.material = 0;
   block.medium_inside = 1;
   block.medium_outside = 0;
   s.meshes.push_back(block);
-  Mesh lamp;
-  lamp.name = "lamp";
-  lamp.material = 0;
-  add_quad(lamp, {-0.3f, 2.9f, -0.3f}, {0.6f, 0, 0}, {0, 0, 0.6f});
-  lamp.emission = {8, 8, 8};
-  lamp.two_sided = true;
-  s.meshes.push_back(lamp);
-  s.camera.width = s.camera.height = 12;
-  s.camera.fov_deg = 70;
-  camera_look_at(s.camera, {0, 1.5f, -1.8f}, {0, 1.2f, 0}, {0, 1, 0});
   Scene with = s;
   Mesh far = media_box({10, 0, 10}, {11, 1, 11});  // outside the closed room
   far.material = 1;
