@@ -194,6 +194,12 @@ TEST(LightKinds, PowerAndBoundsFollowEachKindsFormula) {
   EXPECT_FLOAT_EQ(light_power(l, 2.f, 10.f), 4.f * pi * (1.f - 0.8f));
   l.type = LightKind::distant;
   EXPECT_FLOAT_EQ(light_power(l, 2.f, 10.f), pi * 100.f * 2.f);
+  // a sky: what the scene's disc receives facing it, pi r^2 times the irradiance pi L, so a
+  // sky of radiance L weighs as a distant source of irradiance pi L (not pbrt-v4's 4 pi^2 r^2 L)
+  const float distant_pi = light_power(l, 2.f * pi, 10.f);
+  l.type = LightKind::infinite;
+  EXPECT_FLOAT_EQ(light_power(l, 2.f, 10.f), pi * pi * 100.f * 2.f);
+  EXPECT_FLOAT_EQ(light_power(l, 2.f, 10.f), distant_pi);
   // bounds: a point with every direction, a spot's cone around its axis, none at infinity
   LightBounds b;
   l.type = LightKind::point;

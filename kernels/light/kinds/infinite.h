@@ -7,9 +7,14 @@
 // left to the BSDF technique (density 0, as pbrt-v4's UniformInfiniteLight under MIS:
 // cosine-weighted BSDF samples already cover it without variance from the direction).
 // It has no surface that a ray can hit: a ray that leaves the scene sees it
-// (wave/escaped.h, which weights it against pdf_direction). Power: pbrt-v4's
-// 4 pi * pi r^2 L over the disc of the scene's bounding sphere (a map's mean texel in L);
-// not in the light BVH (its pickers give it its power's share, as a distant source's).
+// (wave/escaped.h, which weights it against pdf_direction). Power: what the disc of the
+// scene's bounding sphere (radius r) receives from it facing it, pi r^2 times the
+// irradiance pi L (L: the radiance, a map's mean texel in it), as a distant source's
+// pi r^2 L: so a sky and a distant source of the same irradiance weigh the same. (pbrt-v4
+// takes 4 pi * pi r^2 L, the flux into the whole sphere, four times as much: measured on
+// two sun-and-sky interiors, a sky given that share starves the sun, which only light
+// sampling reaches, while BSDF samples also find the sky: bench/results.md.) Not in the
+// light BVH (its pickers give it its power's share, as a distant source's).
 // Table fields: p0.x the map's index in LightView::sky_maps (-1: constant), e1, e2, n the
 // light frame's x, y, z axes in the world (orthonormal). The sky's functions are out of
 // line (TUILE_OUT_OF_LINE): the flattened stages call them once per batch.
@@ -95,7 +100,7 @@ template <> struct LightKindOps<LightKind::infinite> {
   }
   // lum: the luminance of the table's radiance times the map's mean texel
   static float power(const LightShape&, float lum, float scene_radius) {
-    return 4.f * 3.14159265f * 3.14159265f * scene_radius * scene_radius * lum;
+    return 3.14159265f * 3.14159265f * scene_radius * scene_radius * lum;
   }
   static bool bounds(const LightShape&, double, LightBounds&) { return false; }
 };
