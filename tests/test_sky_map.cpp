@@ -582,3 +582,60 @@ TEST(SkyMap, BitsAcrossThreadsAndTiles) {
   }
   fs::remove_all(dir);
 }
+
+// The power picker's weight of a sky (light/kinds/infinite.h, render/views.h): pi r^2 times
+// its irradiance pi L (a quarter of pbrt-v4's power), as a distant source weighs pi r^2 E;
+// and under MIS, where its light samples come from the compensated distribution, only the
+// map's part above its mean (SkyMap::compensated_share), none of a constant sky (left to the
+// BSDF technique there). Weights against a distant source's, from the pick table.
+TEST(SkyMap, PowerPickerWeighsTheSkyByWhatItsLightSamplesDraw) {
+  const int res = 32;
+  const RgbImage img = image_of(res, res, [&](int x, int y) {  // a bright quarter on a dim rest
+    return x < res / 2 && y < res / 2 ? Rgb{8.f, 8.f, 8.f} : Rgb{1.f, 1.f, 1.f};
+  });
+  const fs::path dir = scratch();
+  write_pfm((dir / "quarter.pfm").string(), img);
+  const std::string head = "LookAt 0 0 0  0 0 1  0 1 0\nCamera \"perspective\"\nFilm \"rgb\" \"integer xresolution\" 4 "
+                           "\"integer yresolution\" 4\nWorldBegin\nLightSource \"distant\" \"rgb L\" [2 2 2]\n";
+  const double pi = 3.14159265358979;
+  auto lum = [](const Rgb& c) { return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b; };
+  // the sky's pick over the distant source's, and pi L_sky / E_sun from the scene's radiances
+  // (the map's mean texel in L_sky): what the two weights' ratio must be before compensation
+  auto ratios = [&](const Scene& s, bool compensated, double& want) {
+    const SceneViews v = build_views(s, LightPick::power, compensated);
+    int sky = -1, sun = -1;
+    for (int i = 0; i < v.lights.count; ++i) (is_sky(static_cast<LightKind>(v.lights.type[i])) ? sky : sun) = i;
+    EXPECT_GE(sky, 0);
+    EXPECT_GE(sun, 0);
+    const Light& ls = s.lights[static_cast<size_t>(sky)];
+    double L = lum(ls.radiance);
+    if (ls.sky_map >= 0) {
+      const double* m = s.sky_maps[static_cast<size_t>(ls.sky_map)].mean;
+      L = lum(Rgb{ls.radiance.r * float(m[0]), ls.radiance.g * float(m[1]), ls.radiance.b * float(m[2])});
+    }
+    want = pi * L / lum(s.lights[static_cast<size_t>(sun)].radiance);
+    return static_cast<double>(v.lights.pick_pdf[sky]) / static_cast<double>(v.lights.pick_pdf[sun]);
+  };
+  double want = 0;
+  {
+    Scene s = load_pbrt_string(head + "LightSource \"infinite\" \"string filename\" \"quarter.pfm\"\n", "quarter.pbrt",
+                               dir.string());
+    finalize_scene(s);
+    const double mean = 0.25 * 8 + 0.75 * 1, above = 0.25 * (8 - mean);
+    ASSERT_EQ(s.sky_maps.size(), 1u);
+    EXPECT_NEAR(s.sky_maps[0].compensated_share, above / mean, 1e-6);
+    // pi^2 r^2 L against pi r^2 E: pbrt-v4's weight would be four times this
+    const double full = ratios(s, false, want);
+    EXPECT_GT(want, 0);
+    EXPECT_NEAR(full, want, 1e-4 * want);
+    EXPECT_NEAR(ratios(s, true, want), want * above / mean, 1e-4 * want);
+  }
+  {
+    Scene s = load_pbrt_string(head + "LightSource \"infinite\" \"rgb L\" [3 3 3]\n", "constant.pbrt", dir.string());
+    finalize_scene(s);
+    const double full = ratios(s, false, want);
+    EXPECT_GT(want, 0);
+    EXPECT_NEAR(full, want, 1e-4 * want);
+    EXPECT_EQ(ratios(s, true, want), 0.0);
+  }
+}

@@ -33,11 +33,12 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
       pool_(std::make_unique<BufferPool>()) {
   validate(opt_);
   opt_.est.aov_mis_weight = opt_.est.aov_mis_weight || opt_.aov_mis_weight;
-  *views_ = build_views(scene, opt_.est.pick);
   // the skies' maps are sampled by their compensated distributions where BSDF sampling
-  // covers every direction beside the light technique (light/sky_map.h)
+  // covers every direction beside the light technique (light/sky_map.h), and the power
+  // picker then weighs a sky by that part of it
   const Estimator& e = opt_.est;
   const bool bsdf_covers = (e.strategy == Strategy::mis && e.bsdf_samples > 0) || (e.strategy == Strategy::ris && e.ris_bsdf > 0);
+  *views_ = build_views(scene, opt_.est.pick, bsdf_covers);
   views_->lights.sky_dist = bsdf_covers ? sky_dist_compensated : sky_dist_full;
   // optimal MIS takes a BSDF sample that escapes as one point of the sky, whose light density
   // is that of the one sky (several skies would each see the same direction)

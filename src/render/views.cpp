@@ -45,7 +45,7 @@ namespace {
 
 // The light table as the kernels read it (LightView: each source's shape and radiance, the
 // constants of its kind, the pick distribution and the light BVH), padded to its tier.
-void build_light_table(SceneViews& v, const Scene& scene, LightPick pick) {
+void build_light_table(SceneViews& v, const Scene& scene, LightPick pick, bool sky_compensated) {
   const auto& lights = scene.lights;
   const size_t n = lights.size();
   v.features = scene.features;
@@ -94,7 +94,13 @@ void build_light_table(SceneViews& v, const Scene& scene, LightPick pick) {
       mean_area = na ? mean_area / na : 1.0;
       for (size_t i = 0; i < n; ++i) weight[i] = lights[i].area > 0 ? lights[i].area : mean_area;
     } else if (pick == LightPick::power) {
-      for (size_t i = 0; i < n; ++i) weight[i] = std::max(0.f, lights[i].power);
+      for (size_t i = 0; i < n; ++i) {
+        weight[i] = std::max(0.f, lights[i].power);
+        // under MIS a sky's light samples draw its compensated part alone (the BSDF samples
+        // the rest): a constant sky none, a map the share above its mean
+        if (sky_compensated && is_sky(lights[i].type))
+          weight[i] *= lights[i].sky_map < 0 ? 0.0 : scene.sky_maps[static_cast<size_t>(lights[i].sky_map)].compensated_share;
+      }
     }
     double total = 0;
     for (double w : weight) total += w;
@@ -614,9 +620,9 @@ void build_regularized_twins(SceneViews& v) {
 
 }  // namespace
 
-SceneViews build_views(const Scene& scene, LightPick pick) {
+SceneViews build_views(const Scene& scene, LightPick pick, bool sky_compensated) {
   SceneViews out;
-  build_light_table(out, scene, pick);
+  build_light_table(out, scene, pick, sky_compensated);
   build_geometry_table(out, scene);
   build_material_table(out, scene);
   build_media_table(out, scene);

@@ -69,6 +69,10 @@ struct SceneViews {
 };
 
 
-SceneViews build_views(const Scene& scene, LightPick pick);
+// sky_compensated: the estimator draws the skies' light samples from their compensated
+// distributions (LightView::sky_dist, under MIS with BSDF samples), so the power picker
+// weighs each sky by the part of it those samples draw (SkyMap::compensated_share; none of
+// a constant sky, which is left to the BSDF technique).
+SceneViews build_views(const Scene& scene, LightPick pick, bool sky_compensated = false);
 
 }  // namespace tuile

@@ -180,6 +180,9 @@ struct SkyMap {
     float inv_mean = 0;
   } dist[2];                       // sky_dist_full, sky_dist_compensated
   double mean[3] = {0, 0, 0};      // the texels' mean per channel (the power's)
+  // the compensated distribution's mean over the full one's, mean(max(f - mean f, 0)) / mean f
+  // (f: the channels' average): the part of the map the light technique draws under MIS
+  double compensated_share = 1;
   bool constant = false;           // every texel the same (the compensated distribution is uniform)
 };
 

@@ -223,10 +223,14 @@ void build_sky_distributions(SkyMap& m) {
   // compensated: max(value - mean, 0); nothing left (a constant map): uniform
   std::vector<float> comp(n);
   m.constant = true;
+  double comp_sum = 0;
   for (size_t i = 0; i < n; ++i) {
     comp[i] = static_cast<float>(std::max(0.0, static_cast<double>(func[i]) - mean_f));
+    comp_sum += comp[i];
     m.constant = m.constant && m.r[i] == m.r[0] && m.g[i] == m.g[0] && m.b[i] == m.b[0];
   }
+  // (a constant map's compensated distribution is its uniform one: the whole map)
+  m.compensated_share = m.constant || !(mean_f > 0) ? 1.0 : comp_sum / static_cast<double>(n) / mean_f;
   build_dist(std::move(func), m.res, m.dist[sky_dist_full]);
   build_dist(std::move(comp), m.res, m.dist[sky_dist_compensated]);
 }

@@ -13,8 +13,10 @@
 // pi r^2 L: so a sky and a distant source of the same irradiance weigh the same. (pbrt-v4
 // takes 4 pi * pi r^2 L, the flux into the whole sphere, four times as much: measured on
 // two sun-and-sky interiors, a sky given that share starves the sun, which only light
-// sampling reaches, while BSDF samples also find the sky: bench/results.md.) Not in the
-// light BVH (its pickers give it its power's share, as a distant source's).
+// sampling reaches, while BSDF samples also find the sky: bench/results.md.) Under MIS
+// the power picker takes only the part of the sky its light samples draw (render/views.h:
+// SkyMap::compensated_share of a map, none of a constant sky). Not in the light BVH (its
+// pickers give it its power's share, as a distant source's).
 // Table fields: p0.x the map's index in LightView::sky_maps (-1: constant), e1, e2, n the
 // light frame's x, y, z axes in the world (orthonormal). The sky's functions are out of
 // line (TUILE_OUT_OF_LINE): the flattened stages call them once per batch.
