@@ -122,6 +122,27 @@ TEST(Cli, LightPickerAndRisFlags) {
   EXPECT_EQ(r.code, 0) << r.out;
 }
 
+// info prints the alias table's shares of the sources at infinity: under MIS a constant sky
+// gets none (its light samples have no density there: the BSDF samples find it), with light
+// sampling alone its power's share.
+TEST(Cli, InfoPrintsThePicksOfTheSourcesAtInfinity) {
+  const std::string path = tmp("cli_sun_sky.pbrt");
+  std::ofstream(path) << "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\"\nFilm \"rgb\" \"integer xresolution\" 8 "
+                         "\"integer yresolution\" 8\nWorldBegin\nLightSource \"distant\" \"rgb L\" [3 3 3]\n"
+                         "LightSource \"infinite\" \"rgb L\" [0.5 0.5 0.5]\n"
+                         "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [4 4 4]\n"
+                         "Shape \"trianglemesh\" \"point3 P\" [-1 -1 0 1 -1 0 1 1 0 -1 1 0] \"integer indices\" [0 1 2 0 2 3]\n"
+                         "AttributeEnd\n";
+  CmdResult r = run("info " + path);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("picks of the sources at infinity: distant "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(", sky 0; the other "), std::string::npos) << r.out;
+  r = run("info " + path + " --strategy light");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("picks of the sources at infinity: distant "), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find(", sky 0;"), std::string::npos) << r.out;
+}
+
 TEST(Cli, BenchJsonSchema) {
   const std::string js = tmp("cli_bench.json");
   const CmdResult r = run("bench built-in:cornell --res 16x16 --spp 2 --repeat 3 --warmup 1 --json " + js);

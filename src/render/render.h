@@ -71,6 +71,9 @@ class Renderer {
   // The light BVH (--light-pick bvh with two sources or more; else null) and its build time.
   const LightBvh* light_bvh() const;
   double light_bvh_seconds() const;
+  // The alias table's probability of picking source i (the scene's order; 1 for every
+  // source with --light-pick all), as this estimator's light samples use it.
+  float light_pick_probability(int i) const;
   // A flag (set from anywhere, e.g. a signal handler) that stops a render at the next tile
   // boundary: the tiles not yet started are skipped and RenderStats::cancelled is set.
   void set_cancel_flag(const std::atomic<bool>* flag) { cancel_ = flag; }

@@ -76,6 +76,7 @@ Renderer::~Renderer() = default;
 
 const LightBvh* Renderer::light_bvh() const { return views_->light_bvh.get(); }
 double Renderer::light_bvh_seconds() const { return views_->light_bvh_seconds; }
+float Renderer::light_pick_probability(int i) const { return views_->lights.pick_pdf[i]; }
 
 int Renderer::tile_count() const {
   const int ts = opt_.tile;
