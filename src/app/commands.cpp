@@ -196,19 +196,20 @@ std::string info_text(const Prepared& p) {
       // the sources at infinity's shares, where they share the picks (under MIS a sky weighs
       // the compensated part of its map: light/kinds/infinite.h)
       double at_infinity = 0;
+      size_t others = 0;
       std::string shares;
       for (size_t i = 0; i < scene.lights.size(); ++i) {
         const LightKind k = scene.lights[i].type;
-        if (k != LightKind::distant && !is_sky(k)) continue;
+        if (k != LightKind::distant && !is_sky(k)) {
+          ++others;
+          continue;
+        }
         const float p = r.light_pick_probability(static_cast<int>(i));
         at_infinity += p;
         char buf[64];
         std::snprintf(buf, sizeof buf, "%s%s %.3g", shares.empty() ? "" : ", ", is_sky(k) ? "sky" : "distant", p);
         shares += buf;
       }
-      const size_t others = scene.lights.size() - static_cast<size_t>(std::count_if(
-                                scene.lights.begin(), scene.lights.end(),
-                                [](const Light& l) { return l.type == LightKind::distant || is_sky(l.type); }));
       if (!shares.empty() && scene.lights.size() > 1) {
         say("  picks of the sources at infinity: %s", shares.c_str());
         if (others > 0) say("; the other %zu source(s) %.3g", others, std::max(0.0, 1.0 - at_infinity));
