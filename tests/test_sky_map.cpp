@@ -598,7 +598,6 @@ TEST(SkyMap, PowerPickerWeighsTheSkyByWhatItsLightSamplesDraw) {
   const std::string head = "LookAt 0 0 0  0 0 1  0 1 0\nCamera \"perspective\"\nFilm \"rgb\" \"integer xresolution\" 4 "
                            "\"integer yresolution\" 4\nWorldBegin\nLightSource \"distant\" \"rgb L\" [2 2 2]\n";
   const double pi = 3.14159265358979;
-  auto lum = [](const Rgb& c) { return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b; };
   // the sky's pick over the distant source's, and pi L_sky / E_sun from the scene's radiances
   // (the map's mean texel in L_sky): what the two weights' ratio must be before compensation
   auto ratios = [&](const Scene& s, bool compensated, double& want) {
@@ -608,12 +607,12 @@ TEST(SkyMap, PowerPickerWeighsTheSkyByWhatItsLightSamplesDraw) {
     EXPECT_GE(sky, 0);
     EXPECT_GE(sun, 0);
     const Light& ls = s.lights[static_cast<size_t>(sky)];
-    double L = lum(ls.radiance);
+    double L = luminance(ls.radiance);
     if (ls.sky_map >= 0) {
       const double* m = s.sky_maps[static_cast<size_t>(ls.sky_map)].mean;
-      L = lum(Rgb{ls.radiance.r * float(m[0]), ls.radiance.g * float(m[1]), ls.radiance.b * float(m[2])});
+      L = luminance(Rgb{ls.radiance.r * float(m[0]), ls.radiance.g * float(m[1]), ls.radiance.b * float(m[2])});
     }
-    want = pi * L / lum(s.lights[static_cast<size_t>(sun)].radiance);
+    want = pi * L / luminance(s.lights[static_cast<size_t>(sun)].radiance);
     return static_cast<double>(v.lights.pick_pdf[sky]) / static_cast<double>(v.lights.pick_pdf[sun]);
   };
   double want = 0;
