@@ -176,7 +176,7 @@ TEST(Bump, PbrtFloatImagemapDisplacement) {
   const fs::path dir = fs::temp_directory_path() /
                        ("tuile_test_bump_" + std::to_string(std::chrono::steady_clock::now().time_since_epoch().count()));
   fs::create_directories(dir);
-  {  // a 4 x 1 TGA ramp (uncompressed, 24-bit, top row first; TGA is read as linear)
+  {  // a 4 x 1 TGA ramp (uncompressed, 24-bit, top row first; read as sRGB, as pbrt-v4 reads it)
     std::string s(18, '\0');
     s[2] = 2;
     s[12] = 4, s[14] = 1, s[16] = 24, s[17] = 0x20;

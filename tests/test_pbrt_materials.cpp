@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "output_files.h"
+#include "scene/image_io.h"
 #include "scene/pbrt.h"
 
 namespace fs = std::filesystem;
@@ -399,11 +400,13 @@ TEST(PbrtMaterials, FloatTexturesForRoughnessAmountAndDisplacement) {
   const FloatTexture& r = s.float_textures[size_t(c.alpha_u.texture)];
   ASSERT_EQ(r.width, 2);
   ASSERT_EQ(r.height, 1);
-  EXPECT_NEAR(r.value[0], 0.2f, 1e-6);  // first channel; a TGA is linear by default (pbrt-v4: sRGB only for PNG)
+  // first channel; a TGA is sRGB-decoded, as pbrt-v4's stb_image path decodes it
+  const float srgb51 = std::pow((0.2f + 0.055f) / 1.055f, 2.4f);
+  EXPECT_NEAR(r.value[0], srgb51, 1e-6);
   EXPECT_NEAR(r.value[1], 1.0f, 1e-6);
   ASSERT_GE(c.displacement, 0);
   const FloatTexture& d = s.float_textures[size_t(c.displacement)];
-  EXPECT_NEAR(d.value[0], 0.4f, 1e-6);
+  EXPECT_NEAR(d.value[0], 2 * srgb51, 1e-6);
   EXPECT_NEAR(d.value[1], 2.0f, 1e-6);
   // a constant texture folds into the value, remapped
   const Material& g = mat(s, 1);
@@ -416,9 +419,50 @@ TEST(PbrtMaterials, FloatTexturesForRoughnessAmountAndDisplacement) {
   const Material& m = mat(s, 2);
   ASSERT_GE(m.mix_amount.texture, 0);
   const FloatTexture& a = s.float_textures[size_t(m.mix_amount.texture)];
-  EXPECT_NEAR(a.value[0], 0.3f, 1e-6);
+  EXPECT_NEAR(a.value[0], 1.5f * srgb51, 1e-6);
   EXPECT_NEAR(a.value[1], 1.5f, 1e-6);
   EXPECT_TRUE(s.warnings.empty()) << s.warnings[0];
+}
+
+// The encoding of 8-bit image textures, as pbrt-v4 decodes them: a PNG by the texture's
+// "encoding" (default sRGB), a TGA (like every format pbrt-v4 reads through stb_image) as
+// sRGB whatever the texture says, which is reported; float and spectrum textures alike.
+// (pbrt-v4's textures default to "linear" for files that are not PNG, but its Image::Read
+// never passes that encoding to those formats: the bathroom's bump maps are TGAs.)
+TEST(PbrtMaterials, ImageTextureEncodingsAsPbrtV4DecodesThem) {
+  const std::vector<uint8_t> px = {51, 51, 51, 204, 204, 204};
+  write_tga(tmp_dir() / "enc.tga", 2, 1, px);
+  write_png8((tmp_dir() / "enc.png").string(), 2, 1, std::vector<unsigned char>(px.begin(), px.end()));
+  const auto srgb = [](float v) { return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f); };
+  const float lo = 51 / 255.f, hi = 204 / 255.f;
+  struct Case {
+    std::string file, encoding;
+    float v0, v1;
+    bool warns;
+  };
+  const Case cases[] = {
+      {"enc.tga", "", srgb(lo), srgb(hi), false},         {"enc.tga", "linear", srgb(lo), srgb(hi), true},
+      {"enc.tga", "gamma 2.2", srgb(lo), srgb(hi), true}, {"enc.png", "", srgb(lo), srgb(hi), false},
+      {"enc.png", "linear", lo, hi, false},               {"enc.png", "gamma 2.2", std::pow(lo, 2.2f), std::pow(hi, 2.2f), false},
+  };
+  for (const Case& c : cases) {
+    const std::string enc = c.encoding.empty() ? "" : " \"string encoding\" \"" + c.encoding + "\"";
+    const Scene s = world("Texture \"f\" \"float\" \"imagemap\" \"string filename\" \"" + c.file + "\"" + enc + "\n" +
+                          "Texture \"k\" \"spectrum\" \"imagemap\" \"string filename\" \"" + c.file + "\"" + enc + "\n" +
+                          "Material \"diffuse\" \"texture reflectance\" \"k\" \"texture displacement\" \"f\"\n" + tri);
+    const Material& m = mat(s, 0);
+    ASSERT_GE(m.displacement, 0) << c.file << c.encoding;
+    const FloatTexture& f = s.float_textures[size_t(m.displacement)];
+    ASSERT_EQ(f.value.size(), 2u);
+    EXPECT_NEAR(f.value[0], c.v0, 1e-6) << c.file << " " << c.encoding;
+    EXPECT_NEAR(f.value[1], c.v1, 1e-6) << c.file << " " << c.encoding;
+    ASSERT_GE(m.texture, 0) << c.file << c.encoding;
+    const Texture& k = s.textures[size_t(m.texture)];
+    ASSERT_EQ(k.rgb.size(), 6u);
+    EXPECT_NEAR(k.rgb[0], c.v0, 1e-6) << c.file << " " << c.encoding;
+    EXPECT_NEAR(k.rgb[5], c.v1, 1e-6) << c.file << " " << c.encoding;
+    EXPECT_EQ(has_warning(s, "encoding"), c.warns) << c.file << " " << c.encoding;
+  }
 }
 
 TEST(PbrtMaterials, FloatTextureCombinationsThatCannotBeBaked) {

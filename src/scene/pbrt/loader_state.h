@@ -191,6 +191,7 @@ class Loader {
   int tex_operand(Lexer& lx, Params& ps, const std::string& name, Rgb def);
   void mapping_warnings(Params& ps, const std::string& where);
   int image_job(const std::string& path, const std::string& encoding, const std::string& where);
+  std::string image_encoding(Params& ps, const std::string& path, const std::string& where);
   void float_texture(Lexer& lx, const Token& t, const std::string& name, const std::string& cls, Params& ps);
   int float_operand(Params& ps, const std::string& name, float def);
   int float_texture_ref(const Param& p);

@@ -4,6 +4,7 @@
 // the end), and their resolution to scene textures, float textures or constants
 // (bake_materials, in loader_materials.cpp, sets them into the materials that use them).
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <string>
 #include <tuple>
@@ -53,7 +54,7 @@ void Loader::texture(Lexer& lx, const Token& t) {
     const Param* fp = ps.get("filename", "string");
     if (!fp || fp->strs.size() != 1) lx.fail(t, "imagemap texture \"" + name + "\" without a filename", "a \"string filename\" parameter");
     const std::string path = resolve_path(lx.dir(), fp->strs[0]);
-    const std::string enc = ps.one_string("encoding", "sRGB");
+    const std::string enc = image_encoding(ps, path, where);
     d.kind = TexDef::image;
     d.scale = ps.one_float("scale", 1);
     d.job = image_job(path, enc, where);
@@ -122,6 +123,34 @@ void Loader::mapping_warnings(Params& ps, const std::string& where) {
     }
 }
 
+// The encoding an image texture's 8- and 16-bit values are decoded with, as pbrt-v4 decodes
+// them: a PNG by the texture's "encoding" (default sRGB); every other such format (TGA,
+// JPEG, BMP, ...), which pbrt-v4's Image::Read hands to stb_image, as sRGB whatever the
+// texture says: pbrt-v4's image textures default to "linear" for files that are not PNG,
+// but that default never reaches these formats, so a float texture of a TGA (a bump map, a
+// roughness or alpha map) is sRGB-decoded. An encoding other than sRGB on such a file is
+// reported (pbrt-v4 ignores it silently). Float formats (EXR, HDR, PFM) are linear values;
+// their encoding is not read.
+std::string Loader::image_encoding(Params& ps, const std::string& path, const std::string& where) {
+  auto ext_is = [&](const char* e) {
+    const size_t n = std::char_traits<char>::length(e);
+    if (path.size() < n) return false;
+    for (size_t i = 0; i < n; ++i)
+      if (std::tolower(static_cast<unsigned char>(path[path.size() - n + i])) != e[i]) return false;
+    return true;
+  };
+  if (ext_is(".exr") || ext_is(".hdr") || ext_is(".pfm")) {
+    ps.get("encoding", "string");
+    return "linear";
+  }
+  if (ext_is(".png")) return ps.one_string("encoding", "sRGB");
+  const std::string enc = ps.one_string("encoding", "sRGB");
+  if (enc != "sRGB")
+    warn("encoding:" + path, where + ": imagemap \"" + path + "\": \"encoding\" \"" + enc +
+                                 "\" ignored: pbrt-v4 decodes this format as sRGB whatever the file says, and so does tuile");
+  return "sRGB";
+}
+
 int Loader::image_job(const std::string& path, const std::string& encoding, const std::string& where) {
   auto key = std::make_pair(path, encoding);
   auto it = image_by_path_.find(key);
@@ -167,8 +196,7 @@ void Loader::float_texture(Lexer& lx, const Token& t, const std::string& name, c
     const Param* fp = ps.get("filename", "string");
     if (!fp || fp->strs.size() != 1) lx.fail(t, "imagemap texture \"" + name + "\" without a filename", "a \"string filename\" parameter");
     const std::string path = resolve_path(lx.dir(), fp->strs[0]);
-    const bool png = path.size() >= 4 && (path.compare(path.size() - 4, 4, ".png") == 0 || path.compare(path.size() - 4, 4, ".PNG") == 0);
-    const std::string enc = ps.one_string("encoding", png ? "sRGB" : "linear");  // pbrt-v4's default
+    const std::string enc = image_encoding(ps, path, where);
     d.kind = FloatTexDef::image;
     d.scale = ps.one_float("scale", 1);
     d.invert = ps.one_bool("invert", false);
