@@ -1,5 +1,6 @@
 // Bump mapping (pbrt-v4's "displacement", surface_hits.h bump_normal): a plane displaced
-// by a linear d(u, v) shades with the analytic tilted normal, a constant displacement
+// by a linear d(u, v) shades with the analytic tilted normal, a bump tilted past the
+// viewer reflects on wo's side of it (as pbrt-v4's two-sided BxDFs), a constant displacement
 // changes no bit, a pbrt file's float imagemap displacement loads and renders without a
 // warning, and the image does not depend on the thread count or the pipeline.
 #include <gtest/gtest.h>
@@ -109,6 +110,75 @@ TEST(Bump, LinearDisplacementTiltsTheNormalExactly) {
       for (size_t i = 0; i < r.mean.size(); ++i)
         ASSERT_NEAR(r.mean[i], exact, 1e-3 * exact) << "normals " << normals << " " << describe(o.est) << " pixel " << i / 3;
     }
+  }
+}
+
+// A bump steep enough to tilt the shading normal past the viewer: pbrt-v4's BxDFs are
+// two-sided in the shading frame, so a diffuse point reflects the light that arrives on
+// wo's side of the tilted plane (cos |N . l|) and none from the other side; tuile turns
+// the shading normal towards wo (shading_normals.h). The floor's normal is
+// N = normalize(-10, 1, 0) (c1 = 40): wo lies below that plane at the points with
+// x < -0.1 and above it elsewhere, and the light (towards l, above the floor) lies below
+// it. So the pixels left of x = -0.1 see rho / pi E |N . l| exactly and those right of it
+// 0; a pixel straddling the line holds a mix. A shading normal turned towards the
+// geometric viewer side instead (tuile before) leaves every pixel black.
+TEST(Bump, SteepBumpReflectsOnWoSideOfTheShadingNormal) {
+  for (bool normals : {false, true}) {
+    BumpPlane b;
+    b.c1 = 40.f;
+    b.c2 = 0.f;
+    b.l = normalize(vec3f{1.f, 0.3f, 0.f});
+    Scene& s = b.scene;
+    s.source = "test:steep-bump";
+    Material m = diffuse_material(Rgb{b.rho, b.rho, b.rho});
+    FloatTexture t;
+    t.name = "steep";
+    t.width = t.height = 8;
+    for (int j = 0; j < 8; ++j)
+      for (int i = 0; i < 8; ++i) t.value.push_back(b.c1 * (static_cast<float>(i) + 0.5f) / 8.f);
+    s.float_textures.push_back(t);
+    m.displacement = 0;
+    s.materials.push_back(m);
+    Mesh floor;
+    floor.name = "floor";
+    floor.material = 0;
+    add_quad(floor, {-1, 0, -1}, {0, 0, 2}, {2, 0, 0});
+    for (size_t i = 0; i < 4; ++i) {
+      const float x = floor.positions[3 * i], z = floor.positions[3 * i + 2];
+      floor.uvs.insert(floor.uvs.end(), {(x + 3.f) / 4.f, (3.f - z) / 4.f});
+      if (normals) floor.normals.insert(floor.normals.end(), {0.f, 1.f, 0.f});
+    }
+    s.meshes.push_back(floor);
+    s.camera.width = s.camera.height = 16;
+    s.camera.fov_deg = 60;
+    camera_look_at(s.camera, {0, 1, 0}, {0, 0, 0}, {0, 0, 1});
+    Light light;
+    light.type = LightKind::distant;
+    light.e1 = b.l;
+    light.radiance = {b.E, b.E, b.E};
+    s.lights.push_back(light);
+    finalize_scene(s);
+    const vec3f N = normalize(vec3f{-b.c1 / 4.f, 1.f, 0.f});
+    ASSERT_LT(dot(N, b.l), 0.f);
+    const double exact = b.rho / M_PI * b.E * std::fabs(dot(N, b.l));
+    RenderOptions o;
+    o.est.spp = 4;
+    const RenderResult r = render_scene(s, o);
+    ASSERT_EQ(r.mean.size(), 3u * 16 * 16);
+    int lit = 0, dark = 0, mixed = 0;
+    for (size_t i = 0; i < r.mean.size(); i += 3) {
+      const float v = r.mean[i];
+      ASSERT_TRUE(std::isfinite(v));
+      ASSERT_GE(v, 0.f);
+      ASSERT_LE(v, exact * (1 + 1e-3)) << "pixel " << i / 3;
+      if (std::fabs(v - exact) <= 1e-3 * exact) ++lit;
+      else if (v == 0.f) ++dark;
+      else ++mixed;
+    }
+    // x < -0.1 is 41% of the view (x in [-0.577, 0.577]); one column of 16 straddles the line
+    EXPECT_GE(lit, 16 * 5) << "normals " << normals;
+    EXPECT_GE(dark, 16 * 7) << "normals " << normals;
+    EXPECT_LE(mixed, 16 * 2) << "normals " << normals;
   }
 }
 

@@ -195,6 +195,15 @@ template <bool Materials> inline void apply_shading_normals(const GeomView& G, S
         sz = sn.z;
       }
     }
+    // On wo's side: pbrt-v4's BxDFs are two-sided in the shading frame (a diffuse surface
+    // reflects light that arrives on the same side of the shading normal as wo), so where a
+    // bump or an interpolated normal tilts past wo, the light on wo's side of the tilted
+    // plane is the light that counts, and the BSDF samples go to that side.
+    if (sx * P.wox[k] + sy * P.woy[k] + sz * P.woz[k] < 0.f) {
+      sx = -sx;
+      sy = -sy;
+      sz = -sz;
+    }
     P.snx[k] = sx;
     P.sny[k] = sy;
     P.snz[k] = sz;

@@ -330,6 +330,10 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     compress_store(tb.points.wox + n, T(0.f) - d.x, keep);
     compress_store(tb.points.woy + n, T(0.f) - d.y, keep);
     compress_store(tb.points.woz + n, T(0.f) - d.z, keep);
+  } else if (G.shading_normals) {  // the shading normal turns towards wo (shading_normals.h)
+    compress_store(tb.points.wox + n, T(0.f) - d.x, keep);
+    compress_store(tb.points.woy + n, T(0.f) - d.y, keep);
+    compress_store(tb.points.woz + n, T(0.f) - d.z, keep);
   }
   T ar, ag, ab;
   if (one_geom) {
