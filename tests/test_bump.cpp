@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "render_util.h"
+#include "wave/textures.h"
 #include "scene/pbrt.h"
 
 namespace fs = std::filesystem;
@@ -310,4 +311,109 @@ TEST(Bump, PbrtFloatImagemapDisplacement) {
   EXPECT_TRUE(warned);
   std::error_code ec;
   fs::remove_all(dir, ec);
+}
+
+// pbrt-v4's MIP pyramid (scene.h build_mip, as Image::GeneratePyramid): a power-of-two
+// image keeps its texels at level 0 and each next level averages 2 x 2 of them, down to
+// one texel, the mean; an image that is not a power of two is first resampled up by a
+// windowed sinc, whose normalised weights keep a constant image constant and, unlike any
+// interpolation, overshoot at a sharp edge (clamped at 0 below, as pbrt-v4).
+TEST(Bump, MipPyramidAsPbrtV4) {
+  FloatTexture t;
+  t.width = 4;
+  t.height = 2;
+  t.value = {1, 2, 3, 4, 5, 6, 7, 8};
+  build_mip(t);
+  ASSERT_EQ(t.mip_w, (std::vector<int32_t>{4, 2, 1}));
+  ASSERT_EQ(t.mip_h, (std::vector<int32_t>{2, 1, 1}));
+  for (size_t i = 0; i < 8; ++i) EXPECT_EQ(t.mip[t.mip_at[0] + i], t.value[i]);
+  EXPECT_FLOAT_EQ(t.mip[t.mip_at[1]], (1 + 2 + 5 + 6) / 4.f);
+  EXPECT_FLOAT_EQ(t.mip[t.mip_at[1] + 1], (3 + 4 + 7 + 8) / 4.f);
+  EXPECT_FLOAT_EQ(t.mip[t.mip_at[2]], 4.5f);
+
+  FloatTexture c;
+  c.width = 3;
+  c.height = 5;
+  c.value.assign(15, 0.7f);
+  build_mip(c);
+  ASSERT_EQ(c.mip_w, (std::vector<int32_t>{4, 2, 1, 1}));
+  ASSERT_EQ(c.mip_h, (std::vector<int32_t>{8, 4, 2, 1}));
+  for (float v : c.mip) EXPECT_NEAR(v, 0.7f, 1e-6f);
+
+  FloatTexture e;  // a step 0 | 1 across 6 texels, resampled to 8
+  e.width = 6;
+  e.height = 1;
+  e.value = {0, 0, 0, 1, 1, 1};
+  build_mip(e);
+  ASSERT_EQ(e.mip_w.front(), 8);
+  float lo = 1, hi = 0;
+  for (int i = 0; i < 8; ++i) {
+    lo = std::min(lo, e.mip[e.mip_at[0] + static_cast<size_t>(i)]);
+    hi = std::max(hi, e.mip[e.mip_at[0] + static_cast<size_t>(i)]);
+  }
+  EXPECT_EQ(lo, 0.f);   // the undershoot, clamped
+  EXPECT_GT(hi, 1.01f);  // the overshoot of the sinc
+}
+
+// The bump map's lookup (wave/textures.h float_texture_filtered, pbrt-v4's MIPMap::Filter):
+// the level log2(width) above the finest; below it the finest level's bilinear value;
+// past the coarsest its one texel (the mean); between, the nearest texel (point), the
+// bilinear value at the lower level (bilinear) or the blend of the two levels (trilinear).
+TEST(Bump, MipLookupPicksPbrtV4sLevel) {
+  FloatTexture t;
+  t.width = t.height = 8;
+  uint32_t h = 12345;
+  for (int i = 0; i < 64; ++i) {
+    h = h * 1664525u + 1013904223u;
+    t.value.push_back(static_cast<float>(h >> 8) / 16777216.f);
+  }
+  build_mip(t);
+  ASSERT_EQ(t.mip_w.size(), 4u);  // 8, 4, 2, 1
+  const float* fv[1] = {t.value.data()};
+  const int32_t fw[1] = {8}, fh[1] = {8}, levels[1] = {4};
+  const float* mip[1] = {t.mip.data()};
+  const int32_t* mw[1] = {t.mip_w.data()};
+  const int32_t* mh[1] = {t.mip_h.data()};
+  const size_t* at[1] = {t.mip_at.data()};
+  int32_t filter[1] = {1};
+  GeomView G;
+  G.ftex_value = fv;
+  G.ftex_w = fw;
+  G.ftex_h = fh;
+  G.ftex_mip = mip;
+  G.ftex_mip_w = mw;
+  G.ftex_mip_h = mh;
+  G.ftex_mip_at = at;
+  G.ftex_levels = levels;
+  G.ftex_filter = filter;
+  const auto level_bilerp = [&](int k, float u, float v) {
+    return bilinear_texel(t.mip.data() + t.mip_at[static_cast<size_t>(k)], t.mip_w[static_cast<size_t>(k)],
+                          t.mip_h[static_cast<size_t>(k)], u, v);
+  };
+  const float mean = t.mip[t.mip_at[3]];
+  for (const float u : {0.13f, 0.5f, 0.87f, 1.31f})
+    for (const float v : {0.07f, 0.44f, 0.93f}) {
+      const float s = u - std::floor(u), q = (1.f - v) - std::floor(1.f - v);  // (top row first: t = 1 - v)
+      for (int32_t f : {0, 1, 2}) {
+        filter[0] = f;
+        // below the finest level (width under one texel: l < 0): the finest level's
+        // bilinear value, or its nearest texel (point)
+        const int x0 = static_cast<int>(std::round(s * 8 - 0.5f)) & 7, y0 = static_cast<int>(std::round(q * 8 - 0.5f)) & 7;
+        const float finest = f == 0 ? t.value[static_cast<size_t>(8 * y0 + x0)] : float_texture_bilinear(G, 0, u, v);
+        EXPECT_EQ(float_texture_filtered(G, 0, u, v, 1.f / 64), finest) << f;
+        EXPECT_EQ(float_texture_filtered(G, 0, u, v, 0.f), finest) << f;
+        // past the coarsest: the mean
+        EXPECT_EQ(float_texture_filtered(G, 0, u, v, 1.f), mean) << f;
+        EXPECT_EQ(float_texture_filtered(G, 0, u, v, 5.f), mean) << f;
+      }
+      // l = 3 + log2(w) = 1.5: level 1 (4 x 4) and level 2 (2 x 2)
+      const float w = std::exp2(1.5f - 3.f);
+      filter[0] = 1;
+      EXPECT_FLOAT_EQ(float_texture_filtered(G, 0, u, v, w), level_bilerp(1, u, v));
+      filter[0] = 2;
+      EXPECT_NEAR(float_texture_filtered(G, 0, u, v, w), 0.5f * (level_bilerp(1, u, v) + level_bilerp(2, u, v)), 1e-6f);
+      filter[0] = 0;  // the nearest texel of level 1
+      const int x = static_cast<int>(std::round(s * 4 - 0.5f)) & 3, y = static_cast<int>(std::round(q * 4 - 0.5f)) & 3;
+      EXPECT_EQ(float_texture_filtered(G, 0, u, v, w), t.mip[t.mip_at[1] + static_cast<size_t>(4 * y + x)]);
+    }
 }

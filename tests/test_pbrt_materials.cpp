@@ -400,8 +400,9 @@ TEST(PbrtMaterials, FloatTexturesForRoughnessAmountAndDisplacement) {
   const FloatTexture& r = s.float_textures[size_t(c.alpha_u.texture)];
   ASSERT_EQ(r.width, 2);
   ASSERT_EQ(r.height, 1);
-  // first channel; a TGA is sRGB-decoded, as pbrt-v4's stb_image path decodes it
-  const float srgb51 = std::pow((0.2f + 0.055f) / 1.055f, 2.4f);
+  // the average of R, G and B (pbrt-v4's bilinear lookup, the default filter) of a TGA,
+  // sRGB-decoded as pbrt-v4's stb_image path decodes it: (51, 0, 0) and (255, 255, 255)
+  const float srgb51 = std::pow((0.2f + 0.055f) / 1.055f, 2.4f) / 3;
   EXPECT_NEAR(r.value[0], srgb51, 1e-6);
   EXPECT_NEAR(r.value[1], 1.0f, 1e-6);
   ASSERT_GE(c.displacement, 0);
@@ -422,6 +423,41 @@ TEST(PbrtMaterials, FloatTexturesForRoughnessAmountAndDisplacement) {
   EXPECT_NEAR(a.value[0], 1.5f * srgb51, 1e-6);
   EXPECT_NEAR(a.value[1], 1.5f, 1e-6);
   EXPECT_TRUE(s.warnings.empty()) << s.warnings[0];
+}
+
+// A float image texture as pbrt-v4 reads it through its MIPMap: "filter" bilinear (the
+// default) and trilinear take the average of R, G and B, point and EWA the first channel;
+// EWA is read as trilinear and an unknown filter as bilinear, each with a warning. The
+// filter is kept for the bump map's lookups.
+TEST(PbrtMaterials, FloatImageFiltersAndChannelsAsPbrtV4) {
+  write_png8((tmp_dir() / "rgb.png").string(), 1, 1, std::vector<unsigned char>{51, 102, 255});
+  const auto srgb = [](float v) { return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f); };
+  const float r = srgb(0.2f), g = srgb(0.4f), b = 1.f;
+  struct Case {
+    std::string filter;
+    TexFilter want;
+    float value;
+    const char* warning;
+  };
+  const Case cases[] = {{"", TexFilter::bilinear, (r + g + b) / 3, nullptr},
+                        {"bilinear", TexFilter::bilinear, (r + g + b) / 3, nullptr},
+                        {"trilinear", TexFilter::trilinear, (r + g + b) / 3, nullptr},
+                        {"point", TexFilter::point, r, nullptr},
+                        {"ewa", TexFilter::trilinear, r, "approximated by trilinear"},
+                        {"nearest", TexFilter::bilinear, (r + g + b) / 3, "is unknown"}};
+  for (const Case& c : cases) {
+    const std::string f = c.filter.empty() ? "" : " \"string filter\" \"" + c.filter + "\"";
+    const Scene s = world("Texture \"d\" \"float\" \"imagemap\" \"string filename\" \"rgb.png\"" + f + "\n" +
+                          "Material \"diffuse\" \"texture displacement\" \"d\"\n" + tri);
+    const Material& m = mat(s, 0);
+    ASSERT_GE(m.displacement, 0) << c.filter;
+    const FloatTexture& t = s.float_textures[size_t(m.displacement)];
+    EXPECT_EQ(t.filter, c.want) << c.filter;
+    ASSERT_EQ(t.value.size(), 1u);
+    EXPECT_NEAR(t.value[0], c.value, 1e-6) << c.filter;
+    if (c.warning) EXPECT_TRUE(has_warning(s, c.warning)) << c.filter;
+    else EXPECT_TRUE(s.warnings.empty()) << c.filter << ": " << s.warnings[0];
+  }
 }
 
 // The encoding of 8-bit image textures, as pbrt-v4 decodes them: a PNG by the texture's
@@ -476,7 +512,7 @@ TEST(PbrtMaterials, FloatTextureCombinationsThatCannotBeBaked) {
       "Material \"conductor\" \"texture roughness\" \"m\" \"texture displacement\" \"n\"\n" + tri);
   const Material& c = mat(s, 0);
   EXPECT_EQ(c.alpha_u.texture, -1);
-  EXPECT_NEAR(c.alpha_u.value, std::sqrt(0.75f), 1e-6);  // averages: 0.75 * 1 + 0.25 * 0
+  EXPECT_NEAR(c.alpha_u.value, std::sqrt(0.75f / 3), 1e-6);  // averages: 0.75 * (1 + 0 + 0) / 3 + 0.25 * 0
   EXPECT_TRUE(has_warning(s, "m.pbrt:4"));  // the mix, named by file and line
   EXPECT_TRUE(has_warning(s, "\"fbm\""));
 }

@@ -132,9 +132,11 @@ inline bool bump_normal(const GeomView& G, int32_t t, int32_t g, int32_t prim, f
   if (dv == 0.f) dv = 0.0005f;
   du = std::max(du, 0x1p-16f * std::fabs(u));
   dv = std::max(dv, 0x1p-16f * std::fabs(v));
-  const float d = float_texture_bilinear(G, t, u, v);
-  const float d_u = float_texture_bilinear(G, t, u + du, v);
-  const float d_v = float_texture_bilinear(G, t, u, v + dv);
+  // the three lookups read the texture's MIP level for the footprint (pbrt-v4's filters)
+  const float width = 2.f * std::max(std::max(std::fabs(dudx), std::fabs(dvdx)), std::max(std::fabs(dudy), std::fabs(dvdy)));
+  const float d = float_texture_filtered(G, t, u, v, width);
+  const float d_u = float_texture_filtered(G, t, u + du, v, width);
+  const float d_v = float_texture_filtered(G, t, u, v + dv, width);
   const vec3f bu = ss + ns * ((d_u - d) / du) + dndu * d;
   const vec3f bv = ts + ns * ((d_v - d) / dv) + dndv * d;
   vec3f nb;

@@ -85,6 +85,43 @@ inline float float_texture_bilinear(const GeomView& G, int32_t t, float u, float
   return bilinear_texel(G.ftex_value[t], G.ftex_w[t], G.ftex_h[t], u, v);
 }
 
+// pbrt-v4's MIPMap::Filter (its non-EWA filters) of float texture t at (u, v), for a
+// lookup whose footprint is `width` wide in texture space (2 max(|du/dx|, |dv/dx|, |du/dy|,
+// |dv/dy|)): the level l = levels - 1 + log2(width); past the last level its one texel;
+// else at level i = max(0, floor(l)) the nearest texel (point), the bilinear value
+// (bilinear), or the blend of levels i and i + 1 by l - i (trilinear; bilinear at level 0
+// while l < 1, as pbrt-v4). A texture without levels (never a bump map): level 0.
+inline float float_texture_filtered(const GeomView& G, int32_t t, float u, float v, float width) {
+  const int32_t n = G.ftex_levels ? G.ftex_levels[t] : 0;
+  if (n <= 0) return float_texture_bilinear(G, t, u, v);
+  const float* mip = G.ftex_mip[t];
+  const int32_t* mw = G.ftex_mip_w[t];
+  const int32_t* mh = G.ftex_mip_h[t];
+  const size_t* at = G.ftex_mip_at[t];
+  const float level = static_cast<float>(n - 1) + std::log2(std::max(width, 1e-8f));
+  if (!(level < static_cast<float>(n - 1))) return mip[at[n - 1]];
+  const int i = std::max(0, static_cast<int>(std::floor(level)));
+  const auto bilerp = [&](int k) { return bilinear_texel(mip + at[k], mw[k], mh[k], u, v); };
+  switch (G.ftex_filter[t]) {  // TexFilter (scene/scene.h): 0 point, 1 bilinear, 2 trilinear
+    case 0: {
+      if (!std::isfinite(u) || !std::isfinite(v)) return mip[at[i]];
+      const float s = u - std::floor(u), q0 = 1.f - v, q = q0 - std::floor(q0);
+      int x = static_cast<int>(std::round(s * static_cast<float>(mw[i]) - 0.5f));
+      int y = static_cast<int>(std::round(q * static_cast<float>(mh[i]) - 0.5f));
+      x = ((x % mw[i]) + mw[i]) % mw[i];
+      y = ((y % mh[i]) + mh[i]) % mh[i];
+      return mip[at[i] + static_cast<size_t>(y) * static_cast<size_t>(mw[i]) + static_cast<size_t>(x)];
+    }
+    case 1:
+      return bilerp(i);
+    default:
+      break;
+  }
+  if (i == 0) return bilerp(0);
+  const float f = level - static_cast<float>(i);
+  return (1.f - f) * bilerp(i) + f * bilerp(i + 1);
+}
+
 // Textured roughness: each point's Trowbridge-Reitz alphas, from its material's float
 // textures at the hit's uv (bilinear, wrap; pbrt's default (0,0), (1,0), (1,1) without uv;
 // through RoughnessToAlpha = sqrt where the material remaps), or the material's constants.

@@ -116,6 +116,14 @@ struct GeomView {
   const int32_t* mat_bump = nullptr;           // per material: float texture or -1
   const float* const* ftex_value = nullptr;    // per float texture
   const int32_t *ftex_w = nullptr, *ftex_h = nullptr;
+  // per float texture, its MIP pyramid (FloatTexture::mip; the bump maps' only: 0 levels
+  // elsewhere) and pbrt-v4's filter (TexFilter), which float_texture_filtered reads
+  const float* const* ftex_mip = nullptr;
+  const int32_t* const* ftex_mip_w = nullptr;
+  const int32_t* const* ftex_mip_h = nullptr;
+  const size_t* const* ftex_mip_at = nullptr;
+  const int32_t* ftex_levels = nullptr;
+  const int32_t* ftex_filter = nullptr;
   // The pixel footprint the bump's finite differences are scaled to (surface_hits.h
   // bump_normal): the camera's centre, the world-space change of the camera ray's
   // direction (camera z = 1) per pixel along x and along y, times footprint_scale, and

@@ -230,6 +230,12 @@ void point_tables(SceneViews& v) {
   G.ftex_value = v.ftex_value.data();
   G.ftex_w = v.ftex_w.data();
   G.ftex_h = v.ftex_h.data();
+  G.ftex_mip = v.ftex_mip.data();
+  G.ftex_mip_w = v.ftex_mip_w.data();
+  G.ftex_mip_h = v.ftex_mip_h.data();
+  G.ftex_mip_at = v.ftex_mip_at.data();
+  G.ftex_levels = v.ftex_levels.data();
+  G.ftex_filter = v.ftex_filter.data();
 }
 
 // The geometry table (one row per geomID: GeomView::geom_kind and its fields) and the
@@ -392,6 +398,12 @@ void build_material_table(SceneViews& v, const Scene& scene) {
     v.ftex_value.push_back(t.value.data());
     v.ftex_w.push_back(t.width);
     v.ftex_h.push_back(t.height);
+    v.ftex_mip.push_back(t.mip.data());
+    v.ftex_mip_w.push_back(t.mip_w.data());
+    v.ftex_mip_h.push_back(t.mip_h.data());
+    v.ftex_mip_at.push_back(t.mip_at.data());
+    v.ftex_levels.push_back(static_cast<int32_t>(t.mip_w.size()));
+    v.ftex_filter.push_back(static_cast<int32_t>(t.filter));
   }
   for (const Texture& t : scene.textures) {
     v.tex_rgb.push_back(t.rgb.data());

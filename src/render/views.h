@@ -51,7 +51,10 @@ struct SceneViews {
   std::vector<float> mat_param[mp_count];
   std::vector<float> geom_side;
   std::vector<int32_t> mat_bump, ftex_w, ftex_h;  // bump mapping (GeomView::mat_bump, ftex_*)
-  std::vector<const float*> ftex_value;
+  std::vector<const float*> ftex_value, ftex_mip;
+  std::vector<const int32_t*> ftex_mip_w, ftex_mip_h;
+  std::vector<const size_t*> ftex_mip_at;
+  std::vector<int32_t> ftex_levels, ftex_filter;
   // participating media (GeomView::media)
   std::vector<float> med_sigma_t[3], med_sigma_s[3], med_emit[3];
   std::vector<int32_t> med_scatters, med_emits, med_geom_in, med_geom_out, med_geom_interface;

@@ -4,6 +4,7 @@
 #include "scene/scene.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -97,6 +98,95 @@ static bool match_parallelogram(const Mesh& m, size_t t, vec3f& p0, vec3f& e1, v
 
 namespace {
 
+bool is_pow2(int x) { return x > 0 && (x & (x - 1)) == 0; }
+
+// pbrt-v4's weights for resampling old_res texels up to new_res (Image::ResampleWeights):
+// four taps of a windowed sinc (radius 2, tau 2) around each new texel's centre, normalised.
+void resample_weights(int old_res, int new_res, std::vector<int>& first, std::vector<std::array<float, 4>>& w) {
+  first.resize(static_cast<size_t>(new_res));
+  w.resize(static_cast<size_t>(new_res));
+  const auto sinc = [](float x) {
+    const float px = 3.14159265358979f * x;
+    return 1.f - px * px == 1.f ? 1.f : std::sin(px) / px;
+  };
+  for (int i = 0; i < new_res; ++i) {
+    const float centre = (static_cast<float>(i) + 0.5f) * static_cast<float>(old_res) / static_cast<float>(new_res);
+    const int f = static_cast<int>(std::floor((centre - 2.f) + 0.5f));
+    float sum = 0;
+    for (int j = 0; j < 4; ++j) {
+      const float x = static_cast<float>(f + j) + 0.5f - centre;
+      const float v = std::fabs(x) > 2.f ? 0.f : sinc(x) * sinc(x / 2.f);
+      w[static_cast<size_t>(i)][static_cast<size_t>(j)] = v;
+      sum += v;
+    }
+    for (float& v : w[static_cast<size_t>(i)]) v /= sum;
+    first[static_cast<size_t>(i)] = f;
+  }
+}
+
+}  // namespace
+
+void build_mip(FloatTexture& t) {
+  t.mip.clear();
+  t.mip_w.clear();
+  t.mip_h.clear();
+  t.mip_at.clear();
+  if (t.width < 1 || t.height < 1 || t.value.size() != static_cast<size_t>(t.width) * static_cast<size_t>(t.height)) return;
+  int w = t.width, h = t.height;
+  std::vector<float> level = t.value;
+  if (!is_pow2(w) || !is_pow2(h)) {  // pbrt-v4's FloatResizeUp: x, then y (clamped at 0)
+    int nw = 1, nh = 1;
+    while (nw < w) nw *= 2;
+    while (nh < h) nh *= 2;
+    std::vector<int> fx, fy;
+    std::vector<std::array<float, 4>> wx, wy;
+    resample_weights(w, nw, fx, wx);
+    resample_weights(h, nh, fy, wy);
+    const auto wrap = [](int i, int n) { return ((i % n) + n) % n; };
+    std::vector<float> xs(static_cast<size_t>(nw) * static_cast<size_t>(h));
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < nw; ++x) {
+        float v = 0;
+        for (int j = 0; j < 4; ++j)
+          v += wx[static_cast<size_t>(x)][static_cast<size_t>(j)] *
+               level[static_cast<size_t>(y) * static_cast<size_t>(w) + static_cast<size_t>(wrap(fx[static_cast<size_t>(x)] + j, w))];
+        xs[static_cast<size_t>(y) * static_cast<size_t>(nw) + static_cast<size_t>(x)] = v;
+      }
+    level.assign(static_cast<size_t>(nw) * static_cast<size_t>(nh), 0.f);
+    for (int y = 0; y < nh; ++y)
+      for (int x = 0; x < nw; ++x) {
+        float v = 0;
+        for (int j = 0; j < 4; ++j)
+          v += wy[static_cast<size_t>(y)][static_cast<size_t>(j)] *
+               xs[static_cast<size_t>(wrap(fy[static_cast<size_t>(y)] + j, h)) * static_cast<size_t>(nw) + static_cast<size_t>(x)];
+        level[static_cast<size_t>(y) * static_cast<size_t>(nw) + static_cast<size_t>(x)] = std::max(0.f, v);
+      }
+    w = nw;
+    h = nh;
+  }
+  for (;;) {
+    t.mip_at.push_back(t.mip.size());
+    t.mip_w.push_back(w);
+    t.mip_h.push_back(h);
+    t.mip.insert(t.mip.end(), level.begin(), level.end());
+    if (w == 1 && h == 1) break;
+    const int nw = std::max(1, w / 2), nh = std::max(1, h / 2);
+    std::vector<float> next(static_cast<size_t>(nw) * static_cast<size_t>(nh));
+    for (int y = 0; y < nh; ++y)
+      for (int x = 0; x < nw; ++x) {
+        const int x0 = 2 * x, y0 = 2 * y, x1 = std::min(x0 + 1, w - 1), y1 = std::min(y0 + 1, h - 1);
+        const auto at = [&](int xx, int yy) { return level[static_cast<size_t>(yy) * static_cast<size_t>(w) + static_cast<size_t>(xx)]; };
+        next[static_cast<size_t>(y) * static_cast<size_t>(nw) + static_cast<size_t>(x)] =
+            (at(x0, y0) + at(x1, y0) + at(x0, y1) + at(x1, y1)) / 4;
+      }
+    level.swap(next);
+    w = nw;
+    h = nh;
+  }
+}
+
+namespace {
+
 // Whether material m bumps (a displacement texture whose texels are not all equal: a
 // constant moves a surface without turning it, render/views.cpp drops it).
 bool bumps(const Scene& scene, const Material& m) {
@@ -146,6 +236,12 @@ void resolve_material_params(Scene& scene) {
           throw SceneError("material: error: mix of a material index out of range, or of a mix");
     }
   }
+  std::vector<char> built(scene.float_textures.size(), 0);
+  for (const Material& m : scene.materials)  // the bump maps read MIP levels (wave/textures.h)
+    if (m.displacement >= 0 && !built[static_cast<size_t>(m.displacement)]) {
+      build_mip(scene.float_textures[static_cast<size_t>(m.displacement)]);
+      built[static_cast<size_t>(m.displacement)] = 1;
+    }
   if (averaged)
     scene.warnings.push_back(
         "textured mix amount or coated conductor base roughness: approximated by the texture's mean (one value per material)");

@@ -86,11 +86,29 @@ inline Material diffuse_material(Rgb rho, int texture = -1) {
 // A float texture (pbrt's imagemap, constant, scale, mix of float textures) baked to an
 // image: one value per texel, looked up nearest with wrap at the hit's uv. A constant is a
 // 1x1 image.
+// pbrt-v4's image texture filters ("string filter"): point, bilinear (its default) and
+// trilinear all read MIP levels of the image chosen by the ray's footprint (pbrt-v4's
+// "bilinear" is bilinear at one level, "trilinear" blends two); EWA is read as trilinear.
+enum class TexFilter : uint8_t { point, bilinear, trilinear };  // (GeomView::ftex_filter: 0, 1, 2)
+
 struct FloatTexture {
   std::string name;
   int width = 0, height = 0;
   std::vector<float> value;  // row-major, top row first
+  TexFilter filter = TexFilter::bilinear;  // how bump maps read it (wave/textures.h float_texture_filtered)
+  // pbrt-v4's MIP pyramid of the texture (finalize_scene builds it for the bump maps):
+  // level i is mip_w[i] x mip_h[i] values from mip[mip_at[i]], row-major, top row first.
+  // Level 0 is the image, resampled up to powers of two where it is not (pbrt-v4's
+  // windowed sinc); each next level averages 2 x 2 texels; the last is 1 x 1.
+  std::vector<float> mip;
+  std::vector<int32_t> mip_w, mip_h;
+  std::vector<size_t> mip_at;
 };
+
+// Builds t's MIP pyramid (FloatTexture::mip) as pbrt-v4's Image::GeneratePyramid does,
+// with repeat wrap; pbrt-v4 keeps each level in the image's own pixel format (8-bit sRGB
+// for most files), tuile in float.
+void build_mip(FloatTexture& t);
 
 struct Mesh {
   std::string name;                // for messages (file name or "trianglemesh at f.pbrt:12")

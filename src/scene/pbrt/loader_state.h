@@ -69,6 +69,8 @@ struct FloatTexDef {
   float value = 0;          // constant (also the stand-in of classes tuile cannot bake)
   float scale = 1;          // image: pbrt's "scale"
   bool invert = false;      // image: max(0, 1 - v)
+  TexFilter filter = TexFilter::bilinear;  // image: pbrt-v4's "filter"
+  bool first_channel = false;              // image: point and EWA read channel 0, the others the RGB average
   int job = -1;             // image: index into image jobs
   int a = -1, b = -1;       // product (pbrt's scale texture: a * b), mix and checker operands (FloatTexDef indices)
   int amount = -1;          // mix: FloatTexDef index
@@ -265,7 +267,7 @@ class Loader {
   std::map<int, Resolved> resolved_;
   std::map<int, ResolvedFloat> resolved_float_;
   std::map<std::pair<int, float>, int> scaled_textures_;       // (texture, scale) -> scaled copy
-  std::map<std::tuple<int, float, bool>, int> float_images_;   // (job, scale, invert) -> float texture
+  std::map<std::tuple<int, float, bool, int, bool>, int> float_images_;  // (job, scale, invert, filter, channel 0) -> float texture
   std::set<std::string> warned_;
   std::string camera_where_;
 };

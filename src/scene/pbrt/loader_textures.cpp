@@ -203,7 +203,18 @@ void Loader::float_texture(Lexer& lx, const Token& t, const std::string& name, c
     d.job = image_job(path, enc, where);
     const std::string wrap = ps.one_string("wrap", "repeat");
     if (wrap != "repeat") warn("wrap", where + ": imagemap wrap \"" + wrap + "\" is not supported: textures repeat");
-    ps.get("filter", "string");
+    const std::string filter = ps.one_string("filter", "bilinear");
+    if (filter == "point") d.filter = TexFilter::point;
+    else if (filter == "bilinear") d.filter = TexFilter::bilinear;
+    else if (filter == "trilinear") d.filter = TexFilter::trilinear;
+    else if (filter == "ewa" || filter == "EWA") {
+      d.filter = TexFilter::trilinear;
+      warn("filter:ewa", where + ": imagemap filter \"" + filter + "\" approximated by trilinear");
+    } else
+      warn("filter:" + filter, where + ": imagemap filter \"" + filter + "\" is unknown (pbrt-v4 reports it too): bilinear used");
+    // pbrt-v4 reads a float image through its MIPMap: point and EWA lookups take the
+    // first channel, bilinear and trilinear the average of R, G and B
+    d.first_channel = filter == "point" || filter == "ewa" || filter == "EWA";
     ps.get("maxanisotropy", "float");
   } else if (cls == "scale") {
     d.kind = FloatTexDef::product;
@@ -366,6 +377,11 @@ ResolvedFloat Loader::resolve_float(int fd, int depth) {
     t.name = d.name;
     t.width = w;
     t.height = h;
+    for (const ResolvedFloat& o : ops)  // (read as its first image is)
+      if (o.image) {
+        t.filter = scene.float_textures[size_t(o.texture)].filter;
+        break;
+      }
     t.value.resize(size_t(w) * size_t(h));
     for (size_t k = 0; k < t.value.size(); ++k) {
       for (size_t i = 0; i < ops.size(); ++i)
@@ -392,7 +408,7 @@ ResolvedFloat Loader::resolve_float(int fd, int depth) {
     r.value = 0.5f;
   } else if (d.kind == FloatTexDef::image) {
     ImageJob& j = images_[size_t(d.job)];
-    const auto key = std::make_tuple(d.job, d.scale, d.invert);
+    const auto key = std::make_tuple(d.job, d.scale, d.invert, int(d.filter), d.first_channel);
     auto it = float_images_.find(key);
     if (it == float_images_.end()) {
       const Texture& src = job_texture(j);
@@ -400,9 +416,11 @@ ResolvedFloat Loader::resolve_float(int fd, int depth) {
       t.name = d.name;
       t.width = src.width;
       t.height = src.height;
+      t.filter = d.filter;
       t.value.resize(size_t(src.width) * size_t(src.height));
       for (size_t i = 0; i < t.value.size(); ++i) {
-        const float v = d.scale * src.rgb[3 * i];  // the first channel, as pbrt-v4's float lookup
+        const float* c = &src.rgb[3 * i];
+        const float v = d.scale * (d.first_channel ? c[0] : (c[0] + c[1] + c[2]) / 3);
         t.value[i] = d.invert ? std::max(0.f, 1 - v) : v;
       }
       it = float_images_.emplace(key, add_float_texture(std::move(t))).first;
