@@ -37,8 +37,8 @@ struct BumpPlane {
   vec3f l = normalize(vec3f{-0.6f, 1.f, 0.3f});
 };
 
-BumpPlane bump_plane(bool normals, bool displaced = true, int res = 16) {
-  BumpPlane b;
+// (b: the slopes and the light to use; its scene is built here)
+BumpPlane bump_plane(bool normals, bool displaced = true, int res = 16, BumpPlane b = {}) {
   Scene& s = b.scene;
   s.source = "test:bump-plane";
   Material m = diffuse_material(Rgb{b.rho, b.rho, b.rho});
@@ -125,40 +125,12 @@ TEST(Bump, LinearDisplacementTiltsTheNormalExactly) {
 // geometric viewer side instead (tuile before) leaves every pixel black.
 TEST(Bump, SteepBumpReflectsOnWoSideOfTheShadingNormal) {
   for (bool normals : {false, true}) {
-    BumpPlane b;
-    b.c1 = 40.f;
-    b.c2 = 0.f;
-    b.l = normalize(vec3f{1.f, 0.3f, 0.f});
-    Scene& s = b.scene;
-    s.source = "test:steep-bump";
-    Material m = diffuse_material(Rgb{b.rho, b.rho, b.rho});
-    FloatTexture t;
-    t.name = "steep";
-    t.width = t.height = 8;
-    for (int j = 0; j < 8; ++j)
-      for (int i = 0; i < 8; ++i) t.value.push_back(b.c1 * (static_cast<float>(i) + 0.5f) / 8.f);
-    s.float_textures.push_back(t);
-    m.displacement = 0;
-    s.materials.push_back(m);
-    Mesh floor;
-    floor.name = "floor";
-    floor.material = 0;
-    add_quad(floor, {-1, 0, -1}, {0, 0, 2}, {2, 0, 0});
-    for (size_t i = 0; i < 4; ++i) {
-      const float x = floor.positions[3 * i], z = floor.positions[3 * i + 2];
-      floor.uvs.insert(floor.uvs.end(), {(x + 3.f) / 4.f, (3.f - z) / 4.f});
-      if (normals) floor.normals.insert(floor.normals.end(), {0.f, 1.f, 0.f});
-    }
-    s.meshes.push_back(floor);
-    s.camera.width = s.camera.height = 16;
-    s.camera.fov_deg = 60;
-    camera_look_at(s.camera, {0, 1, 0}, {0, 0, 0}, {0, 0, 1});
-    Light light;
-    light.type = LightKind::distant;
-    light.e1 = b.l;
-    light.radiance = {b.E, b.E, b.E};
-    s.lights.push_back(light);
-    finalize_scene(s);
+    BumpPlane steep;
+    steep.c1 = 40.f;
+    steep.c2 = 0.f;
+    steep.l = normalize(vec3f{1.f, 0.3f, 0.f});
+    const BumpPlane b = bump_plane(normals, true, 16, steep);
+    const Scene& s = b.scene;
     const vec3f N = normalize(vec3f{-b.c1 / 4.f, 1.f, 0.f});
     ASSERT_LT(dot(N, b.l), 0.f);
     const double exact = b.rho / M_PI * b.E * std::fabs(dot(N, b.l));
