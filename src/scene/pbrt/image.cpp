@@ -19,7 +19,7 @@ static float srgb_to_linear(float v) {
   return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
 }
 
-static bool ends_with_ci(const std::string& s, const char* suffix) {
+bool ends_with_ci(const std::string& s, const char* suffix) {
   const size_t n = std::char_traits<char>::length(suffix);
   if (s.size() < n) return false;
   for (size_t i = 0; i < n; ++i)

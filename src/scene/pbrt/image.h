@@ -12,4 +12,7 @@ namespace tuile::pbrt {
 // Returns false with a reason when the file cannot be read or decoded.
 bool load_image(const std::string& path, const std::string& encoding, Texture& out, std::string& reason);
 
+// Whether s ends with suffix (given in lower case), ignoring case: ".TGA" ends with ".tga".
+bool ends_with_ci(const std::string& s, const char* suffix);
+
 }  // namespace tuile::pbrt

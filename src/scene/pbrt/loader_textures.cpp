@@ -4,13 +4,13 @@
 // the end), and their resolution to scene textures, float textures or constants
 // (bake_materials, in loader_materials.cpp, sets them into the materials that use them).
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <string>
 #include <tuple>
 #include <utility>
 #include <vector>
 
+#include "image.h"
 #include "lexer.h"
 #include "loader_state.h"
 #include "params.h"
@@ -132,13 +132,7 @@ void Loader::mapping_warnings(Params& ps, const std::string& where) {
 // reported (pbrt-v4 ignores it silently). Float formats (EXR, HDR, PFM) are linear values;
 // their encoding is not read.
 std::string Loader::image_encoding(Params& ps, const std::string& path, const std::string& where) {
-  auto ext_is = [&](const char* e) {
-    const size_t n = std::char_traits<char>::length(e);
-    if (path.size() < n) return false;
-    for (size_t i = 0; i < n; ++i)
-      if (std::tolower(static_cast<unsigned char>(path[path.size() - n + i])) != e[i]) return false;
-    return true;
-  };
+  const auto ext_is = [&](const char* e) { return ends_with_ci(path, e); };
   if (ext_is(".exr") || ext_is(".hdr") || ext_is(".pfm")) {
     ps.get("encoding", "string");
     return "linear";
