@@ -43,6 +43,12 @@ struct Estimator {
   // clamp(2 alpha, 0.1, 0.3) (smooth surfaces turn glossy), so that light sampling finds the
   // caustics through them (GeomView::mat_reg, wave/surface_hits.h regularize_points).
   bool regularize = false;
+  // --guide (wave/guide.h, src/render/guide.h): path guiding, learned over the first
+  // guide_learn samples (iterations ending at samples 1, 2, 4, ...), a share guide_alpha
+  // of the directions drawn from it at diffuse and coated diffuse points; unbiased
+  bool guide = false;
+  uint32_t guide_learn = 64;
+  float guide_alpha = 0.5f;
 
   // probability of choosing the light technique in one-sample MIS
   float one_sample_light_prob() const {

@@ -16,11 +16,16 @@
 #pragma once
 #include <algorithm>
 
+#include "wave/guide.h"
 #include "wave/surface_bsdf.h"
 
 namespace tuile {
 
-template <class T, unsigned Bsdfs = bsdf_diffuse>
+// Guided: the general pipeline, which mixes the guide in where the renderer learned one
+// (G.guide; wave/guide.h): the first number u0 chooses the guide (u0 < alpha) or the BSDF,
+// rescaled to [0, 1) for the technique it chose, and the sample's throughput and pdf are
+// the mixture's.
+template <class T, unsigned Bsdfs = bsdf_diffuse, bool Guided = false>
 TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& est, TileBuffers& tb, int k,
                                             bool only_delta = false, bool continuation = false) {
   auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.points.count));
@@ -31,8 +36,44 @@ TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& 
   const Vec3<T> ns = G.shading_normals ? load3<T>(tb.points.snx + k, tb.points.sny + k, tb.points.snz + k) : n;
   const SurfaceBsdf<T, Bsdfs> bsdf = load_surface_bsdf<T, Bsdfs>(G, tb.points, k, ns);
   constexpr bool several_lobes = (Bsdfs & ~bsdf_diffuse) != 0;
-  const BsdfSample<T> bs =
-      bsdf.sample(several_lobes ? load<T>(tb.tech.u2 + k) : T(0.f), load<T>(tb.tech.u0 + k), load<T>(tb.tech.u1 + k));
+  T u0 = load<T>(tb.tech.u0 + k);
+  const T u1 = load<T>(tb.tech.u1 + k);
+  T alpha(0.f);
+  i32_t<T> dist(0);
+  auto from_guide = mask_t<T>(false);
+  const bool guided = Guided && G.guide;
+  if (guided) {
+    alpha = guide_share<T, Bsdfs>(G, tb.points, k, x, dist);
+    from_guide = u0 < alpha;
+    const T rescaled = sel(from_guide, u0 / sel(from_guide, alpha, T(1.f)), (u0 - alpha) / (T(1.f) - alpha));
+    u0 = min(max(rescaled, T(0.f)), T(0x1.fffffep-1f));
+  }
+  BsdfSample<T> bs = bsdf.sample(several_lobes ? load<T>(tb.tech.u2 + k) : T(0.f), u0, u1);
+  if (guided && any(alpha > T(0.f))) {
+    const auto mixed = alpha > T(0.f);
+    // a BSDF sample: its density in the mixture (a delta lobe's weight over the (1 - alpha)
+    // it is drawn with)
+    const T pb_mix = alpha * guide_pdf(*G.guide, dist, bs.wi) + (T(1.f) - alpha) * bs.pdf;
+    const T rb = sel(mixed && !bs.delta, bs.pdf / sel(pb_mix > T(0.f), pb_mix, T(1.f)),
+                     sel(mixed, T(1.f) / (T(1.f) - alpha), T(1.f)));
+    bs.weight = {bs.weight.r * rb, bs.weight.g * rb, bs.weight.b * rb};
+    bs.pdf = sel(mixed && !bs.delta, pb_mix, bs.pdf);
+    if (any(from_guide)) {  // a direction of the guide: the BSDF's value and density for it
+      const Vec3<T> wg = guide_sample(*G.guide, dist, u0, u1);
+      const BsdfEval<T> fe = bsdf.eval(wg);
+      const T pg_mix = alpha * guide_pdf(*G.guide, dist, wg) + (T(1.f) - alpha) * fe.pdf;
+      const T cos_s = dot(ns, wg);
+      const T cos_x = (Bsdfs & bsdf_transmits) != 0 ? abs(cos_s) : cos_s;
+      const auto ok = cos_x > T(0.f) && pg_mix > T(0.f);
+      const T r = sel(ok, cos_x / sel(ok, pg_mix, T(1.f)), T(0.f));
+      bs.wi = sel(from_guide, wg, bs.wi);
+      bs.weight = {sel(from_guide, fe.f.r * r, bs.weight.r), sel(from_guide, fe.f.g * r, bs.weight.g),
+                   sel(from_guide, fe.f.b * r, bs.weight.b)};
+      bs.pdf = sel(from_guide, pg_mix, bs.pdf);
+      bs.delta = bs.delta && !from_guide;
+      bs.valid = sel_mask(from_guide, ok, bs.valid);
+    }
+  }
   if ((Bsdfs & bsdf_transmits) != 0 || G.shading_normals) {  // leave by the side wi points to
     const auto below = dot(n, bs.wi) < T(0.f);
     store_rays(tb.bounce, k, x + sel(below, Vec3<T>(T(0.f), T(0.f), T(0.f)) - n, n) * eps, bs.wi, T(3.0e38f));
@@ -52,7 +93,7 @@ TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& 
 
 // pair: SampleLayout::bsdf(m) (the direction); lobe_pair: SampleLayout::bsdf_lobe(m), read
 // only where some surface has several lobes.
-template <unsigned Bsdfs = bsdf_diffuse>
+template <unsigned Bsdfs = bsdf_diffuse, bool Guided = false>
 inline void sample_bsdf(const GeomView& G, const Estimator& est, uint32_t sample, uint32_t pair, uint32_t lobe_pair,
                         TileBuffers& tb, bool only_delta = false, bool continuation = false) {
   const int padded = packet_padded(tb.points.count);
@@ -60,7 +101,7 @@ inline void sample_bsdf(const GeomView& G, const Estimator& est, uint32_t sample
   if constexpr ((Bsdfs & ~bsdf_diffuse) != 0) point_pairs(est, tb, sample, lobe_pair, padded, tb.tech.u2, nullptr);
   else (void)lobe_pair;
   for_lane_batches<vfloat2>(0, padded, [&](auto lane, int k) {
-    sample_bsdf_lanes<typename decltype(lane)::type, Bsdfs>(G, est, tb, k, only_delta, continuation);
+    sample_bsdf_lanes<typename decltype(lane)::type, Bsdfs, Guided>(G, est, tb, k, only_delta, continuation);
   });
   for (int p = 0; p < padded / packet_width; ++p) reset_hit(tb.bounce[p]);
 }

@@ -13,6 +13,7 @@
 
 #include "light/bvh.h"
 #include "wave/alpha.h"
+#include "wave/guide.h"
 #include "wave/optimal_mis.h"
 #include "wave/surface_bsdf.h"
 
@@ -33,6 +34,7 @@ struct LightPass {
 // resampled importance sampling (ris.h) takes the same samples as candidates.
 template <class T> struct LightCandidate {
   BsdfEval<T> fe;       // the BSDF's value and density for wi
+  Vec3<T> wi_dir;       // wi, the unit direction towards the point drawn
   T Le_r, Le_g, Le_b;   // the source's radiance
   T cos_x, scale;       // |cos| at the shading normal (transmitting surfaces) and the sample's scale
   T pick, pdf_sa;       // the pick's probability and the point's density in solid angle
@@ -129,6 +131,7 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
   const Vec3<T> ns = G.shading_normals ? load3<T>(tb.points.snx + k, tb.points.sny + k, tb.points.snz + k) : n;
   const SurfaceBsdf<T, Bsdfs> bsdf = load_surface_bsdf<T, Bsdfs>(G, tb.points, k, ns);
   out.fe = bsdf.eval(s.wi);
+  out.wi_dir = s.wi;
   constexpr bool transmits = (Bsdfs & bsdf_transmits) != 0;
   const T cos_s = dot(ns, s.wi);
   out.cos_x = transmits ? abs(cos_s) : cos_s;
@@ -181,7 +184,9 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
   return out;
 }
 
-template <class T, unsigned Kinds = kind_all, bool Pick = true, unsigned Bsdfs = bsdf_diffuse>
+// Guided: the general pipeline, where the BSDF technique's density is the mixture with the
+// path guide's (wave/guide.h) at guided points.
+template <class T, unsigned Kinds = kind_all, bool Pick = true, unsigned Bsdfs = bsdf_diffuse, bool Guided = false>
 TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView& L, const Estimator& est, const LightPass& pass,
                                               TileBuffers& tb, int k) {
   auto active = (T(static_cast<float>(k)) + lane_iota<T>()) < T(static_cast<float>(tb.points.count));
@@ -191,7 +196,13 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
   T w(1.f);
   if (est.strategy == Strategy::mis) {
     const T q_l = T(pass.rate_light) * pdf_l;
-    const T q_b = T(pass.rate_bsdf) * s.fe.pdf;
+    T pdf_b = s.fe.pdf;
+    if (Guided && G.guide) {
+      i32_t<T> dist;
+      const T alpha = guide_share<T, Bsdfs>(G, tb.points, k, load3<T>(tb.points.px + k, tb.points.py + k, tb.points.pz + k), dist);
+      pdf_b = guide_mixture_pdf(G, alpha, dist, s.wi_dir, pdf_b);
+    }
+    const T q_b = T(pass.rate_bsdf) * pdf_b;
     w = sel(s.is_delta, T(1.f), mis_weight(est.heuristic, q_l, q_b, est.mis));
   } else if (est.strategy == Strategy::bsdf) {
     w = sel(s.is_delta, T(1.f), T(0.f));  // area lights are left to the BSDF technique
@@ -226,7 +237,7 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
 
 // Draws the pass's random numbers (pick_pair and point_pair: SampleLayout's light_pick and
 // light_point of this light sample) and runs the lanes of every shading point.
-template <unsigned Kinds = kind_all, bool Pick = true, unsigned Bsdfs = bsdf_diffuse>
+template <unsigned Kinds = kind_all, bool Pick = true, unsigned Bsdfs = bsdf_diffuse, bool Guided = false>
 inline void sample_lights(const GeomView& G, const LightView& L, const Estimator& est, const LightPass& pass, uint32_t sample,
                           uint32_t pick_pair, uint32_t point_pair, TileBuffers& tb) {
   const int padded = packet_padded(tb.points.count);
@@ -236,7 +247,7 @@ inline void sample_lights(const GeomView& G, const LightView& L, const Estimator
   // four batches at a time (vfloat4), then two: the solid-angle maps are latency-bound
   // chains, so interleaved batches keep the core busy
   for_lane_batches<vfloat4>(0, padded, [&](auto lane, int k) {
-    sample_lights_lanes<typename decltype(lane)::type, Kinds, Pick, Bsdfs>(G, L, est, pass, tb, k);
+    sample_lights_lanes<typename decltype(lane)::type, Kinds, Pick, Bsdfs, Guided>(G, L, est, pass, tb, k);
   });
 }
 

@@ -3,6 +3,7 @@
 // reused for every tile and sample; and the views of the scene the stages read.
 #pragma once
 #include <cstdint>
+#include <memory>
 
 #include "light/pick.h"
 #include "light/sample.h"
@@ -213,6 +214,31 @@ struct MediumLanes {
   alignas(64) float cwr[lane_array], cwg[lane_array], cwb[lane_array];
 };
 
+// --guide while it learns (src/render/guide.h): each tile lane's path of this sample,
+// vertex by vertex: the point, the direction the path went on along, its density, the
+// throughput after it and whether the vertex is a guided one (ok), and the light each
+// vertex added to the pixel (the last row sums every vertex past the recorded ones).
+struct GuidePathLanes {
+  static constexpr int vertices = 16;
+  alignas(64) float x[vertices][lane_array], y[vertices][lane_array], z[vertices][lane_array];
+  alignas(64) float dx[vertices][lane_array], dy[vertices][lane_array], dz[vertices][lane_array];
+  alignas(64) float nx[vertices][lane_array], ny[vertices][lane_array], nz[vertices][lane_array];
+  alignas(64) float pdf[vertices][lane_array];
+  alignas(64) float tr[vertices][lane_array], tg[vertices][lane_array], tb[vertices][lane_array];
+  alignas(64) float cr[vertices + 1][lane_array], cg[vertices + 1][lane_array], cb[vertices + 1][lane_array];
+  alignas(64) uint8_t ok[vertices][lane_array];
+  alignas(64) int32_t reached[lane_array];  // the vertices the lane's path reached this sample
+};
+
+// Owns a tile's GuidePathLanes, made on first use; a copy of the buffers starts without
+// one (it holds one sample's scratch, nothing a copy needs).
+struct GuidePathHolder {
+  std::unique_ptr<GuidePathLanes> lanes;
+  GuidePathHolder() = default;
+  GuidePathHolder(const GuidePathHolder&) noexcept {}
+  GuidePathHolder& operator=(const GuidePathHolder&) noexcept { return *this; }
+};
+
 struct alignas(64) TileBuffers {
   RayHit16 cam[max_packets];
   Ray16 shadow[max_packets];
@@ -240,6 +266,7 @@ struct alignas(64) TileBuffers {
   MediumLanes media;  // scenes with media only
   SamplerKeys keys;
   TileCounters stats;
+  GuidePathHolder guide;  // --guide while it learns
 };
 
 // One dimension pair of the sampler for the first `count` tile lanes (their pixels) or

@@ -60,6 +60,8 @@ struct MediumView {
   int32_t camera = -1;                         // the camera's medium
 };
 
+struct GuideView;  // wave/guide.h
+
 // Per-geometry data the hit stages look up by Embree's geomID / primID.
 struct GeomView {
   // The geometry table, one row per geomID (build_views: the meshes, then the spheres),
@@ -132,6 +134,9 @@ struct GeomView {
   // The stages read the shading normal (ShadingPoints::snx..) instead of the geometric
   // one: some mesh has vertex normals or some material bumps (has_normals || has_bump)
   bool shading_normals = false;
+  // --guide: the path guide the renderer learned so far (wave/guide.h; null: none), read by
+  // the general pipeline's BSDF and light stages
+  const GuideView* guide = nullptr;
   // Textured roughness (pbrt's "texture roughness" / uroughness / vroughness): per
   // material, the float textures of alpha_u and alpha_v (2 entries, -1: the constant in
   // mat_param) and whether their values go through RoughnessToAlpha (sqrt); looked up per

@@ -330,4 +330,11 @@ void Accel::intersect1(RayHit16& p, int i) const noexcept {
   p.v[i] = rh.hit.v;
 }
 
+void Accel::bounds(float* lo, float* hi) const noexcept {
+  RTCBounds b;
+  rtcGetSceneBounds(impl_->scene, &b);
+  lo[0] = b.lower_x, lo[1] = b.lower_y, lo[2] = b.lower_z;
+  hi[0] = b.upper_x, hi[1] = b.upper_y, hi[2] = b.upper_z;
+}
+
 }  // namespace tuile

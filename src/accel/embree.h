@@ -53,6 +53,8 @@ class Accel {
   void intersect_stream(StreamRays& rays, unsigned n, bool coherent, Bvh bvh = Bvh::scene) const noexcept;
   void occluded_stream(StreamRays& rays, unsigned n, bool coherent) const noexcept;
   double build_seconds() const { return build_seconds_; }
+  // The scene's bounding box (Embree's rtcGetSceneBounds): lo[3], hi[3]
+  void bounds(float* lo, float* hi) const noexcept;
   bool compact() const { return compact_; }  // the BVHs were built with RTC_SCENE_FLAG_COMPACT
   // Embree's own allocations (its BVHs; at peak, its builds' transient data too), in bytes
   struct Memory {

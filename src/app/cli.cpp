@@ -48,6 +48,14 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                  "Trowbridge-Reitz alphas below 0.3 become clamp(2 alpha, 0.1, 0.3), smooth surfaces glossy, so "
                  "light sampling finds caustics through them (fewer fireflies, a blurred image of them); default: the "
                  "scene file's Integrator \"regularize\", else off");
+  app.add_flag("--guide", f.guide,
+               "path guiding (unbiased): a distribution of the light arriving at each region of the scene, learned "
+               "from the first --guide-learn samples' paths, drawn from at diffuse and coated diffuse points with "
+               "probability --guide-alpha and mixed with BSDF sampling (MIS sees the mixture's density); one process "
+               "(not over MPI)");
+  app.add_option("--guide-learn", f.guide_learn, "--guide: the samples per pixel it learns from (iterations of 1, 1, 2, 4, ...)")
+      ->capture_default_str();
+  app.add_option("--guide-alpha", f.guide_alpha, "--guide: the share of directions drawn from the guide")->capture_default_str();
   app.add_option("--spp", f.spp, "samples per pixel (default: the scene file's, else 16)")
       ->each([&f](const std::string&) { f.spp_given = true; });
   app.add_option("--seed", f.seed, "random seed")->capture_default_str();
@@ -136,6 +144,9 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   else if (f.regularize == "on") e.regularize = true;
   else if (f.regularize == "off") e.regularize = false;
   else throw std::invalid_argument("--regularize: '" + f.regularize + "' is not on or off");
+  e.guide = f.guide;
+  e.guide_learn = f.guide_learn;
+  e.guide_alpha = f.guide_alpha;
   if (f.spp_given && f.spp < 1) throw std::invalid_argument("--spp must be >= 1");
   const int spp = f.spp_given ? f.spp : scene.file_spp > 0 ? scene.file_spp : 16;
   e.spp = static_cast<uint32_t>(spp);

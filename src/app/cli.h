@@ -22,6 +22,9 @@ struct RenderFlags {
   std::string bvh = "auto";  // --bvh: Embree's layout (EmbreeOptions::compact)
   std::string filter;  // pixel filter; "": the scene file's PixelFilter, else box
   std::string regularize;  // --regularize on|off; "": the scene file's Integrator
+  bool guide = false;      // --guide
+  uint32_t guide_learn = 64;
+  float guide_alpha = 0.5f;
   float beta = 2.f, alpha = 0.1f;
   int light_samples = 1, bsdf_samples = 1, spp = 0, threads = 0, tile = 16;
   int max_depth = 0;  // when not given: the scene file's (else 1)

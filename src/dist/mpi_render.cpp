@@ -398,6 +398,12 @@ int run_render_distributed(const RenderFlags& f) {
                    "ranks of mpirun render at the same time; render it in one process\n";
     return 1;
   }
+  if (f.guide) {
+    if (mpi.rank == 0)
+      std::cerr << "tuile: error: --guide learns from every tile of each pass before the next one, which the ranks "
+                   "of mpirun render at the same time; render it in one process\n";
+    return 1;
+  }
   std::unique_ptr<RenderJob> job;
   std::unique_ptr<Prepared> prepared;
   if (!load_everywhere(mpi, f, job, prepared)) return 1;

@@ -2,6 +2,7 @@
 #include "render/options.h"
 
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -35,6 +36,15 @@ void validate(const RenderOptions& o) {
       throw std::invalid_argument("--heuristic optimal with --mis-mode one picks one source: --light-pick all does not apply");
   }
   if (e.max_depth < 1 || e.max_depth > 100000) throw std::invalid_argument("--max-depth must be in 1..100000");
+  if (e.guide) {
+    if (e.max_depth < 2) throw std::invalid_argument("--guide guides paths: it needs --max-depth 2 or more");
+    if (e.strategy != Strategy::mis && e.strategy != Strategy::bsdf)
+      throw std::invalid_argument("--guide mixes the guide into the BSDF technique: it needs --strategy mis or bsdf");
+    if (e.one_sample()) throw std::invalid_argument("--guide needs --mis-mode multi");
+    if (e.heuristic == Heuristic::optimal) throw std::invalid_argument("--guide does not combine with --heuristic optimal");
+    if (e.guide_learn < 1 || e.guide_learn > 1u << 20) throw std::invalid_argument("--guide-learn must be in 1..1048576");
+    if (!(e.guide_alpha > 0.f && e.guide_alpha < 1.f)) throw std::invalid_argument("--guide-alpha must be in (0, 1)");
+  }
   if (e.rr_depth < 0 || e.rr_depth > 100000) throw std::invalid_argument("--rr-depth must be in 0..100000");
   if (o.threads < 0 || o.threads > 1024) throw std::invalid_argument("--threads must be in 0..1024");
   if (o.tile < 1 || o.tile > max_tile_side) throw std::invalid_argument("--tile must be in 1..32");
@@ -110,6 +120,11 @@ std::string describe(const Estimator& e) {
        " seed=" + std::to_string(e.seed);
   if (e.max_depth > 1) s += " max-depth=" + std::to_string(e.max_depth) + " rr-depth=" + std::to_string(e.rr_depth);
   if (e.regularize) s += " regularize=on";  // (off: the description, and checkpoints' fingerprint, of earlier releases)
+  if (e.guide) {  // (likewise)
+    char a[32];
+    std::snprintf(a, sizeof a, "%g", static_cast<double>(e.guide_alpha));
+    s += " guide=on guide-learn=" + std::to_string(e.guide_learn) + " guide-alpha=" + a;
+  }
   return s;
 }
 

@@ -47,6 +47,8 @@ struct TileRect {
   int x0 = 0, y0 = 0, w = 0, h = 0;
 };
 
+class Guide;  // render/guide.h
+
 class Renderer {
  public:
   Renderer(const Scene& scene, const Accel& accel, const RenderOptions& options);
@@ -59,8 +61,13 @@ class Renderer {
   // With --heuristic optimal, each pixel's weights are solved from the moments of its
   // earlier samples: those in `prior` when given (the image a pass film is added to),
   // else those already in the film.
+  // With --guide, samples [begin, end) are guided by what the samples before them taught
+  // the guide (render/guide.h): a render that starts where the guide has not learned
+  // (a resumed one) first renders the samples it learns from, into a film it drops.
   RenderStats render(Film& film, uint32_t begin, uint32_t end, Profile* profile = nullptr,
                      const std::vector<int>* only = nullptr, const Film* prior = nullptr);
+  // --guide: the guide (null without)
+  const Guide* guide() const { return guide_.get(); }
   int tile_count() const;
   TileRect tile_rect(int tile) const;
   // The pipeline this scene and estimator select, and why.
@@ -79,6 +86,11 @@ class Renderer {
   void set_cancel_flag(const std::atomic<bool>* flag) { cancel_ = flag; }
 
  private:
+  RenderStats render_range(Film& film, uint32_t begin, uint32_t end, Profile* profile, const std::vector<int>* only,
+                           const Film* prior, bool record);
+  // --guide: brings the guide to what samples [0, min(begin, learn)) teach it
+  bool guide_catch_up(uint32_t begin);
+  void guide_rebuild(uint32_t until);
   const Scene& scene_;
   const Accel& accel_;
   RenderOptions opt_;
@@ -87,6 +99,8 @@ class Renderer {
   struct BufferPool;  // per-thread TileBuffers, made on a thread's first tile
   std::unique_ptr<BufferPool> pool_;
   const std::atomic<bool>* cancel_ = nullptr;
+  std::unique_ptr<Guide> guide_;
+  uint32_t guide_recorded_ = 0;  // the samples [0, n) whose records the guide holds or learned from
 };
 
 }  // namespace tuile

@@ -13,6 +13,7 @@
 #include <stdexcept>
 
 #include "render/filter_table.h"
+#include "render/guide.h"
 #include "render/tile_pipeline.h"
 #include "wave/accumulate.h"
 #include "wave/optimal_mis.h"
@@ -70,6 +71,12 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
   }
   // resampled importance sampling's BSDF candidates look for the nearest emitter alone
   if (bounce_against_emitters_ || (opt_.est.strategy == Strategy::ris && opt_.est.ris_bsdf > 0)) accel_.prepare_emitters();
+  if (opt_.est.guide) {  // the guide's stages run in the general pipeline
+    opt_.general_pipeline = true;
+    float lo[3], hi[3];
+    accel_.bounds(lo, hi);
+    guide_ = std::make_unique<Guide>(lo, hi, opt_.est.guide_learn, opt_.est.guide_alpha);
+  }
 }
 
 Renderer::~Renderer() = default;
@@ -100,8 +107,64 @@ std::string Renderer::pipeline_name(std::string* why) const {
   return e.name;
 }
 
+void Renderer::guide_rebuild(uint32_t until) {
+  guide_->rebuild(until);
+  views_->geom.guide = guide_->distributions() > 0 ? &guide_->view() : nullptr;
+}
+
+bool Renderer::guide_catch_up(uint32_t begin) {
+  const uint32_t want = std::min(begin, guide_->learn());
+  if (guide_recorded_ == want) return true;
+  guide_->reset();
+  views_->geom.guide = nullptr;
+  guide_recorded_ = 0;
+  Film scratch;
+  for (uint32_t s = 0; s < want;) {
+    const uint32_t e = std::min(want, guide_->iteration_end(s));
+    const RenderStats st = render_range(scratch, s, e, nullptr, nullptr, nullptr, true);
+    if (st.cancelled) {
+      guide_->reset();
+      views_->geom.guide = nullptr;
+      return false;
+    }
+    if (e == guide_->iteration_end(s)) guide_rebuild(e);
+    s = guide_recorded_ = e;
+  }
+  return true;
+}
+
 RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* profile, const std::vector<int>* only,
                              const Film* prior) {
+  if (!guide_) return render_range(film, begin, end, profile, only, prior, false);
+  if (only)
+    throw std::invalid_argument("--guide learns from every tile of a pass on one process: it does not render a part of "
+                                "the tiles (a distributed render)");
+  RenderStats total;
+  total.cancelled = !guide_catch_up(begin);
+  for (uint32_t s = begin; s < end && !total.cancelled;) {
+    const bool learning = s < guide_->learn();
+    const uint32_t e = learning ? std::min(end, guide_->iteration_end(s)) : end;
+    const RenderStats st = render_range(film, s, e, profile, nullptr, prior, learning);
+    const double worst = std::max(total.worst_ratio, st.worst_ratio);
+    total.add_counts(st);
+    total.worst_ratio = worst;
+    total.pipeline = st.pipeline;
+    total.bounce_against_emitters = st.bounce_against_emitters;
+    if (st.cancelled) {  // the film is partial and will be dropped: so are the records
+      total.cancelled = true;
+      guide_->drop_records();
+      guide_recorded_ = guide_->learned();
+      break;
+    }
+    if (learning && e == guide_->iteration_end(s)) guide_rebuild(e);
+    s = e;
+    if (learning) guide_recorded_ = e;
+  }
+  return total;
+}
+
+RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Profile* profile, const std::vector<int>* only,
+                                   const Film* prior, bool record) {
   const Camera& cam = scene_.camera;
   if (film.width != cam.width || film.height != cam.height) film.reset(cam.width, cam.height);
   const SceneViews& v = *views_;
@@ -140,6 +203,7 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
     }
     c.opt_film = film.optimal.data();
   }
+  if (record) c.guide_rec = guide_.get();
   c.layout = SampleLayout{static_cast<uint32_t>(ris ? c.bsdf_passes : est.bsdf_samples), static_cast<uint32_t>(c.light_passes),
                           v.geom.has_media};
   std::string why;

@@ -19,6 +19,8 @@
 
 namespace tuile {
 
+class Guide;  // render/guide.h
+
 // What one render shares with its tile tasks.
 struct TileContext {
   const SceneViews& v;
@@ -38,6 +40,8 @@ struct TileContext {
   const double* opt_prior = nullptr;
   uint64_t opt_prior_samples = 0;
   double* opt_film = nullptr;
+  // --guide while it learns: the guide the general pipeline's paths record into (null: none)
+  Guide* guide_rec = nullptr;
 };
 
 // Per-thread profiling state.

@@ -6,6 +6,7 @@
 // (register_pipeline_part), so that both cores of a build compile them. Internal to src/render.
 #pragma once
 #include "render/tile_pipeline.h"
+#include "render/guide.h"
 
 #include <x86intrin.h>
 
@@ -124,6 +125,92 @@ inline void trace_bounce(const TileContext& c, TileBuffers& tb, StageTimer& time
     if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
     c.accel.intersect16(valid, tb.bounce[p], false, bvh);
     tb.stats.rays_bounce += static_cast<uint64_t>(active);
+  }
+}
+
+// --guide while it learns (render/guide.h): each path's vertices of this sample, kept per
+// tile lane (GuidePathLanes), then, once the sample is done, the light that reached each
+// guided vertex along the direction its path went on (the light the later vertices added,
+// over the throughput up to them) recorded into the guide.
+inline GuidePathLanes& guide_lanes(TileBuffers& tb) {
+  if (!tb.guide.lanes) tb.guide.lanes = std::make_unique<GuidePathLanes>();
+  return *tb.guide.lanes;
+}
+
+inline void guide_start(TileBuffers& tb, int lanes) { std::fill_n(guide_lanes(tb).reached, lanes, 0); }
+
+// After add_vertex_radiance at vertex `vertex` (1: the camera's hits): what it added.
+inline void guide_vertex_light(TileBuffers& tb, int vertex, bool first) {
+  GuidePathLanes& g = *tb.guide.lanes;
+  const int row = std::min(vertex - 1, GuidePathLanes::vertices);
+  const bool add = vertex - 1 > GuidePathLanes::vertices;  // the last row sums the deeper vertices
+  for (int k = 0; k < tb.points.count; ++k) {
+    const int i = tb.points.lane[k];
+    const float r = first ? tb.radiance.r[k] : tb.path.throughput_r[k] * tb.radiance.r[k];
+    const float gg = first ? tb.radiance.g[k] : tb.path.throughput_g[k] * tb.radiance.g[k];
+    const float b = first ? tb.radiance.b[k] : tb.path.throughput_b[k] * tb.radiance.b[k];
+    g.cr[row][i] = add ? g.cr[row][i] + r : r;
+    g.cg[row][i] = add ? g.cg[row][i] + gg : gg;
+    g.cb[row][i] = add ? g.cb[row][i] + b : b;
+    g.reached[i] = vertex;
+    if (vertex <= GuidePathLanes::vertices) g.ok[vertex - 1][i] = 0;  // (guide_vertex_path: if the path goes on)
+  }
+}
+
+// After continue_paths at vertex `vertex`: the paths that go on from a guided point along a
+// sample that is not a delta lobe's.
+inline void guide_vertex_path(const GeomView& G, TileBuffers& tb, int vertex) {
+  if (vertex > GuidePathLanes::vertices) return;
+  GuidePathLanes& g = *tb.guide.lanes;
+  const int v = vertex - 1;
+  for (int k = 0; k < tb.points.count; ++k) {
+    const int i = tb.points.lane[k];
+    const int32_t kind = G.mat_kind[tb.points.mat[k]];
+    const bool ok = tb.tech.valid[k] && !tb.tech.delta[k] && tb.tech.pdf[k] > 0.f &&
+                    (kind == static_cast<int32_t>(MaterialKind::diffuse) ||
+                     kind == static_cast<int32_t>(MaterialKind::coated_diffuse));
+    g.ok[v][i] = ok;
+    if (!ok) continue;
+    const RayHit16& r = tb.bounce[k / packet_width];
+    const int l = k % packet_width;
+    g.x[v][i] = tb.points.px[k];
+    g.y[v][i] = tb.points.py[k];
+    g.z[v][i] = tb.points.pz[k];
+    g.dx[v][i] = r.ray.dir_x[l];
+    g.dy[v][i] = r.ray.dir_y[l];
+    g.dz[v][i] = r.ray.dir_z[l];
+    // the record is L_in cos / p: the guide learns the light times the cosine at the point
+    // (the product a diffuse surface integrates), not the light alone
+    const float nx = G.shading_normals ? tb.points.snx[k] : tb.points.nx[k];
+    const float ny = G.shading_normals ? tb.points.sny[k] : tb.points.ny[k];
+    const float nz = G.shading_normals ? tb.points.snz[k] : tb.points.nz[k];
+    const float cosine = std::abs(nx * r.ray.dir_x[l] + ny * r.ray.dir_y[l] + nz * r.ray.dir_z[l]);
+    g.pdf[v][i] = tb.tech.pdf[k] / std::max(cosine, 1e-6f);
+    g.nx[v][i] = tb.points.nx[k];
+    g.ny[v][i] = tb.points.ny[k];
+    g.nz[v][i] = tb.points.nz[k];
+    g.tr[v][i] = tb.path.throughput_r[k];
+    g.tg[v][i] = tb.path.throughput_g[k];
+    g.tb[v][i] = tb.path.throughput_b[k];
+  }
+}
+
+// Once the sample is done: each guided vertex's record, from the deepest vertex back.
+inline void guide_record_sample(Guide& guide, TileBuffers& tb, int lanes) {
+  GuidePathLanes& g = *tb.guide.lanes;
+  for (int i = 0; i < lanes; ++i) {
+    float sr = 0, sg = 0, sb = 0;  // the light of the vertices past v
+    for (int v = std::min(g.reached[i], GuidePathLanes::vertices + 1) - 1; v >= 0; --v) {
+      if (v < GuidePathLanes::vertices && g.ok[v][i]) {
+        auto in = [](float s, float t) { return t > 0.f ? s / t : 0.f; };
+        const float L = luminance(in(sr, g.tr[v][i]), in(sg, g.tg[v][i]), in(sb, g.tb[v][i]));
+        guide.record(g.x[v][i], g.y[v][i], g.z[v][i], g.nx[v][i], g.ny[v][i], g.nz[v][i], g.dx[v][i], g.dy[v][i],
+                     g.dz[v][i], L / g.pdf[v][i]);
+      }
+      sr += g.cr[v][i];
+      sg += g.cg[v][i];
+      sb += g.cb[v][i];
+    }
   }
 }
 
@@ -299,7 +386,8 @@ void run_light_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer,
       pass.fixed_light = e.pick == LightPick::all ? j % c.light_count : (F.pick ? -1 : 0);
       pass.rate_light = c.rate_light;
       pass.rate_bsdf = c.rate_bsdf;
-      sample_lights<F.kinds, F.pick, F.bsdfs>(v.geom, v.lights, e, pass, s, layout.light_pick(static_cast<uint32_t>(j), d),
+      sample_lights<F.kinds, F.pick, F.bsdfs, F == general_features>(v.geom, v.lights, e, pass, s,
+                                                                  layout.light_pick(static_cast<uint32_t>(j), d),
                                              layout.light_point(static_cast<uint32_t>(j), d), tb);
       timer.lap(Stage::sample_lights);
       trace_shadow(c, tb, timer, packets, rec, tp);
@@ -328,8 +416,8 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
     for (int m = ris ? c.bsdf_passes - 1 : 0; m < c.bsdf_passes; ++m) {
       const bool continuation = !last && m == c.bsdf_passes - 1;
       if (ris && !continuation && (F.bsdfs & bsdf_delta_capable) == 0) break;
-      sample_bsdf<F.bsdfs>(v.geom, e, s, layout.bsdf(static_cast<uint32_t>(m), d),
-                           layout.bsdf_lobe(static_cast<uint32_t>(m), d), tb,
+      sample_bsdf<F.bsdfs, F == general_features>(v.geom, e, s, layout.bsdf(static_cast<uint32_t>(m), d),
+                                                  layout.bsdf_lobe(static_cast<uint32_t>(m), d), tb,
                            e.strategy == Strategy::light || ris, continuation);
       timer.lap(Stage::sample_bsdf);
       trace_bounce(c, tb, timer, packets, rec, tp, against_emitters ? Bvh::emitters : Bvh::scene);
@@ -393,6 +481,8 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     optimal_tile_start(tb, lanes, c.opt_prior);
   }
   hash_tile_keys<F>(c, tb, lanes, cam_packets);
+  // --guide while it learns: the general pipeline's paths record into it
+  Guide* const rec_guide = F == general_features && est.max_depth > 1 ? c.guide_rec : nullptr;
   timer.lap(Stage::generate);
   for (uint32_t s = begin; s < end; ++s) {
     generate(v.camera, est, s, layout.camera, lanes, tb);
@@ -422,6 +512,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     // flight is its first throughput).
     const bool paths = est.max_depth > 1 || media;
     if (paths) start_paths(tb);
+    if (rec_guide) guide_start(tb, lanes);
     if (media) camera_media_paths(tb);
     for (int vertex = 1;; ++vertex) {
       const uint32_t d = static_cast<uint32_t>(vertex - 1);
@@ -439,10 +530,12 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
       if constexpr (F.bsdf) run_bsdf_samples<F>(c, tb, timer, e, s, d, packets, rec, tp, last);
       if (!paths) break;
       add_vertex_radiance(tb, vertex == 1 && !media);
+      if (rec_guide) guide_vertex_light(tb, vertex, vertex == 1 && !media);
       timer.lap(Stage::accumulate);
       if constexpr (!F.bsdf) break;  // (pipeline_features gives paths the BSDF stages)
       if (last || tb.points.count == 0) break;
       continue_paths<F.bsdfs != bsdf_diffuse>(v.geom, e, s, layout.russian_roulette(d), vertex, tb);
+      if (rec_guide) guide_vertex_path(v.geom, tb, vertex);
       timer.lap(Stage::sample_bsdf);
       timer.depth = vertex;  // the next vertex's hits
       bounce_hits<vfloat, F.bsdfs != bsdf_diffuse>(v.geom, v.lights, e, s, layout.technique_choice(d + 1), tb);
@@ -451,6 +544,7 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     }
     timer.depth = -1;
     if (paths) std::fill_n(tb.lanes.shade_of, cam_packets * packet_width, -1);  // every vertex is in the lanes' radiance
+    if (rec_guide) guide_record_sample(*rec_guide, tb, lanes);
     // one sample of every pixel into the tile's double sums
     accumulate_samples(tb, lanes, est.aov_mis_weight);
     timer.lap(Stage::accumulate);

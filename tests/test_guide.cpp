@@ -1,0 +1,241 @@
+// Path guiding (--guide: kernels/wave/guide.h, src/render/guide.h). The guide's sampling
+// and its density agree (E[1 / p] over its samples is the sphere's 4 pi, and the density
+// integrates to 1), its samples go where its records came from, and every lane gives the
+// scalar reference's bits; a guided render has the unguided render's mean (a two-sample
+// z-test per image quarter, seeds apart); it gives the same bits on any thread count, and
+// resumed by a new renderer (which learns the guide again from the samples before it); the
+// options it cannot combine with are refused.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "render/guide.h"
+#include "render/options.h"
+#include "render_util.h"
+
+using namespace tuile;
+using namespace tuile::test;
+
+namespace {
+
+// A guide whose one region learned light from around d0 (and a little from everywhere).
+Guide learned_guide(const Vec3<float>& d0) {
+  const float lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
+  Guide g(lo, hi, 4, 0.5f);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> U(0, 1);
+  for (int i = 0; i < 200000; ++i) {
+    const float x = U(rng) * 0.2f, y = U(rng) * 0.2f, z = U(rng) * 0.2f;
+    // most records near d0, some over the whole sphere
+    Vec3<float> d = d0;
+    if (i % 4 == 0) {
+      const float cz = 1 - 2 * U(rng), ph = 6.2831853f * U(rng), r = std::sqrt(std::max(0.f, 1 - cz * cz));
+      d = Vec3<float>(r * std::cos(ph), r * std::sin(ph), cz);
+    }
+    g.record(x, y, z, 0.f, 1.f, 0.f, d.x, d.y, d.z, 1.f);
+  }
+  g.rebuild(1);
+  return g;
+}
+
+TEST(Guide, SamplesAsItsDensitySaysWhereItsRecordsCameFrom) {
+  const Vec3<float> d0 = normalize(Vec3<float>(0.3f, 0.8f, -0.5f));
+  const Guide g = learned_guide(d0);
+  const GuideView& v = g.view();
+  ASSERT_GT(g.distributions(), 0);
+  const int d = guide_dist<float>(v, Vec3<float>(0.1f, 0.1f, 0.1f), Vec3<float>(0.f, 1.f, 0.f));
+  ASSERT_GE(d, 0);
+  // a point of another orientation (a wall) learned nothing there
+  EXPECT_EQ(guide_dist<float>(v, Vec3<float>(0.1f, 0.1f, 0.1f), Vec3<float>(1.f, 0.f, 0.f)), -1);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> U(0, 1);
+  const int n = scaled(200000);
+  double inv = 0, inv2 = 0, near = 0;
+  for (int i = 0; i < n; ++i) {
+    const Vec3<float> w = guide_sample<float>(v, d, U(rng), U(rng));
+    const double p = guide_pdf<float>(v, d, w);
+    ASSERT_GT(p, 0);
+    inv += 1 / p;
+    inv2 += 1 / (p * p);
+    near += dot(w, d0) > 0.9f;
+  }
+  // E[1 / p] = the sphere's 4 pi where the sampler and the density agree (every direction
+  // has a density: the guide's floor); 5 sigma
+  const double m = inv / n, sd = std::sqrt((inv2 / n - m * m) / n);
+  EXPECT_NEAR(m, 4 * M_PI, 5 * sd) << "sigma " << sd;
+  // three quarters of the records came from d0's cell: so do most samples
+  EXPECT_GT(near / n, 0.6);
+  // the density integrates to 1 over the sphere (uniform directions; 5 sigma)
+  double I = 0, I2 = 0;
+  for (int i = 0; i < n; ++i) {
+    const float cz = 1 - 2 * U(rng), ph = 6.2831853f * U(rng), r = std::sqrt(std::max(0.f, 1 - cz * cz));
+    const double f = 4 * M_PI * guide_pdf<float>(v, d, Vec3<float>(r * std::cos(ph), r * std::sin(ph), cz));
+    I += f;
+    I2 += f * f;
+  }
+  const double mi = I / n, si = std::sqrt((I2 / n - mi * mi) / n);
+  EXPECT_NEAR(mi, 1.0, 5 * si);
+}
+
+TEST(Guide, EveryLaneGivesTheScalarBits) {
+  const Guide g = learned_guide(normalize(Vec3<float>(-0.2f, 0.9f, 0.3f)));
+  const GuideView& v = g.view();
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> U(0, 1);
+  constexpr int W = simd_width;
+  for (int round = 0; round < 200; ++round) {
+    alignas(64) float x[W], y[W], z[W], nx[W], ny[W], nz[W], u1[W], u2[W];
+    for (int l = 0; l < W; ++l) {
+      x[l] = U(rng) * 0.4f - 0.1f, y[l] = U(rng) * 0.4f - 0.1f, z[l] = U(rng) * 0.4f - 0.1f;
+      const int axis = static_cast<int>(U(rng) * 3) % 3;
+      nx[l] = axis == 0 ? 1.f : 0.1f, ny[l] = axis == 1 ? 1.f : 0.1f, nz[l] = axis == 2 ? -1.f : 0.1f;
+      u1[l] = U(rng), u2[l] = U(rng);
+    }
+    const Vec3<vfloat> X(vfloat::load_aligned(x), vfloat::load_aligned(y), vfloat::load_aligned(z));
+    const Vec3<vfloat> N(vfloat::load_aligned(nx), vfloat::load_aligned(ny), vfloat::load_aligned(nz));
+    const vint dv = guide_dist<vfloat>(v, X, N);
+    alignas(64) int32_t ds[W];
+    dv.store_aligned(ds);
+    const vint safe = sel(dv >= vint(0), dv, vint(0));
+    const Vec3<vfloat> w = guide_sample<vfloat>(v, safe, vfloat::load_aligned(u1), vfloat::load_aligned(u2));
+    const vfloat p = guide_pdf<vfloat>(v, safe, w);
+    alignas(64) float wx[W], wy[W], wz[W], pp[W];
+    w.x.store_aligned(wx), w.y.store_aligned(wy), w.z.store_aligned(wz), p.store_aligned(pp);
+    for (int l = 0; l < W; ++l) {
+      const int d = guide_dist<float>(v, Vec3<float>(x[l], y[l], z[l]), Vec3<float>(nx[l], ny[l], nz[l]));
+      ASSERT_EQ(ds[l], d) << "lane " << l;
+      const Vec3<float> ws = guide_sample<float>(v, std::max(d, 0), u1[l], u2[l]);
+      EXPECT_EQ(wx[l], ws.x) << "lane " << l;
+      EXPECT_EQ(wy[l], ws.y) << "lane " << l;
+      EXPECT_EQ(wz[l], ws.z) << "lane " << l;
+      EXPECT_EQ(pp[l], guide_pdf<float>(v, std::max(d, 0), ws)) << "lane " << l;
+    }
+  }
+}
+
+// A room lit only from a spot on its ceiling: a small light facing up at y = 1.2 over an
+// opaque plate, so that the floor and the walls see nothing but light the ceiling reflects
+// (where guiding has something to learn). Coated diffuse walls, diffuse elsewhere.
+Scene spot_room(int res) {
+  Scene s;
+  s.source = "test:spot-room";
+  s.materials.push_back(diffuse_material(Rgb{0.7f, 0.7f, 0.7f}));
+  Material coat;
+  coat.kind = MaterialKind::coated_diffuse;
+  coat.reflectance = {0.6f, 0.5f, 0.3f};
+  coat.alpha_u.value = coat.alpha_v.value = 0.2f;
+  s.materials.push_back(coat);
+  auto quad = [&](const char* name, int mat, vec3f p0, vec3f e1, vec3f e2, float L = 0) {
+    Mesh m;
+    m.name = name;
+    m.material = mat;
+    if (L > 0) m.emission = {L, L, L};
+    add_quad(m, p0, e1, e2);
+    s.meshes.push_back(m);
+  };
+  quad("floor", 0, {-1.5f, 0, -1.5f}, {0, 0, 5}, {3, 0, 0});
+  quad("ceiling", 0, {-1.5f, 2, -1.5f}, {3, 0, 0}, {0, 0, 5});
+  quad("back", 1, {-1.5f, 0, -1.5f}, {3, 0, 0}, {0, 2, 0});
+  quad("left", 1, {-1.5f, 0, -1.5f}, {0, 2, 0}, {0, 0, 5});
+  quad("right", 1, {1.5f, 0, -1.5f}, {0, 0, 5}, {0, 2, 0});
+  quad("light", 0, {-0.1f, 1.2f, -0.6f}, {0, 0, 0.2f}, {0.2f, 0, 0}, 40);  // facing up
+  quad("plate", 0, {-0.3f, 1.19f, -0.8f}, {0.6f, 0, 0}, {0, 0, 0.6f});
+  s.camera.width = s.camera.height = res;
+  s.camera.fov_deg = 55;
+  camera_look_at(s.camera, {0, 1, 3.4f}, {0, 0.7f, 0}, {0, 1, 0});
+  finalize_scene(s);
+  return s;
+}
+
+RenderOptions guided(bool guide, uint32_t spp, uint32_t seed) {
+  RenderOptions o;
+  o.est.max_depth = 4;
+  o.est.spp = spp;
+  o.est.seed = seed;
+  o.est.guide = guide;
+  o.est.guide_learn = 8;
+  o.threads = 2;
+  return o;
+}
+
+TEST(Guide, RendersTheUnguidedMean) {
+  const Scene s = spot_room(32);
+  const uint32_t spp = static_cast<uint32_t>(scaled(256));
+  const RenderResult g = render_scene(s, guided(true, spp, 1));
+  const RenderResult u = render_scene(s, guided(false, spp, 2));
+  const std::vector<float> vg = g.film.variance_of_mean(), vu = u.film.variance_of_mean();
+  // each quarter of the image and each channel: |z| < 4.5 (12 tests: a false alarm once in
+  // some 12,000 runs)
+  const int w = s.camera.width, h = s.camera.height;
+  for (int q = 0; q < 4; ++q)
+    for (int c = 0; c < 3; ++c) {
+      double dm = 0, var = 0, sum = 0;
+      for (int y = (q / 2) * h / 2; y < (q / 2 + 1) * h / 2; ++y)
+        for (int x = (q % 2) * w / 2; x < (q % 2 + 1) * w / 2; ++x) {
+          const size_t i = 3 * (static_cast<size_t>(y) * static_cast<size_t>(w) + static_cast<size_t>(x)) + static_cast<size_t>(c);
+          dm += static_cast<double>(g.mean[i]) - u.mean[i];
+          var += static_cast<double>(vg[i]) + vu[i];
+          sum += u.mean[i];
+        }
+      ASSERT_GT(sum, 0);
+      EXPECT_LT(std::abs(dm / std::sqrt(var)), 4.5) << "quarter " << q << " channel " << c << ": " << dm / sum;
+    }
+}
+
+TEST(Guide, SameBitsOnAnyThreadsAndResumed) {
+  const Scene s = spot_room(24);
+  Accel accel(s);
+  RenderOptions o = guided(true, 20, 3);
+  Film whole;
+  whole.reset(24, 24);
+  Renderer(s, accel, o).render(whole, 0, 20);
+  o.threads = 1;
+  Film one;
+  one.reset(24, 24);
+  Renderer(s, accel, o).render(one, 0, 20);
+  // resumed: samples 0..6 by one renderer, 6..20 by another (which learns again from 0..6,
+  // in the middle of the iteration [4, 8))
+  Film resumed;
+  resumed.reset(24, 24);
+  Renderer(s, accel, o).render(resumed, 0, 6);
+  Renderer(s, accel, o).render(resumed, 6, 20);
+  const std::vector<float> a = whole.mean(), b = one.mean(), c = resumed.mean();
+  size_t differ_threads = 0, differ_resumed = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    differ_threads += a[i] != b[i];
+    differ_resumed += std::abs(a[i] - c[i]) > 1e-5f * std::max(1.f, std::abs(a[i]));
+  }
+  EXPECT_EQ(differ_threads, 0u);
+  // (a resumed film adds its passes' sums in another order: the same samples, rounding apart)
+  EXPECT_EQ(differ_resumed, 0u);
+  // and guiding changed the image
+  Film plain;
+  plain.reset(24, 24);
+  Renderer(s, accel, guided(false, 20, 3)).render(plain, 0, 20);
+  const std::vector<float> p = plain.mean();
+  size_t differ_plain = 0;
+  for (size_t i = 0; i < a.size(); ++i) differ_plain += a[i] != p[i];
+  EXPECT_GT(differ_plain, a.size() / 2);
+}
+
+TEST(Guide, RefusesWhatItCannotCombineWith) {
+  auto refused = [](auto change) {
+    RenderOptions o = guided(true, 4, 0);
+    change(o.est);
+    EXPECT_THROW(validate(o), std::invalid_argument);
+  };
+  refused([](Estimator& e) { e.max_depth = 1; });
+  refused([](Estimator& e) { e.strategy = Strategy::ris; });
+  refused([](Estimator& e) { e.strategy = Strategy::light; });
+  refused([](Estimator& e) { e.mode = MisMode::one; });
+  refused([](Estimator& e) { e.heuristic = Heuristic::optimal; });
+  refused([](Estimator& e) { e.guide_alpha = 1.f; });
+  refused([](Estimator& e) { e.guide_alpha = NAN; });
+  refused([](Estimator& e) { e.guide_learn = 0; });
+  RenderOptions ok = guided(true, 4, 0);
+  EXPECT_NO_THROW(validate(ok));
+}
+
+}  // namespace
