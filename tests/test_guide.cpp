@@ -2,7 +2,8 @@
 // and its density agree (E[1 / p] over its samples is the sphere's 4 pi, and the density
 // integrates to 1), its samples go where its records came from, and every lane gives the
 // scalar reference's bits; a guided render has the unguided render's mean (a two-sample
-// z-test per image quarter, seeds apart); it gives the same bits on any thread count, and
+// z-test per image quarter, seeds apart: a light stage whose MIS weight left the guide out
+// of the BSDF's density, or a BSDF stage whose throughput did, fails it); it gives the same bits on any thread count, and
 // resumed by a new renderer (which learns the guide again from the samples before it); the
 // options it cannot combine with are refused.
 #include <gtest/gtest.h>
@@ -115,9 +116,10 @@ TEST(Guide, EveryLaneGivesTheScalarBits) {
   }
 }
 
-// A room lit only from a spot on its ceiling: a small light facing up at y = 1.2 over an
-// opaque plate, so that the floor and the walls see nothing but light the ceiling reflects
-// (where guiding has something to learn). Coated diffuse walls, diffuse elsewhere.
+// A room lit from a spot on its ceiling: a small light facing up at y = 1.2 over an opaque
+// plate, whose light reaches the floor and the walls only as the ceiling reflects it (where
+// guiding has something to learn), and a large panel facing down. Coated diffuse walls,
+// diffuse elsewhere.
 Scene spot_room(int res) {
   Scene s;
   s.source = "test:spot-room";
@@ -142,6 +144,10 @@ Scene spot_room(int res) {
   quad("right", 1, {1.5f, 0, -1.5f}, {0, 0, 5}, {0, 2, 0});
   quad("light", 0, {-0.1f, 1.2f, -0.6f}, {0, 0, 0.2f}, {0.2f, 0, 0}, 40);  // facing up
   quad("plate", 0, {-0.3f, 1.19f, -0.8f}, {0.6f, 0, 0}, {0, 0, 0.6f});
+  // and a panel as large as the ceiling, just under it, facing down: where light sampling and
+  // BSDF sampling have densities alike, so that MIS weights that did not both read the
+  // mixture would be far from summing to one
+  quad("panel", 0, {-1.5f, 1.95f, -1.5f}, {3, 0, 0}, {0, 0, 5}, 1);
   s.camera.width = s.camera.height = res;
   s.camera.fov_deg = 55;
   camera_look_at(s.camera, {0, 1, 3.4f}, {0, 0.7f, 0}, {0, 1, 0});
@@ -161,8 +167,8 @@ RenderOptions guided(bool guide, uint32_t spp, uint32_t seed) {
 }
 
 TEST(Guide, RendersTheUnguidedMean) {
-  const Scene s = spot_room(32);
-  const uint32_t spp = static_cast<uint32_t>(scaled(256));
+  const Scene s = spot_room(40);
+  const uint32_t spp = static_cast<uint32_t>(scaled(512));
   const RenderResult g = render_scene(s, guided(true, spp, 1));
   const RenderResult u = render_scene(s, guided(false, spp, 2));
   const std::vector<float> vg = g.film.variance_of_mean(), vu = u.film.variance_of_mean();

@@ -45,7 +45,7 @@ struct Estimator {
   bool regularize = false;
   // --guide (wave/guide.h, src/render/guide.h): path guiding, learned over the first
   // guide_learn samples (iterations ending at samples 1, 2, 4, ...), a share guide_alpha
-  // of the directions drawn from it at diffuse and coated diffuse points; unbiased
+  // of the directions drawn from it at diffuse points; unbiased
   bool guide = false;
   uint32_t guide_learn = 64;
   float guide_alpha = 0.5f;

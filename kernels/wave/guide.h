@@ -1,6 +1,6 @@
 // Path guiding (--guide, Estimator::guide): a learned distribution of the light that
 // arrives at each region of the scene, mixed with BSDF sampling at the points whose
-// surface is diffuse or coated diffuse. After Müller, Gross & Novák 2017 ("Practical Path
+// surface is diffuse (Lambert). After Müller, Gross & Novák 2017 ("Practical Path
 // Guiding"): a binary tree over space, refined where many path vertices fall, whose leaves
 // hold a distribution over directions. Here the directional part is a fixed grid of
 // guide_res x guide_res cells on the equal-area octahedral square (light/sky_map.h: the
@@ -15,7 +15,7 @@
 // samples and of the emitters and sky the BSDF samples reach) is the mixture's
 //   p(wi) = alpha p_guide(wi) + (1 - alpha) p_bsdf(wi)
 // (a delta lobe of the BSDF keeps its delta, drawn with probability (1 - alpha) times its
-// own). A point is guided where its material is diffuse or coated diffuse and its leaf
+// own). A point is guided where its material is diffuse and its leaf
 // learned a distribution; the same test decides in the BSDF and the light stages, so both
 // see the same density.
 #pragma once
@@ -97,10 +97,10 @@ template <class T> inline Vec3<T> guide_sample(const GuideView& g, const i32_t<T
   return equal_area_square_to_sphere((to_f32(col) + du) / fn, (to_f32(row) + dv) / fn);
 }
 
-// Whether a material kind is guided (diffuse and coated diffuse surfaces).
+// Whether a material kind is guided: diffuse surfaces (a coated diffuse's glossy or mirror
+// coat, sampled half as often, lost more than the guide gained: bench/results.md).
 template <class T> inline mask_t<T> guided_kind(const i32_t<T>& kind) {
-  return f_mask_from_i(kind == i32_t<T>(static_cast<int32_t>(MaterialKind::diffuse)) ||
-                       kind == i32_t<T>(static_cast<int32_t>(MaterialKind::coated_diffuse)));
+  return f_mask_from_i(kind == i32_t<T>(static_cast<int32_t>(MaterialKind::diffuse)));
 }
 
 // --guide: the share alpha of the guide at shading points [k, k + width) (0 where the point

@@ -167,8 +167,7 @@ inline void guide_vertex_path(const GeomView& G, TileBuffers& tb, int vertex) {
     const int i = tb.points.lane[k];
     const int32_t kind = G.mat_kind[tb.points.mat[k]];
     const bool ok = tb.tech.valid[k] && !tb.tech.delta[k] && tb.tech.pdf[k] > 0.f &&
-                    (kind == static_cast<int32_t>(MaterialKind::diffuse) ||
-                     kind == static_cast<int32_t>(MaterialKind::coated_diffuse));
+                    kind == static_cast<int32_t>(MaterialKind::diffuse);
     g.ok[v][i] = ok;
     if (!ok) continue;
     const RayHit16& r = tb.bounce[k / packet_width];
@@ -386,9 +385,18 @@ void run_light_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer,
       pass.fixed_light = e.pick == LightPick::all ? j % c.light_count : (F.pick ? -1 : 0);
       pass.rate_light = c.rate_light;
       pass.rate_bsdf = c.rate_bsdf;
-      sample_lights<F.kinds, F.pick, F.bsdfs, F == general_features>(v.geom, v.lights, e, pass, s,
-                                                                  layout.light_pick(static_cast<uint32_t>(j), d),
-                                             layout.light_point(static_cast<uint32_t>(j), d), tb);
+      const uint32_t pick_pair = layout.light_pick(static_cast<uint32_t>(j), d);
+      const uint32_t point_pair = layout.light_point(static_cast<uint32_t>(j), d);
+      // (--guide: the general pipeline's guided instantiation, only while a guide is there,
+      // so that an unguided render runs the code it ran before)
+      if constexpr (F == general_features) {
+        if (v.geom.guide)
+          sample_lights<F.kinds, F.pick, F.bsdfs, true>(v.geom, v.lights, e, pass, s, pick_pair, point_pair, tb);
+        else
+          sample_lights<F.kinds, F.pick, F.bsdfs, false>(v.geom, v.lights, e, pass, s, pick_pair, point_pair, tb);
+      } else {
+        sample_lights<F.kinds, F.pick, F.bsdfs>(v.geom, v.lights, e, pass, s, pick_pair, point_pair, tb);
+      }
       timer.lap(Stage::sample_lights);
       trace_shadow(c, tb, timer, packets, rec, tp);
       timer.lap(Stage::intersect_shadow);
@@ -416,9 +424,14 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
     for (int m = ris ? c.bsdf_passes - 1 : 0; m < c.bsdf_passes; ++m) {
       const bool continuation = !last && m == c.bsdf_passes - 1;
       if (ris && !continuation && (F.bsdfs & bsdf_delta_capable) == 0) break;
-      sample_bsdf<F.bsdfs, F == general_features>(v.geom, e, s, layout.bsdf(static_cast<uint32_t>(m), d),
-                                                  layout.bsdf_lobe(static_cast<uint32_t>(m), d), tb,
-                           e.strategy == Strategy::light || ris, continuation);
+      const uint32_t pair = layout.bsdf(static_cast<uint32_t>(m), d), lobe_pair = layout.bsdf_lobe(static_cast<uint32_t>(m), d);
+      const bool only_delta = e.strategy == Strategy::light || ris;
+      if constexpr (F == general_features) {  // (as the light samples)
+        if (v.geom.guide) sample_bsdf<F.bsdfs, true>(v.geom, e, s, pair, lobe_pair, tb, only_delta, continuation);
+        else sample_bsdf<F.bsdfs, false>(v.geom, e, s, pair, lobe_pair, tb, only_delta, continuation);
+      } else {
+        sample_bsdf<F.bsdfs>(v.geom, e, s, pair, lobe_pair, tb, only_delta, continuation);
+      }
       timer.lap(Stage::sample_bsdf);
       trace_bounce(c, tb, timer, packets, rec, tp, against_emitters ? Bvh::emitters : Bvh::scene);
       timer.lap(Stage::intersect_bounce);
