@@ -290,3 +290,21 @@ TEST(Cli, RegularizeFromTheFileOrTheFlag) {
   EXPECT_NE(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("cli_reg_bad.pbrt:4"), std::string::npos) << r.out;
 }
+
+// --guide: the estimator line says it, with its learning and share; what it cannot
+// combine with is a clear error naming the flag, not a crash.
+TEST(Cli, GuideRendersAndRefusesWhatItCannotCombineWith) {
+  const std::string out = tmp("cli_guide.exr");
+  CmdResult r = run("render built-in:cornell --max-depth 3 --spp 4 --res 24x24 --guide --guide-learn 2 -o " + out);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("guide=on guide-learn=2 guide-alpha=0.5"), std::string::npos) << r.out;
+  r = run("render built-in:cornell --max-depth 1 --spp 4 --res 24x24 --guide -o " + out);
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("--guide"), std::string::npos) << r.out;
+  r = run("render built-in:cornell --max-depth 3 --spp 4 --res 24x24 --guide --guide-alpha 1.5 -o " + out);
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("--guide-alpha"), std::string::npos) << r.out;
+  r = run("render built-in:cornell --max-depth 3 --spp 4 --res 24x24 --guide --strategy ris -o " + out);
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("--guide"), std::string::npos) << r.out;
+}
