@@ -38,7 +38,7 @@ inline constexpr int guide_classes = 6;
 // The guide as the kernels read it (src/render/guide.h builds it).
 struct GuideView {
   int32_t depth = 0;              // the tree's depth (descent steps)
-  const int32_t* child = nullptr; // per node: >= 0 the first of its two children; < 0 a leaf, -1 - its node
+  const int32_t* child = nullptr; // per node: >= 0 the first of its two children; -1 a leaf
   const int32_t* leaf_dist = nullptr;  // per node, guide_classes distributions (-1: none learned)
   const int32_t* axis = nullptr;  // per node: the split axis
   const float* split = nullptr;   // per node: the split plane (a point on it goes to the second child)

@@ -80,6 +80,20 @@ int32_t Guide::alloc_pair() {
   return c;
 }
 
+// Makes node id an inner node split at `mid` along axis a: returns its first child (the two
+// side by side) and their boxes l and r.
+int32_t Guide::split_node(int32_t id, int a, float mid, const Box& b, Box& l, Box& r) {
+  const int32_t c = alloc_pair();
+  child_[static_cast<size_t>(id)] = c;
+  axis_[static_cast<size_t>(id)] = a;
+  split_[static_cast<size_t>(id)] = mid;
+  l = b;
+  r = b;
+  l.hi[a] = mid;
+  r.lo[a] = mid;
+  return c;
+}
+
 // Leaf `id` with distribution dist and an estimated n records: split at the middle of its
 // box's longest side while n exceeds the limit (each half estimated n / 2, with the same
 // distribution).
@@ -94,14 +108,8 @@ void Guide::subdivide(int32_t id, const Dists& dist, double n, const Box& b, int
   int a = 0;
   for (int k = 1; k < 3; ++k)
     if (b.hi[k] - b.lo[k] > b.hi[a] - b.lo[a]) a = k;
-  const float mid = 0.5f * (b.lo[a] + b.hi[a]);
-  const int32_t c = alloc_pair();
-  child_[static_cast<size_t>(id)] = c;
-  axis_[static_cast<size_t>(id)] = a;
-  split_[static_cast<size_t>(id)] = mid;
-  Box l = b, r = b;
-  l.hi[a] = mid;
-  r.lo[a] = mid;
+  Box l, r;
+  const int32_t c = split_node(id, a, 0.5f * (b.lo[a] + b.hi[a]), b, l, r);
   subdivide(c, dist, n / 2, l, depth + 1, limit);
   subdivide(c + 1, dist, n / 2, r, depth + 1, limit);
 }
@@ -117,15 +125,8 @@ void Guide::rebuild_node(const std::vector<int32_t>& oc, const std::vector<int32
     return;
   }
   depth_ = std::max(depth_, depth + 1);
-  const int a = oa[o];
-  const float mid = os[o];
-  const int32_t c = alloc_pair();
-  child_[static_cast<size_t>(id)] = c;
-  axis_[static_cast<size_t>(id)] = a;
-  split_[static_cast<size_t>(id)] = mid;
-  Box l = b, r = b;
-  l.hi[a] = mid;
-  r.lo[a] = mid;
+  Box l, r;
+  const int32_t c = split_node(id, oa[o], os[o], b, l, r);
   rebuild_node(oc, oa, os, odist, ocount, oc[o], c, l, depth + 1, limit);
   rebuild_node(oc, oa, os, odist, ocount, oc[o] + 1, c + 1, r, depth + 1, limit);
 }

@@ -60,6 +60,7 @@ class Guide {
   };
   void refresh_view();
   int32_t alloc_pair();
+  int32_t split_node(int32_t id, int a, float mid, const Box& b, Box& l, Box& r);
   void subdivide(int32_t id, const Dists& dist, double n, const Box& b, int depth, double limit);
   void rebuild_node(const std::vector<int32_t>& oc, const std::vector<int32_t>& oa, const std::vector<float>& os,
                     const std::vector<Dists>& odist, const std::vector<uint64_t>& ocount, int32_t old, int32_t id,
