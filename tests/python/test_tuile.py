@@ -33,12 +33,16 @@ CASES = [
     dict(spp=4, res="40x30", strategy="light", light_pick="uniform", light_point="area", filter="gaussian", tile=8),
     dict(spp=4, res="40x30", strategy="ris", ris_light=4, max_depth=3, beta=1.5),
     dict(spp=4, res="40x30", strategy="mis", max_depth=4, regularize="on"),
+    dict(spp=6, res="40x30", strategy="mis", max_depth=4, guide=True, guide_learn=2, guide_alpha=0.25),
 ]
 
 
 def cli_args(flags):
     args = []
     for k, v in flags.items():
+        if v is True:  # a flag without a value
+            args.append("--" + k.replace("_", "-"))
+            continue
         if k == "res" and isinstance(v, tuple):
             v = "%dx%d" % v
         args += ["--" + k.replace("_", "-"), v]
@@ -86,6 +90,8 @@ def test_arrays_share_memory_with_the_film(cornell):
     (dict(frobnicate=1), "frobnicate"),
     (dict(max_depth=-3), "max_depth"),
     (dict(regularize="maybe"), "regularize"),
+    (dict(guide=True, max_depth=1), "guide"),
+    (dict(guide=True, max_depth=3, guide_alpha=2), "guide_alpha"),
 ])
 def test_bad_arguments_raise_value_error_naming_the_argument(cornell, kw, name):
     with pytest.raises(ValueError, match=name):
