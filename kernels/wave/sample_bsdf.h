@@ -53,7 +53,7 @@ TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& 
     const auto mixed = alpha > T(0.f);
     // a BSDF sample: its density in the mixture (a delta lobe's weight over the (1 - alpha)
     // it is drawn with)
-    const T pb_mix = alpha * guide_pdf(*G.guide, dist, bs.wi) + (T(1.f) - alpha) * bs.pdf;
+    const T pb_mix = guide_mixture_pdf(G, alpha, dist, bs.wi, bs.pdf);
     const T rb = sel(mixed && !bs.delta, bs.pdf / sel(pb_mix > T(0.f), pb_mix, T(1.f)),
                      sel(mixed, T(1.f) / (T(1.f) - alpha), T(1.f)));
     bs.weight = {bs.weight.r * rb, bs.weight.g * rb, bs.weight.b * rb};
@@ -61,7 +61,7 @@ TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& 
     if (any(from_guide)) {  // a direction of the guide: the BSDF's value and density for it
       const Vec3<T> wg = guide_sample(*G.guide, dist, u0, u1);
       const BsdfEval<T> fe = bsdf.eval(wg);
-      const T pg_mix = alpha * guide_pdf(*G.guide, dist, wg) + (T(1.f) - alpha) * fe.pdf;
+      const T pg_mix = guide_mixture_pdf(G, alpha, dist, wg, fe.pdf);
       const T cos_s = dot(ns, wg);
       const T cos_x = (Bsdfs & bsdf_transmits) != 0 ? abs(cos_s) : cos_s;
       const auto ok = cos_x > T(0.f) && pg_mix > T(0.f);
