@@ -187,14 +187,15 @@ TEST(Cli, ProfileTraceIsChromeTraceJson) {
   EXPECT_NE(s.find("\"name\":\"intersect shadow\""), std::string::npos);
 }
 
-// Paths: --max-depth and --rr-depth out of range are errors naming the flag (0 is not
+// Paths: --max-depth, --rr-depth and --rr-threshold out of range are errors naming the flag (0 is not
 // "the default": a render of no vertex is a mistake, as --spp 0 is; resolve_options reads
 // RenderFlags::max_depth 0 as "not given", so an explicit 0 needs a flag of its own, as
 // spp_given); so is a file's Integrator maxdepth 0, with the file and line. info prints
 // the depth a file asks for in the estimator line, and nothing about depth for a built-in
 // scene (direct lighting).
 TEST(Cli, PathDepthFlagsAndFileMaxDepth) {
-  for (const char* args : {"--max-depth 0", "--max-depth -2", "--rr-depth -1"}) {
+  for (const char* args : {"--max-depth 0", "--max-depth -2", "--rr-depth -1", "--rr-threshold 0", "--rr-threshold -1",
+                           "--rr-threshold nan", "--rr-threshold 1e9"}) {
     const CmdResult r = run(std::string("render built-in:cornell --res 8x8 --spp 1 --quiet -o ") + tmp("cli_depth.exr") +
                             " " + args);
     EXPECT_NE(r.code, 0) << args << ": accepted (exit 0): " << r.out;

@@ -248,10 +248,12 @@ TEST(PathLanes, ContinuePathsEqualScalar) {
   int ended_by_roulette = 0, eta_changed = 0, reweighted = 0;
   for (bool mats : {false, true})
     for (bool roulette : {false, true})
-      for (SamplerKind sampler : {SamplerKind::independent, SamplerKind::sobol}) {
+      for (SamplerKind sampler : {SamplerKind::independent, SamplerKind::sobol})
+      for (float thr : {1.f, 0.25f}) {
         Estimator est;
         est.max_depth = 5;
         est.rr_depth = 1;
+        est.rr_threshold = thr;
         est.sampler = sampler;
         est.seed = 3;
         const int vertex = roulette ? 2 : 1;  // Russian roulette after vertex rr_depth
@@ -269,7 +271,8 @@ TEST(PathLanes, ContinuePathsEqualScalar) {
           continue_paths<false, float>(views.geom, est, 5, rr_pair, vertex, *b);
         }
         const std::string what = std::string(mats ? "materials" : "diffuse") + (roulette ? ", roulette" : "") +
-                                 (sampler == SamplerKind::sobol ? ", sobol" : ", independent");
+                                 (sampler == SamplerKind::sobol ? ", sobol" : ", independent") +
+                                 (thr == 1.f ? ", threshold 1" : ", threshold 0.25");
         // (the lanes of non-finite weights apart: below)
         expect_same_bits(a->path.throughput_r, b->path.throughput_r, padded, what + " tr", {17, 51});
         expect_same_bits(a->path.throughput_g, b->path.throughput_g, padded, what + " tg", {17, 51});
@@ -317,11 +320,19 @@ TEST(PathLanes, ContinuePathsEqualScalar) {
           if (!a->tech.valid[k]) {
             ++ended_by_roulette;
             ASSERT_TRUE(roulette) << what << " lane " << k;
-            ASSERT_LT(std::max(br, std::max(bg, bb)) * eta_new, 1.f) << what << " lane " << k;
-          } else if (a->path.throughput_r[k] != br) {
-            ++reweighted;  // survived Russian roulette: divided by its probability
+            ASSERT_LT(std::max(br, std::max(bg, bb)) * eta_new, thr) << what << " lane " << k;
+          } else if (a->path.throughput_r[k] != br || a->path.throughput_g[k] != bg || a->path.throughput_b[k] != bb) {
+            ++reweighted;  // survived Russian roulette: divided by its probability m / threshold
             ASSERT_TRUE(roulette) << what << " lane " << k;
-            ASSERT_GT(a->path.throughput_r[k], br) << what << " lane " << k;
+            const float m = std::max(br, std::max(bg, bb));
+            const float now = std::max(a->path.throughput_r[k], std::max(a->path.throughput_g[k], a->path.throughput_b[k]));
+            ASSERT_GT(now, m) << what << " lane " << k;
+            const float p = m * eta_new / thr;
+            ASSERT_LT(p, 1.f) << what << " lane " << k;
+            ASSERT_NEAR(now, m / p, 1e-5f * m / p) << what << " lane " << k;
+          } else if (roulette) {
+            // went on untouched: its throughput was not below the threshold
+            ASSERT_GE(std::max(br, std::max(bg, bb)) * eta_new, thr) << what << " lane " << k;
           }
         }
       }
@@ -352,6 +363,7 @@ TEST(PathLanes, BounceHitsEqualScalar) {
         Estimator est;
         est.mode = mode;
         est.max_depth = 5;
+        est.rr_threshold = 1.f;  // pbrt-v4's rule, so that roulette ends some of these paths
         est.sampler = SamplerKind::independent;
         est.seed = 9;
         auto a = std::make_unique<TileBuffers>();

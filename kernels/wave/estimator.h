@@ -34,10 +34,15 @@ struct Estimator {
   uint32_t seed = 0;
   uint32_t spp = 16;
   // Paths: vertices that take a light sample and a BSDF sample (pbrt-v4's maxdepth: 1 is
-  // direct lighting), and the vertex after which Russian roulette may end a path (pbrt-v4:
-  // after the BSDF sample of vertex 2 on, i.e. rr_depth 1).
+  // direct lighting), the vertex after which Russian roulette may end a path (pbrt-v4:
+  // after the BSDF sample of vertex 2 on, i.e. rr_depth 1), and the throughput below which
+  // it plays: a path whose largest channel times eta scale m is below rr_threshold goes on
+  // with probability m / rr_threshold. pbrt-v4's rule is 1; tuile's default 0.25 ends fewer
+  // paths: 1.2-1.4 times the efficiency on the corpus's rooms (bench/results.md, "Russian
+  // roulette's threshold").
   int max_depth = 1;
   int rr_depth = 1;
+  float rr_threshold = 0.25f;
   // pbrt-v4's `regularize` (biased, off by default): once a path has taken a non-specular
   // BSDF sample, every later vertex's Trowbridge-Reitz alphas below 0.3 become
   // clamp(2 alpha, 0.1, 0.3) (smooth surfaces turn glossy), so that light sampling finds the

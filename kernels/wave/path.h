@@ -50,16 +50,16 @@ inline void add_vertex_radiance(TileBuffers& tb, bool first) {
 }
 
 // Shading points [k, k + width): the throughput after the BSDF sample, and Russian
-// roulette. pbrt-v4: once the path has `rr_after` vertices or more (its depth > 1 by
-// default), a path whose throughput times eta scale has a largest channel m < 1 ends with
-// probability q = 1 - m and goes on with throughput / (1 - q); u: one uniform number per
-// point. The eta scale gathers etap^2 of every transmission through a dielectric (pbrt-v4:
+// roulette. Once the path has `rr_after` vertices or more (its depth > 1 by default), a
+// path whose throughput times eta scale has a largest channel m below the threshold t
+// (Estimator::rr_threshold; inv_t = 1 / t) ends with probability q = 1 - m / t and goes on
+// with throughput / (1 - q); t = 1 is pbrt-v4's rule. u: one uniform number per point. The eta scale gathers etap^2 of every transmission through a dielectric (pbrt-v4:
 // the 1 / etap^2 of radiance's transport must not decide whether a path lives). Paths
 // whose throughput is 0 (a BSDF sample of no weight) or not finite end here (the latter
 // counted as rejected); they would add nothing, or only NaN. Materials: the point's
 // surface may transmit (else every sample reflects, eta scale stays).
 template <class T, bool Materials>
-TUILE_FLATTEN inline void continue_path_lanes(const GeomView& G, TileBuffers& tb, int k, bool roulette) {
+TUILE_FLATTEN inline void continue_path_lanes(const GeomView& G, TileBuffers& tb, int k, bool roulette, float inv_t) {
   const auto live = f_mask_from_i(load_i32<T>(tb.tech.valid + k) != i32_t<T>(0));
   T br = load<T>(tb.path.throughput_r + k) * load<T>(tb.tech.beta_r + k);
   T bg = load<T>(tb.path.throughput_g + k) * load<T>(tb.tech.beta_g + k);
@@ -85,7 +85,7 @@ TUILE_FLATTEN inline void continue_path_lanes(const GeomView& G, TileBuffers& tb
   const T m = max(max(br, bg), bb);
   auto go = live && finite && m > T(0.f);
   if (roulette) {
-    const T rr = m * eta_scale;
+    const T rr = m * eta_scale * T(inv_t);
     const auto play = rr < T(1.f);
     const T q = max(T(0.f), T(1.f) - rr);
     go = go && (!play || load<T>(tb.tech.u3 + k) >= q);
@@ -115,7 +115,8 @@ inline void continue_paths(const GeomView& G, const Estimator& est, uint32_t sam
   const int padded = packet_padded(tb.points.count);
   const bool roulette = vertex > est.rr_depth;
   if (roulette) point_pairs(est, tb, sample, rr_pair, padded, tb.tech.u3, nullptr);
-  for (int k = 0; k < padded; k += lane_traits<T>::width) continue_path_lanes<T, Materials>(G, tb, k, roulette);
+  const float inv_t = 1.f / est.rr_threshold;
+  for (int k = 0; k < padded; k += lane_traits<T>::width) continue_path_lanes<T, Materials>(G, tb, k, roulette, inv_t);
 }
 
 }  // namespace tuile

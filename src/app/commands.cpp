@@ -217,9 +217,9 @@ std::string info_text(const Prepared& p) {
       }
     }
     if (opt.est.max_depth > 1)
-      say("paths: up to %d vertices, Russian roulette after vertex %d (pbrt-v4's rule); bounce rays against the "
-                  "whole scene, the last vertex's against the %s\n",
-                  opt.est.max_depth, opt.est.rr_depth + 1,
+      say("paths: up to %d vertices, Russian roulette after vertex %d below throughput %g (pbrt-v4's rule: 1); "
+                  "bounce rays against the whole scene, the last vertex's against the %s\n",
+                  opt.est.max_depth, opt.est.rr_depth + 1, static_cast<double>(opt.est.rr_threshold),
                   r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
     else
       say("bounce rays: against the %s\n", r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
@@ -451,8 +451,9 @@ int run_profile(const ProfileFlags& f, std::string* json) {
     // paths: where they die and what compaction buys. Live lanes per packet: the vertex's
     // shading points over the packets their rays filled (compacted), and over the packets
     // of the tile's lanes (what the same rays would fill without compaction).
-    say("paths (max depth %d, Russian roulette after vertex %d): %.4g paths/s, %.3g vertices per path\n",
-                p.opt.est.max_depth, p.opt.est.rr_depth + 1, samples / st.seconds,
+    say("paths (max depth %d, Russian roulette after vertex %d below throughput %g): %.4g paths/s, %.3g vertices per "
+        "path\n",
+                p.opt.est.max_depth, p.opt.est.rr_depth + 1, static_cast<double>(p.opt.est.rr_threshold), samples / st.seconds,
                 1.0 + static_cast<double>(st.path_vertices) / samples);
     js << ",\n  \"paths_per_second\": " << samples / st.seconds << ", \"vertices_per_path\": "
        << 1.0 + static_cast<double>(st.path_vertices) / samples << ",\n  \"vertices\": [";

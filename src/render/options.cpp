@@ -46,6 +46,8 @@ void validate(const RenderOptions& o) {
     if (!(e.guide_alpha > 0.f && e.guide_alpha < 1.f)) throw std::invalid_argument("--guide-alpha must be in (0, 1)");
   }
   if (e.rr_depth < 0 || e.rr_depth > 100000) throw std::invalid_argument("--rr-depth must be in 0..100000");
+  if (!(e.rr_threshold > 0.f && e.rr_threshold <= 1000.f))
+    throw std::invalid_argument("--rr-threshold must be in (0, 1000]");
   if (o.threads < 0 || o.threads > 1024) throw std::invalid_argument("--threads must be in 0..1024");
   if (o.tile < 1 || o.tile > max_tile_side) throw std::invalid_argument("--tile must be in 1..32");
   std::string param;
@@ -118,7 +120,11 @@ std::string describe(const Estimator& e) {
   s += std::string("") +
        " sampler=" + samplers[static_cast<int>(e.sampler)] + " spp=" + std::to_string(e.spp) +
        " seed=" + std::to_string(e.seed);
-  if (e.max_depth > 1) s += " max-depth=" + std::to_string(e.max_depth) + " rr-depth=" + std::to_string(e.rr_depth);
+  if (e.max_depth > 1) {
+    char t[32];
+    std::snprintf(t, sizeof t, "%g", static_cast<double>(e.rr_threshold));
+    s += " max-depth=" + std::to_string(e.max_depth) + " rr-depth=" + std::to_string(e.rr_depth) + " rr-threshold=" + t;
+  }
   if (e.regularize) s += " regularize=on";  // (off: the description, and checkpoints' fingerprint, of earlier releases)
   if (e.guide) {  // (likewise)
     char a[32];
