@@ -53,7 +53,8 @@ inline void add_vertex_radiance(TileBuffers& tb, bool first) {
 // roulette. Once the path has `rr_after` vertices or more (its depth > 1 by default), a
 // path whose throughput times eta scale has a largest channel m below the threshold t
 // (Estimator::rr_threshold; inv_t = 1 / t) ends with probability q = 1 - m / t and goes on
-// with throughput / (1 - q); t = 1 is pbrt-v4's rule. u: one uniform number per point. The eta scale gathers etap^2 of every transmission through a dielectric (pbrt-v4:
+// with throughput / (1 - q); t = 1 is pbrt-v4's rule. u: one uniform number per point.
+// The eta scale gathers etap^2 of every transmission through a dielectric (pbrt-v4:
 // the 1 / etap^2 of radiance's transport must not decide whether a path lives). Paths
 // whose throughput is 0 (a BSDF sample of no weight) or not finite end here (the latter
 // counted as rejected); they would add nothing, or only NaN. Materials: the point's

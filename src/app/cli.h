@@ -29,7 +29,7 @@ struct RenderFlags {
   int light_samples = 1, bsdf_samples = 1, spp = 0, threads = 0, tile = 16;
   int max_depth = 0;  // when not given: the scene file's (else 1)
   int rr_depth = 1;
-  float rr_threshold = 0.25f;
+  float rr_threshold = Estimator{}.rr_threshold;
   uint32_t seed = 0;
   bool quiet = false, stats = false, spp_given = false, tile_given = false, max_depth_given = false;
   bool strict = false;  // pbrt-v4's behaviour for missing images (an error, not a constant)
