@@ -2,16 +2,12 @@
 // arrives at each region of the scene, mixed with BSDF sampling at the points whose
 // surface is diffuse (Lambert). After Müller, Gross & Novák 2017 ("Practical Path
 // Guiding"): a binary tree over space, refined where many path vertices fall, whose leaves
-// hold a distribution over directions, each an adaptive quadtree on the equal-area
-// octahedral square (light/sky_map.h: the square maps to the sphere with a constant
-// Jacobian of 4 pi, so a density over the square is a density over solid angle times
-// 4 pi). A quadtree node holds its four quadrants' shares of its light; it was split where
-// it held more than a set share of the distribution's light, so its cells are fine where
-// the light is and coarse where it is not. Sampling descends it choosing quadrants by
-// their shares (a column, then a row within it), the density is the product of 4 x share
-// along the descent; the descents gather per lane and run to the deepest lane's leaf, so
-// every lane gives the scalar reference's bits.
-// src/render/guide.cpp learns the trees from the paths of earlier samples.
+// hold a distribution over directions. Here the directional part is a fixed grid of
+// guide_res x guide_res cells on the equal-area octahedral square (light/sky_map.h: the
+// square maps to the sphere with a constant Jacobian of 4 pi, so a density over cells is a
+// density over solid angle divided by 4 pi), sampled like an environment map (rows by
+// their marginal, then a column; inversion with gathers, the same bits in every lane).
+// src/render/guide.cpp learns the tree and the cells from the paths of earlier samples.
 //
 // The estimator stays unbiased whatever was learned: a guided point draws its direction
 // from the guide with probability alpha, else from its BSDF, and every density the
@@ -32,13 +28,12 @@
 
 namespace tuile {
 
+inline constexpr int guide_res = 16;                       // cells per side of the square
+inline constexpr int guide_cells = guide_res * guide_res;  // per distribution
 // Each leaf learns one distribution per class of surface orientation: the axis its normal
 // (facing the viewer) is closest to, and that axis's sign. A leaf that holds a floor and
 // a wall keeps their light apart.
 inline constexpr int guide_classes = 6;
-// A directional quadtree is at most this deep (cells of 1/4096 of the square's side; a
-// sample's two numbers give up about one bit each per level, so 12 levels leave them 12).
-inline constexpr int guide_quad_depth = 12;
 
 // The guide as the kernels read it (src/render/guide.h builds it).
 struct GuideView {
@@ -47,14 +42,9 @@ struct GuideView {
   const int32_t* leaf_dist = nullptr;  // per node, guide_classes distributions (-1: none learned)
   const int32_t* axis = nullptr;  // per node: the split axis
   const float* split = nullptr;   // per node: the split plane (a point on it goes to the second child)
-  // the directional quadtrees: distribution d's root is quad node root[d]; per quad node,
-  // quad_child >= 0 the first of its four children (quadrants u-low v-low, u-high v-low,
-  // u-low v-high, u-high v-high), -1 a leaf; quad_share the four quadrants' shares of the
-  // node's light (they sum to 1; inner nodes only)
-  const int32_t* root = nullptr;
-  const int32_t* quad_child = nullptr;
-  const float* quad_share = nullptr;
-  int32_t quad_depth = 0;         // the deepest quadtree's depth (descent steps)
+  const float* func = nullptr;    // per distribution, guide_cells densities over the unit square (mean 1)
+  const float* cond_cdf = nullptr;  // per distribution, guide_res rows of guide_res + 1 values
+  const float* marg_cdf = nullptr;  // per distribution, guide_res + 1 values over the rows
   float alpha = 0.5f;             // the probability of drawing from the guide at a guided point
 };
 
@@ -85,55 +75,26 @@ template <class T> inline i32_t<T> guide_dist(const GuideView& g, const Vec3<T>&
 
 // The guide's density (solid angle) of the unit direction d in distribution dist (>= 0).
 template <class T> inline T guide_pdf(const GuideView& g, const i32_t<T>& dist, const Vec3<T>& d) {
-  T u, v;
-  equal_area_sphere_to_square(d, u, v);
-  i32_t<T> node = gather(g.root, dist);
-  T p(1.f / (4.f * pi_f));
-  for (int32_t s = 0; s < g.quad_depth; ++s) {
-    const i32_t<T> c = gather(g.quad_child, node);
-    const auto inner = f_mask_from_i(c >= i32_t<T>(0));
-    if (!any(inner)) break;
-    const auto hu = u >= T(0.5f), hv = v >= T(0.5f);
-    const i32_t<T> q = to_i32(sel(hu, T(1.f), T(0.f)) + sel(hv, T(2.f), T(0.f)));
-    const T share = gather(g.quad_share, sel(i_mask_from_f(inner), node, i32_t<T>(0)) * i32_t<T>(4) + q);
-    p = sel(inner, p * (T(4.f) * share), p);
-    u = sel(inner, T(2.f) * u - sel(hu, T(1.f), T(0.f)), u);
-    v = sel(inner, T(2.f) * v - sel(hv, T(1.f), T(0.f)), v);
-    node = sel(i_mask_from_f(inner), c + q, node);
-  }
-  return p;
+  T pu, pv;
+  equal_area_sphere_to_square(d, pu, pv);
+  const i32_t<T> cell = sky_texel<T>(guide_res, pu, pv);
+  return gather(g.func, dist * i32_t<T>(guide_cells) + cell) * T(1.f / (4.f * pi_f));
 }
 
-// A direction drawn from distribution dist (>= 0) by (u1, u2).
+// A direction drawn from distribution dist (>= 0) by (u1, u2), and its density.
 template <class T> inline Vec3<T> guide_sample(const GuideView& g, const i32_t<T>& dist, const T& u1, const T& u2) {
+  constexpr int32_t n = guide_res;
   const T one_minus = T(0x1.fffffep-1f);
-  T a = u1, b = u2, ou(0.f), ov(0.f), size(1.f);
-  i32_t<T> node = gather(g.root, dist);
-  for (int32_t s = 0; s < g.quad_depth; ++s) {
-    const i32_t<T> c = gather(g.quad_child, node);
-    const auto inner = f_mask_from_i(c >= i32_t<T>(0));
-    if (!any(inner)) break;
-    const i32_t<T> base = sel(i_mask_from_f(inner), node, i32_t<T>(0)) * i32_t<T>(4);
-    const T s0 = gather(g.quad_share, base), s1 = gather(g.quad_share, base + i32_t<T>(1));
-    const T s2 = gather(g.quad_share, base + i32_t<T>(2)), s3 = gather(g.quad_share, base + i32_t<T>(3));
-    // the column (u) by its two quadrants' shares, then the row (v) within it
-    const T left = s0 + s2;
-    const auto hu = a >= left;
-    const T au = sel(hu, (a - left) / sel(left < T(1.f), T(1.f) - left, T(1.f)), a / sel(left > T(0.f), left, T(1.f)));
-    const T lo = sel(hu, s1, s0), hi = sel(hu, s3, s2), col = lo + hi;
-    const T plo = lo / sel(col > T(0.f), col, T(1.f));
-    const auto hv = b >= plo;
-    const T bv = sel(hv, (b - plo) / sel(plo < T(1.f), T(1.f) - plo, T(1.f)), b / sel(plo > T(0.f), plo, T(1.f)));
-    const T half = T(0.5f) * size;
-    ou = sel(inner, ou + sel(hu, half, T(0.f)), ou);
-    ov = sel(inner, ov + sel(hv, half, T(0.f)), ov);
-    size = sel(inner, half, size);
-    a = sel(inner, min(max(au, T(0.f)), one_minus), a);
-    b = sel(inner, min(max(bv, T(0.f)), one_minus), b);
-    const i32_t<T> q = to_i32(sel(hu, T(1.f), T(0.f)) + sel(hv, T(2.f), T(0.f)));
-    node = sel(i_mask_from_f(inner), c + q, node);
-  }
-  return equal_area_square_to_sphere(ou + a * size, ov + b * size);
+  const i32_t<T> mbase = dist * i32_t<T>(n + 1);
+  const i32_t<T> row = find_interval<T>(g.marg_cdf, n, mbase, u2);
+  const T c0 = gather(g.marg_cdf, mbase + row), c1 = gather(g.marg_cdf, mbase + row + i32_t<T>(1));
+  const T dv = min(max((u2 - c0) / sel(c1 > c0, c1 - c0, T(1.f)), T(0.f)), one_minus);
+  const i32_t<T> base = (dist * i32_t<T>(n) + row) * i32_t<T>(n + 1);
+  const i32_t<T> col = find_interval<T>(g.cond_cdf, n, base, u1);
+  const T k0 = gather(g.cond_cdf, base + col), k1 = gather(g.cond_cdf, base + col + i32_t<T>(1));
+  const T du = min(max((u1 - k0) / sel(k1 > k0, k1 - k0, T(1.f)), T(0.f)), one_minus);
+  const T fn = T(static_cast<float>(n));
+  return equal_area_square_to_sphere((to_f32(col) + du) / fn, (to_f32(row) + dv) / fn);
 }
 
 // Whether a material kind is guided: diffuse surfaces (a coated diffuse's glossy or mirror

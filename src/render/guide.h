@@ -1,14 +1,11 @@
 // The path guide's learning (--guide; the kernels' side is kernels/wave/guide.h): a binary
-// tree over the scene's box whose leaves gather, per cell of a directional quadtree, the
+// tree over the scene's box whose leaves gather, per cell of the directional grid, the
 // light the paths of earlier samples brought to their vertices there. Learning runs in
 // iterations that end at samples 1, 2, 4, 8, ... up to Estimator::guide_learn (Müller et
 // al. 2017's doubling): the samples of one iteration are guided by what the iteration
 // before learned, record into the tree, and at its end the tree is refined where many
-// records fell and each leaf's cells become its distribution. Each quadtree is refined as
-// Müller et al.'s: the next iteration records into a tree whose cells were split while
-// they held more than quad_split of the light the last one recorded (and merged where they
-// held less), so its cells grow fine where the light is. After the last iteration the guide
-// stays as it is.
+// records fell and each leaf's cells become its distribution. After the last iteration the
+// guide stays as it is.
 // Deterministic: a record is an integer (fixed point) added atomically, so the sums, and
 // the guide made of them, do not depend on threads or tile order; and the guide that samples
 // [b_k, b_k+1) use is a function of the samples before b_k only, so an interrupted render
@@ -46,8 +43,7 @@ class Guide {
 
   const GuideView& view() const noexcept { return view_; }
   int leaves() const noexcept;
-  int distributions() const noexcept { return static_cast<int>(root_.size()); }
-  int quad_nodes() const noexcept { return static_cast<int>(qchild_.size()); }  // over all distributions
+  int distributions() const noexcept { return static_cast<int>(marg_.size() / (guide_res + 1)); }
   using Dists = std::array<int32_t, guide_classes>;
   int node_of(float x, float y, float z) const noexcept;  // the leaf holding the point
 
@@ -57,26 +53,18 @@ class Guide {
   static constexpr uint64_t min_records = 64;  // a leaf with fewer learns no distribution
   static constexpr double fixed_scale = 16777216.0;  // 2^24: a record's value in fixed point
   static constexpr float max_value = 65536.f;       // records clamp to this (the guide only, never the image)
-  static constexpr double quad_split = 0.01;        // a quadtree cell splits above this share of the light
-  static constexpr double floor_share = 0.02;       // the density's floor: this share spread over the sphere
-  static constexpr int start_depth = 4;             // a new guide records into cells of a 16 x 16 grid
 
  private:
   struct Box {
     float lo[3], hi[3];
   };
-  // A quadtree to record into: per node its first child (four side by side) or -1.
-  using Quad = std::vector<int32_t>;
-  using Quads = std::array<int32_t, guide_classes>;  // per class, an index into quads_
   void refresh_view();
   int32_t alloc_pair();
   int32_t split_node(int32_t id, int a, float mid, const Box& b, Box& l, Box& r);
-  void make_leaf(int32_t id, const Dists& dist, const Quads& rec);
-  void subdivide(int32_t id, const Dists& dist, const Quads& rec, double n, const Box& b, int depth, double limit);
+  void subdivide(int32_t id, const Dists& dist, double n, const Box& b, int depth, double limit);
   void rebuild_node(const std::vector<int32_t>& oc, const std::vector<int32_t>& oa, const std::vector<float>& os,
-                    const std::vector<Dists>& odist, const std::vector<Quads>& orec, const std::vector<uint64_t>& ocount,
-                    int32_t old, int32_t id, const Box& b, int depth, double limit);
-  void install_records();
+                    const std::vector<Dists>& odist, const std::vector<uint64_t>& ocount, int32_t old, int32_t id,
+                    const Box& b, int depth, double limit);
 
   Box box_;
   uint32_t learn_ = 0, learned_ = 0;
@@ -85,20 +73,9 @@ class Guide {
   std::vector<float> split_;
   std::vector<int32_t> leaf_dist_;  // per node, guide_classes distributions (GuideView::leaf_dist)
   int32_t depth_ = 1;
-  // recording: per leaf and class (a slot), the quadtree its records fall into (rec_root_,
-  // into rec_child_ and rec_acc_: per node the first of its children or -1, and the leaves'
-  // sums), and its records' count; quads_ holds the trees the next iteration records into
-  // while the spatial tree is rebuilt
-  std::vector<int32_t> rec_root_, rec_child_;
-  std::vector<uint64_t> rec_acc_;
-  std::vector<uint64_t> count_;
-  std::vector<Quad> quads_;
-  std::vector<Quads> leaf_rec_;  // per node (leaves), its classes' trees in quads_ (during rebuild)
-  // sampling (GuideView): per distribution its root, per quad node its first child and its
-  // four quadrants' shares
-  std::vector<int32_t> root_, qchild_;
-  std::vector<float> qshare_;
-  int32_t qdepth_ = 0;
+  std::vector<uint64_t> acc_;    // per node and class, guide_cells sums (leaves only)
+  std::vector<uint64_t> count_;  // per node and class, records
+  std::vector<float> func_, cond_, marg_;
   GuideView view_;
 };
 
