@@ -116,6 +116,20 @@ inline T guide_share(const GeomView& G, const ShadingPoints& P, int k, const Vec
   return sel(m, T(G.guide->alpha), T(0.f));
 }
 
+// --guide: each shading point's share and distribution (guide_share) into
+// ShadingPoints::guide_alpha and guide_dist, once a vertex, before its light and BSDF stages
+// read them (the descent of the guide's tree is the costly part).
+template <unsigned Bsdfs> inline void guide_points(const GeomView& G, TileBuffers& tb) {
+  const int padded = packet_padded(tb.points.count);
+  for_lane_batches<vfloat2>(0, padded, [&](auto lane, int k) {
+    using T = typename decltype(lane)::type;
+    i32_t<T> dist;
+    const T alpha = guide_share<T, Bsdfs>(G, tb.points, k, load3<T>(tb.points.px + k, tb.points.py + k, tb.points.pz + k), dist);
+    store(tb.points.guide_alpha + k, alpha);
+    store(tb.points.guide_dist + k, dist);
+  });
+}
+
 // --guide: the density of the mixture alpha guide + (1 - alpha) BSDF of direction wi,
 // whose BSDF density is pdf_b.
 template <class T>

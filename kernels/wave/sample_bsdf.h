@@ -43,7 +43,8 @@ TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& 
   auto from_guide = mask_t<T>(false);
   const bool guided = Guided && G.guide;
   if (guided) {
-    alpha = guide_share<T, Bsdfs>(G, tb.points, k, x, dist);
+    alpha = load<T>(tb.points.guide_alpha + k);  // (guide_points, this vertex)
+    dist = load_i32<T>(tb.points.guide_dist + k);
     from_guide = u0 < alpha;
     const T rescaled = sel(from_guide, u0 / sel(from_guide, alpha, T(1.f)), (u0 - alpha) / (T(1.f) - alpha));
     u0 = min(max(rescaled, T(0.f)), T(0x1.fffffep-1f));
@@ -60,7 +61,9 @@ TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& 
     bs.pdf = sel(mixed && !bs.delta, pb_mix, bs.pdf);
     if (any(from_guide)) {  // a direction of the guide: the BSDF's value and density for it
       const Vec3<T> wg = guide_sample(*G.guide, dist, u0, u1);
-      const BsdfEval<T> fe = bsdf.eval(wg);
+      // guided points are diffuse (guided_kind): the Lambertian lobe is their whole BSDF,
+      // so the other kinds' lobes in the packet need not be evaluated for this direction
+      const BsdfEval<T> fe = Lambert<T>{bsdf.rho}.eval(SurfacePoint<T>{bsdf.n, bsdf.wo}, wg);
       const T pg_mix = guide_mixture_pdf(G, alpha, dist, wg, fe.pdf);
       const T cos_s = dot(ns, wg);
       const T cos_x = (Bsdfs & bsdf_transmits) != 0 ? abs(cos_s) : cos_s;

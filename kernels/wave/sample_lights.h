@@ -198,8 +198,8 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
     const T q_l = T(pass.rate_light) * pdf_l;
     T pdf_b = s.fe.pdf;
     if (Guided && G.guide) {
-      i32_t<T> dist;
-      const T alpha = guide_share<T, Bsdfs>(G, tb.points, k, load3<T>(tb.points.px + k, tb.points.py + k, tb.points.pz + k), dist);
+      const i32_t<T> dist = load_i32<T>(tb.points.guide_dist + k);  // (guide_points, this vertex)
+      const T alpha = load<T>(tb.points.guide_alpha + k);
       pdf_b = guide_mixture_pdf(G, alpha, dist, s.wi_dir, pdf_b);
     }
     const T q_b = T(pass.rate_bsdf) * pdf_b;

@@ -86,6 +86,10 @@ struct ShadingPoints {
   alignas(64) uint32_t pixel[lane_array];                     // global pixel id
   alignas(64) int32_t lane[lane_array];                       // tile lane
   alignas(64) float choose_light[lane_array];                 // one-sample MIS: 1 = light technique
+  // --guide (wave/guide.h guide_points): the guide's share at the point (0: unguided) and
+  // its distribution, found once a vertex for the light and the BSDF stages
+  alignas(64) float guide_alpha[lane_array];
+  alignas(64) int32_t guide_dist[lane_array];
 };
 
 // The path of each shading point (paths, Estimator::max_depth > 1, past the first vertex),

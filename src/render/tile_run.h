@@ -539,6 +539,8 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
         tp->depth_packets[row] += static_cast<uint64_t>(packets);
         tp->depth_lane_packets[row] += static_cast<uint64_t>(cam_packets);
       }
+      if constexpr (F == general_features)  // --guide: each point's share and distribution, once
+        if (c.v.geom.guide && tb.points.count > 0) guide_points<F.bsdfs>(c.v.geom, tb);
       if constexpr (F.light) run_light_samples<F>(c, tb, timer, e, s, d, packets, rec, tp);
       if constexpr (F.bsdf) run_bsdf_samples<F>(c, tb, timer, e, s, d, packets, rec, tp, last);
       if (!paths) break;
