@@ -154,6 +154,15 @@ inline bool bump_normal(const GeomView& G, int32_t t, int32_t g, int32_t prim, f
 // (the material a mix chose, as pbrt-v4: resolve_mixes runs first); spheres are not
 // bumped (tuile keeps no (phi, theta) frame for them; the loader warns).
 template <bool Materials> inline void apply_shading_normals(const GeomView& G, ShadingPoints& P) {
+  // first a pass that prefetches the three vertex normals of every point (its indices
+  // were prefetched with its hit), so that their cache misses overlap
+  for (int k = 0; k < P.count; ++k) {
+    const int32_t g = P.geom[k];
+    const float* N = G.normals[g];
+    if (!N) continue;
+    const uint32_t* idx = G.indices[g] + 3 * static_cast<size_t>(P.prim[k]);
+    for (int i = 0; i < 3; ++i) __builtin_prefetch(N + 3 * static_cast<size_t>(idx[i]));
+  }
   for (int k = 0; k < P.count; ++k) {
     const float gx = P.nx[k], gy = P.ny[k], gz = P.nz[k];
     float sx = gx, sy = gy, sz = gz;

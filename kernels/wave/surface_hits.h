@@ -490,6 +490,29 @@ inline void regularize_points(const GeomView& G, TileBuffers& tb) {
   }
 }
 
+// The bounce rays' hits are scattered over the scene: before the stages read them, one
+// pass over the tile's hits prefetches each triangle's row of the flattened table, its
+// light index and its vertex indices (which the shading normals and texels read next), so
+// that these cache misses overlap instead of following one another (the texels' passes
+// in textures.h do the same).
+inline void prefetch_hits(const GeomView& G, const RayHit16* packets, const int32_t* valid, int count) {
+  for (int i = 0; i < count; ++i) {
+    if (!valid[i]) continue;
+    const RayHit16& p = packets[i / packet_width];
+    const int l = i % packet_width;
+    const int32_t g = static_cast<int32_t>(p.geomID[l]);
+    if (g < 0 || g >= G.geom_count || !is_mesh(G, g)) continue;
+    const uint32_t prim = p.primID[l];
+    const size_t tri = static_cast<size_t>(G.geom_first[g]) + prim;
+    if (G.flat_triangles) {
+      __builtin_prefetch(G.tri_pos + 9 * tri);
+      __builtin_prefetch(G.tri_pos + 9 * tri + 8);
+    }
+    __builtin_prefetch(G.tri_light + tri);
+    if (!G.flat_triangles || G.normals[g] || G.uvs[g]) __builtin_prefetch(G.indices[g] + 3 * static_cast<size_t>(prim));
+  }
+}
+
 // Paths: the hits of the bounce rays of the shading points (the vertex before) become
 // the next vertex's shading points, in place (camera_hit_lanes with Bounce). The
 // emission of the hits is not added: the vertex before counted it. Returns the count.

@@ -435,6 +435,7 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
       timer.lap(Stage::sample_bsdf);
       trace_bounce(c, tb, timer, packets, rec, tp, against_emitters ? Bvh::emitters : Bvh::scene);
       timer.lap(Stage::intersect_bounce);
+      if (!against_emitters) prefetch_hits(v.geom, tb.bounce, tb.tech.valid, tb.points.count);  // for the emitters' queue and the next hits
       if (v.geom.has_media) {
         bounce_media(c, tb, e, s, d, static_cast<uint32_t>(m), continuation);
         timer.lap(Stage::media);

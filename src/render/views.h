@@ -2,6 +2,7 @@
 #pragma once
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "render/light_bvh.h"
@@ -39,8 +40,16 @@ struct SceneViews {
   // geometry
   std::vector<float> sphere_center;
   std::vector<int32_t> geom_kind, geom_material, geom_first, geom_light, mat_texture, tex_w, tex_h;  // the geometry table
-  std::vector<int32_t> tri_light;
-  std::vector<float> tri_pos;
+  // (allocated without zero-filling: build_geometry_table writes every element, in parallel)
+  template <class T> struct Uninit : std::allocator<T> {
+    template <class U> struct rebind { using other = Uninit<U>; };
+    template <class U, class... A> void construct(U* p, A&&... a) {
+      if constexpr (sizeof...(A) == 0) ::new (static_cast<void*>(p)) U;
+      else ::new (static_cast<void*>(p)) U(std::forward<A>(a)...);
+    }
+  };
+  std::vector<int32_t, Uninit<int32_t>> tri_light;
+  std::vector<float, Uninit<float>> tri_pos;
   std::vector<const uint32_t*> indices;
   std::vector<const float*> positions;
   std::vector<const float*> uvs, tex_rgb, normals, curve_points;
