@@ -1,7 +1,8 @@
 // Path guiding (--guide: kernels/wave/guide.h, src/render/guide.h). The guide's sampling
 // and its density agree (E[1 / p] over its samples is the sphere's 4 pi, and the density
 // integrates to 1), its samples go where its records came from, and every lane gives the
-// scalar reference's bits; a guided render has the unguided render's mean (a two-sample
+// scalar reference's bits; a record's filter shares it with the cells around its direction
+// (its neighbours on the sphere, across the square's folds); a guided render has the unguided render's mean (a two-sample
 // z-test per image quarter, seeds apart: a light stage whose MIS weight left the guide out
 // of the BSDF's density, or a BSDF stage whose throughput did, fails it); it gives the same bits on any thread count, and
 // resumed by a new renderer (which learns the guide again from the samples before it); the
@@ -78,6 +79,73 @@ TEST(Guide, SamplesAsItsDensitySaysWhereItsRecordsCameFrom) {
   }
   const double mi = I / n, si = std::sqrt((I2 / n - mi * mi) / n);
   EXPECT_NEAR(mi, 1.0, 5 * si);
+}
+
+// The direction's four cells are its neighbours on the sphere, also across the square's
+// edges (where the octahedral map folds it): a wrap that clamped without mirroring, or did
+// not wrap, would put a cell with weight on the far side of the sphere.
+TEST(Guide, BilinearCellsAreTheDirectionsNeighbours) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> U(0, 1);
+  auto centre = [](int c) {
+    return equal_area_square_to_sphere<float>((static_cast<float>(c % guide_res) + 0.5f) / guide_res,
+                                              (static_cast<float>(c / guide_res) + 0.5f) / guide_res);
+  };
+  double worst = 1;
+  for (int i = 0; i < 200000; ++i) {
+    // half of them near the equator and the axes' planes, where the square's edges are
+    float cz = 1 - 2 * U(rng), ph = 6.2831853f * U(rng);
+    if (i % 2) cz = (U(rng) - 0.5f) * 0.05f;
+    if (i % 4 == 1) ph = 1.5707963f * std::round(ph / 1.5707963f) + (U(rng) - 0.5f) * 0.05f;
+    const float r = std::sqrt(std::max(0.f, 1 - cz * cz));
+    const Vec3<float> d(r * std::cos(ph), r * std::sin(ph), cz);
+    int cell[4];
+    float w[4];
+    guide_bilinear_cells(d, cell, w);
+    float sum = 0;
+    for (int k = 0; k < 4; ++k) {
+      ASSERT_GE(cell[k], 0);
+      ASSERT_LT(cell[k], guide_cells);
+      ASSERT_GE(w[k], 0.f);
+      sum += w[k];
+      if (w[k] > 1e-4f) worst = std::min(worst, static_cast<double>(dot(centre(cell[k]), d)));
+    }
+    EXPECT_NEAR(sum, 1.f, 1e-5f);
+  }
+  // a 16 x 16 grid's cells are about 0.22 radians wide: every cell with weight lies within
+  // a diagonal step and a half of d (the worst measured, at the square's corners, is
+  // about 0.45 radians)
+  EXPECT_GT(worst, std::cos(0.6)) << "the farthest cell with weight is " << std::acos(worst) << " radians away";
+}
+
+// The square's edges fold onto themselves mirrored (the point just past the edge at v is the
+// point just inside it at 1 - v): two directions either side of a fold are nearly the same,
+// so their cells and weights must be nearly the same too. A wrap that clamped without
+// mirroring would keep each on its own side.
+TEST(Guide, BilinearCellsAgreeAcrossTheSquaresFolds) {
+  std::mt19937 rng(6);
+  std::uniform_real_distribution<float> U(0, 1);
+  const float eps = 1e-4f / guide_res;
+  for (int i = 0; i < 4000; ++i) {
+    const float v = U(rng), side = (i / 2) % 2 ? 1.f - eps : eps;
+    const bool vertical = i % 2;  // the edges u = 0, 1 or v = 0, 1
+    const Vec3<float> d1 = vertical ? equal_area_square_to_sphere<float>(side, v) : equal_area_square_to_sphere<float>(v, side);
+    const Vec3<float> d2 =
+        vertical ? equal_area_square_to_sphere<float>(side, 1.f - v) : equal_area_square_to_sphere<float>(1.f - v, side);
+    ASSERT_GT(dot(d1, d2), 0.99999f);  // the fold: the same direction, within eps
+    int c1[4], c2[4];
+    float w1[4], w2[4];
+    guide_bilinear_cells(d1, c1, w1);
+    guide_bilinear_cells(d2, c2, w2);
+    std::vector<float> m(guide_cells, 0.f);
+    for (int k = 0; k < 4; ++k) {
+      m[static_cast<size_t>(c1[k])] += w1[k];
+      m[static_cast<size_t>(c2[k])] -= w2[k];
+    }
+    float diff = 0;
+    for (float x : m) diff += std::abs(x);
+    EXPECT_LT(diff, 0.01f) << "v " << v << (vertical ? " on a vertical edge" : " on a horizontal edge");
+  }
 }
 
 TEST(Guide, EveryLaneGivesTheScalarBits) {

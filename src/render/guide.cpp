@@ -54,17 +54,40 @@ int Guide::leaves() const noexcept {
   return static_cast<int>(std::count_if(child_.begin(), child_.end(), [](int32_t c) { return c < 0; }));
 }
 
+void guide_bilinear_cells(const Vec3<float>& d, int cell[4], float w[4]) noexcept {
+  float pu, pv;
+  equal_area_sphere_to_square(d, pu, pv);
+  const float fu = pu * guide_res - 0.5f, fv = pv * guide_res - 0.5f;
+  const float u0 = std::floor(fu), v0 = std::floor(fv), au = fu - u0, av = fv - v0;
+  for (int k = 0; k < 4; ++k) {
+    int cu = static_cast<int>(u0) + (k & 1), cv = static_cast<int>(v0) + (k >> 1);
+    // past an edge of the square: the octahedral map folds it onto itself, mirrored
+    if (cu < 0 || cu >= guide_res) {
+      cu = cu < 0 ? 0 : guide_res - 1;
+      cv = guide_res - 1 - cv;
+    }
+    if (cv < 0 || cv >= guide_res) {
+      cv = cv < 0 ? 0 : guide_res - 1;
+      cu = guide_res - 1 - cu;
+    }
+    cell[k] = cv * guide_res + cu;
+    w[k] = ((k & 1) ? au : 1.f - au) * ((k >> 1) ? av : 1.f - av);
+  }
+}
+
 void Guide::record(float x, float y, float z, float nx, float ny, float nz, float dx, float dy, float dz,
                    float value) noexcept {
   if (!(value >= 0.f) || !std::isfinite(x + y + z + dx + dy + dz + nx + ny + nz)) return;
-  const size_t n = static_cast<size_t>(node_of(x, y, z)) * guide_classes +
-                   static_cast<size_t>(guide_class<float>(Vec3<float>(nx, ny, nz)));
-  float pu, pv;
-  equal_area_sphere_to_square(Vec3<float>(dx, dy, dz), pu, pv);
-  const int cell = sky_texel<float>(guide_res, pu, pv);
-  const auto q = static_cast<uint64_t>(static_cast<double>(std::min(value, max_value)) * fixed_scale + 0.5);
-  std::atomic_ref<uint64_t>(acc_[n * guide_cells + static_cast<size_t>(cell)]).fetch_add(q, std::memory_order_relaxed);
-  std::atomic_ref<uint64_t>(count_[n]).fetch_add(1, std::memory_order_relaxed);
+  const size_t slot = static_cast<size_t>(node_of(x, y, z)) * guide_classes +
+                      static_cast<size_t>(guide_class<float>(Vec3<float>(nx, ny, nz)));
+  int cell[4];
+  float w[4];
+  guide_bilinear_cells(Vec3<float>(dx, dy, dz), cell, w);
+  const double v = static_cast<double>(std::min(value, max_value)) * fixed_scale;
+  for (int k = 0; k < 4; ++k)
+    if (const auto q = static_cast<uint64_t>(v * w[k] + 0.5))
+      std::atomic_ref<uint64_t>(acc_[slot * guide_cells + static_cast<size_t>(cell[k])]).fetch_add(q, std::memory_order_relaxed);
+  std::atomic_ref<uint64_t>(count_[slot]).fetch_add(1, std::memory_order_relaxed);
 }
 
 void Guide::drop_records() {

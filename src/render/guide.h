@@ -19,6 +19,12 @@
 
 namespace tuile {
 
+// The four cells of the directional grid nearest the unit direction d and their bilinear
+// weights (summing to 1): the cells whose centres surround d's point of the square, those
+// past an edge of the square taken where the octahedral map puts them (the edge folds onto
+// itself, mirrored), so the four are d's neighbours on the sphere.
+void guide_bilinear_cells(const Vec3<float>& d, int cell[4], float w[4]) noexcept;
+
 class Guide {
  public:
   // The scene's box (lo, hi), the samples learning runs for, the guide's share alpha.
@@ -33,7 +39,10 @@ class Guide {
   uint32_t iteration_end(uint32_t s) const noexcept;
   // Adds one record: at point (x, y, z) of normal n (facing the viewer) light of luminance
   // `value` per unit density came along the unit direction d (the path's L_in cos / p).
-  // Thread-safe.
+  // Filtered in direction (after Müller 2019, "Practical Path Guiding in Production"): the
+  // value is shared among the four cells nearest d by bilinear weights
+  // (guide_bilinear_cells), so that a direction's light does not depend on which side of a
+  // cell's edge it fell. Thread-safe.
   void record(float x, float y, float z, float nx, float ny, float nz, float dx, float dy, float dz, float value) noexcept;
   // Ends the iteration that ends at sample `until`: refines the tree, turns the records into
   // the distributions, clears them.
