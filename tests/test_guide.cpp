@@ -1,10 +1,11 @@
 // Path guiding (--guide: kernels/wave/guide.h, src/render/guide.h). The guide's sampling
 // and its density agree (E[1 / p] over its samples is the sphere's 4 pi, and the density
 // integrates to 1), its samples go where its records came from, and every lane gives the
-// scalar reference's bits; a record's filter shares it with the cells around its direction
-// (its neighbours on the sphere, across the square's folds); a guided render has the unguided render's mean (a two-sample
-// z-test per image quarter, seeds apart: a light stage whose MIS weight left the guide out
-// of the BSDF's density, or a BSDF stage whose throughput did, fails it); it gives the same bits on any thread count, and
+// scalar reference's bits; a record's filter shares it among the cells around its
+// direction (its neighbours on the sphere, across the square's folds); a guided render has
+// the unguided render's mean (a two-sample z-test per image quarter, seeds apart: a light
+// stage whose MIS weight left the guide out of the BSDF's density, or a BSDF stage whose
+// throughput did, fails it); it gives the same bits on any thread count, and
 // resumed by a new renderer (which learns the guide again from the samples before it); the
 // options it cannot combine with are refused.
 #include <gtest/gtest.h>
@@ -81,9 +82,10 @@ TEST(Guide, SamplesAsItsDensitySaysWhereItsRecordsCameFrom) {
   EXPECT_NEAR(mi, 1.0, 5 * si);
 }
 
-// The direction's four cells are its neighbours on the sphere, also across the square's
-// edges (where the octahedral map folds it): a wrap that clamped without mirroring, or did
-// not wrap, would put a cell with weight on the far side of the sphere.
+// The direction's four cells are cells of the grid and its neighbours on the sphere, also
+// across the square's edges (where the octahedral map folds it): a wrap that went round to
+// the opposite edge (as a periodic texture's) would put a cell with weight on the far side
+// of the sphere, and none would put cells outside the grid.
 TEST(Guide, BilinearCellsAreTheDirectionsNeighbours) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> U(0, 1);
