@@ -2,17 +2,22 @@
 // the emission of an absorbing slab, exact per channel; a sphere of medium that scatters
 // without absorbing is invisible under a uniform sky (a white furnace) for every strategy;
 // with absorption, its image against an independent random walk in double; light-only,
-// phase-only and MIS agree in a foggy room the camera sits in; and stiff media.
+// phase-only and MIS agree in a foggy room the camera sits in; shadow rays walked only
+// where they meet an interface give the bits of walking them all; and stiff media.
 #include <gtest/gtest.h>
 
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "accel/embree.h"
 #include "render/render.h"
+#include "render/views.h"
+#include "wave/media.h"
 #include "media_util.h"
 #include "render_util.h"
 #include "scene/pbrt.h"
@@ -333,4 +338,110 @@ TEST(MediaRender, ShadowRaysWithoutInterfacesGiveTheBitsOfTracingThroughThem) {
     }
     EXPECT_EQ(a.mean, b.mean) << e.name;
   }
+}
+
+// Shadow rays in a scene with interfaces (wave/media.h shadow_media): an occlusion query in
+// which the interfaces do not occlude but mark the rays that meet them, then a walk of the
+// marked ones alone, against walking every ray (shadow_media_walked), lane by lane: the
+// same transmittance bits and the same occlusion. A box of medium 0 (interface), a box of
+// medium 1 nested in it (interface), an opaque block in the first, a cut-out interface sheet
+// (alpha 0.5: half of the rays pass a hole, which is no crossing) and shadow rays of random
+// lengths from points in all three regions; each kind of ray (walked, in one medium,
+// occluded) must occur. And the query itself: without its marks an interface occludes.
+TEST(MediaRender, ShadowRaysWalkOnlyWhereTheyMeetAnInterface) {
+  Scene s;
+  s.source = "test:nested-boxes";
+  s.media.push_back(homogeneous({0.7f, 1.3f, 0.2f}, {0.3f, 0.1f, 0.5f}));
+  s.media.push_back(homogeneous({2.0f, 0.4f, 1.0f}, {0, 0, 0}));
+  s.materials.push_back(interface_material());
+  s.materials.push_back(diffuse_material(Rgb{0.5f, 0.5f, 0.5f}));
+  Mesh a = media_box({-1, -1, -1}, {1, 1, 1});
+  a.material = 0;
+  a.medium_inside = 0;
+  s.meshes.push_back(a);
+  Mesh b = media_box({-0.3f, -0.3f, -0.3f}, {0.3f, 0.3f, 0.3f});
+  b.material = 0;
+  b.medium_inside = 1;
+  b.medium_outside = 0;
+  s.meshes.push_back(b);
+  Mesh block = media_box({0.4f, -0.9f, -0.9f}, {0.6f, 0.9f, 0.9f});
+  block.material = 1;
+  block.medium_inside = block.medium_outside = 0;
+  s.meshes.push_back(block);
+  Mesh sheet;  // an interface with holes: medium 0 behind it, none in front
+  sheet.name = "sheet";
+  sheet.material = 0;
+  sheet.medium_inside = 0;
+  add_quad(sheet, {-3, -3, 2}, {6, 0, 0}, {0, 6, 0});
+  sheet.alpha.value = 0.5f;
+  s.meshes.push_back(sheet);
+  finalize_scene(s);
+  ASSERT_TRUE(s.meshes[3].has_alpha());
+  const Accel accel(s);
+  const SceneViews views = build_views(s, LightPick::power);
+  ASSERT_TRUE(views.geom.media.has_interfaces);
+  const auto medium_at = [](vec3f p) {
+    const auto in = [&](float h) { return std::fabs(p.x) < h && std::fabs(p.y) < h && std::fabs(p.z) < h; };
+    return in(0.3f) ? 1 : in(1.f) ? 0 : -1;
+  };
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  int walked = 0, one_medium = 0, occluded = 0;
+  for (int round = 0; round < 40; ++round) {
+    auto t = std::make_unique<TileBuffers>();
+    const int n = 16 * 8 - 3;  // a partial last packet
+    t->points.count = n;
+    for (int k = 0; k < n; ++k) {
+      vec3f p;
+      do p = {-1.6f + 3.2f * U(rng), -1.6f + 3.2f * U(rng), -1.6f + 3.2f * U(rng)};
+      while (p.x > 0.35f && p.x < 0.65f && std::fabs(p.y) < 0.95f && std::fabs(p.z) < 0.95f);
+      const int m = medium_at(p);
+      t->points.nx[k] = 0, t->points.ny[k] = 1, t->points.nz[k] = 0;
+      t->points.medf[k] = t->points.medb[k] = m;
+      std::normal_distribution<float> N;
+      const vec3f d = normalize(vec3f{N(rng), N(rng), N(rng)});
+      Ray16& r = t->shadow[k / packet_width];
+      const int l = k % packet_width;
+      r.org_x[l] = p.x, r.org_y[l] = p.y, r.org_z[l] = p.z;
+      r.dir_x[l] = d.x, r.dir_y[l] = d.y, r.dir_z[l] = d.z;
+      r.tnear[l] = 0;
+      r.tfar[l] = 0.1f + 4.f * U(rng);
+      r.mask[l] = ~0u;
+      r.time[l] = 0;
+      t->tech.valid[k] = k % 7 == 3 ? 0 : -1;
+      t->tech.cr[k] = 0.5f + U(rng), t->tech.cg[k] = 0.5f + U(rng), t->tech.cb[k] = 0.5f + U(rng);
+    }
+    for (int k = n; k < max_tile_lanes; ++k) t->tech.valid[k] = 0;
+    auto w = std::make_unique<TileBuffers>(*t);
+    const auto trace = [&](const int32_t* v, RayHit16& q) { accel.intersect16(v, q, false, Bvh::scene); };
+    int crossed_here = 0;
+    shadow_media(
+        views.geom, *t, n,
+        [&](const int32_t* v, Ray16& r, int32_t* crossed) {
+          Ray16 plain = r;
+          accel.occluded16(v, plain, false);  // without marks: an interface occludes
+          accel.occluded16(v, r, false, crossed);
+          for (int l = 0; l < packet_width; ++l) {
+            if (!v[l]) continue;
+            if (r.tfar[l] == -INFINITY) ++occluded;
+            else if (crossed[l]) ++walked, ++crossed_here;
+            else ++one_medium;
+            EXPECT_EQ(plain.tfar[l] == -INFINITY, crossed[l] || r.tfar[l] == -INFINITY) << "lane " << l;
+          }
+        },
+        trace);
+    shadow_media_walked(views.geom, *w, n, trace);
+    for (int k = 0; k < n; ++k) {
+      if (!t->tech.valid[k]) continue;
+      const int l = k % packet_width;
+      EXPECT_EQ(t->shadow[k / packet_width].tfar[l] == -INFINITY, w->shadow[k / packet_width].tfar[l] == -INFINITY) << k;
+      EXPECT_EQ(t->tech.cr[k], w->tech.cr[k]) << "round " << round << " lane " << k;
+      EXPECT_EQ(t->tech.cg[k], w->tech.cg[k]) << "round " << round << " lane " << k;
+      EXPECT_EQ(t->tech.cb[k], w->tech.cb[k]) << "round " << round << " lane " << k;
+    }
+  }
+  std::printf("[ shadow rays ] walked %d, in one medium %d, occluded %d\n", walked, one_medium, occluded);
+  EXPECT_GT(walked, 100);
+  EXPECT_GT(one_medium, 100);
+  EXPECT_GT(occluded, 100);
 }

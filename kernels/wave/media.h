@@ -21,7 +21,9 @@
 //   gathered along the ray: at a collision (pbrt-v4's estimator) in scattering media, in
 //   closed form in absorbing ones.
 // - shadow_media, for the shadow rays: the transmittance to the light through every medium
-//   and interface on the way, in closed form; any other surface occludes.
+//   and interface on the way, in closed form; any other surface occludes. An occlusion
+//   query first, in which interfaces do not occlude but mark the rays that meet them; only
+//   those are walked.
 // - point_media (wave/surface_hits.h, run by the hit stages): which medium lies on each side
 //   of a shading point (ShadingPoints::medf, medb): a surface that separates two media (its
 //   MediumInterface) says; any other keeps the medium its ray came through.
@@ -240,95 +242,147 @@ inline void medium_flights(const GeomView& G, RayHit16* packets, int32_t* valid,
   }
 }
 
-// The shadow rays of a scene with media but no interface (MediumView::has_interfaces
-// false), after their occlusion queries (Embree's tfar -inf: occluded): every surface
-// occludes, so an unoccluded ray runs in the medium at its origin alone, whose
-// transmittance over its length multiplies its contribution; an occluded one's is 0. The
-// numbers of shadow_media, which traces nearest hits instead, for the same rays.
-inline void shadow_transmittance(const GeomView& G, TileBuffers& tb, int count) {
-  using namespace media_detail;
-  const MediumView& M = G.media;
-  for (int k = 0; k < count; ++k) {
-    if (!tb.tech.valid[k]) continue;
-    const Ray16& s = tb.shadow[k / packet_width];
-    const int l = k % packet_width;
-    if (s.tfar[l] == -INFINITY) {
-      tb.tech.cr[k] = tb.tech.cg[k] = tb.tech.cb[k] = 0.f;
-      continue;
-    }
-    const float side = tb.points.nx[k] * s.dir_x[l] + tb.points.ny[k] * s.dir_y[l] + tb.points.nz[k] * s.dir_z[l];
-    const int32_t m = side >= 0.f ? tb.points.medf[k] : tb.points.medb[k];
-    if (m < 0) continue;
-    float T[3];
-    for (int c = 0; c < 3; ++c) T[c] = transmit(M.sigma_t[c][m], s.tfar[l]);
-    tb.tech.cr[k] *= T[0];
-    tb.tech.cg[k] *= T[1];
-    tb.tech.cb[k] *= T[2];
-    if (!(T[0] + T[1] + T[2] > 0.f)) tb.shadow[k / packet_width].tfar[l] = -INFINITY;
+namespace media_detail {
+
+// Shadow ray k (packet k / 16, lane k % 16) after an occlusion query in which no surface
+// but those rays pass between media could stop it, and which met none of those: occluded
+// (Embree's tfar -inf), its contribution is 0; else it ran in the medium at its origin
+// alone, whose transmittance over its length multiplies its contribution.
+inline void shadow_one_medium(const MediumView& M, TileBuffers& tb, int k) {
+  Ray16& s = tb.shadow[k / packet_width];
+  const int l = k % packet_width;
+  if (s.tfar[l] == -INFINITY) {
+    tb.tech.cr[k] = tb.tech.cg[k] = tb.tech.cb[k] = 0.f;
+    return;
   }
+  const float side = tb.points.nx[k] * s.dir_x[l] + tb.points.ny[k] * s.dir_y[l] + tb.points.nz[k] * s.dir_z[l];
+  const int32_t m = side >= 0.f ? tb.points.medf[k] : tb.points.medb[k];
+  if (m < 0) return;
+  float T[3];
+  for (int c = 0; c < 3; ++c) T[c] = transmit(M.sigma_t[c][m], s.tfar[l]);
+  tb.tech.cr[k] *= T[0];
+  tb.tech.cg[k] *= T[1];
+  tb.tech.cb[k] *= T[2];
+  if (!(T[0] + T[1] + T[2] > 0.f)) s.tfar[l] = -INFINITY;
 }
 
-// The shadow rays of the shading points [0, count) (valid lanes, tb.shadow) through the
-// media: each starts in the medium on its side of its point (medf / medb by the geometric
-// normal), passes interfaces (taking the medium of the side it enters) and multiplies its
-// contribution (tb.tech.c*) by the transmittance of every segment; a surface that is not an
-// interface occludes it (tfar = -inf, as Embree marks occlusion). trace(valid, packet):
-// nearest hits in the scene.
+// The shadow rays of packet p whose lanes[l] is set, walked through the media: each
+// starts in the medium on its side of its point (medf / medb by the geometric normal),
+// passes the surfaces rays pass between media (taking the medium of the side it enters)
+// and multiplies its contribution (tb.tech.c*) by the transmittance of every segment; any
+// other surface occludes it (tfar = -inf, as Embree marks occlusion). trace(valid,
+// packet): nearest hits in the scene.
 template <class Trace>
-inline void shadow_media(const GeomView& G, TileBuffers& tb, int count, Trace&& trace) {
-  using namespace media_detail;
+inline void shadow_walk(const GeomView& G, TileBuffers& tb, int p, const int32_t* lanes, Trace&& trace) {
   const MediumView& M = G.media;
   alignas(64) RayHit16 q{};
   reset_query_fields(q);
   alignas(64) int32_t v[packet_width];
   int32_t med[packet_width];
   float T[3][packet_width], left[packet_width];
+  Ray16& s = tb.shadow[p];
+  bool some = false;
+  for (int l = 0; l < packet_width; ++l) {
+    const int k = p * packet_width + l;
+    v[l] = lanes[l] ? -1 : 0;
+    if (!v[l]) continue;
+    some = true;
+    q.ray.org_x[l] = s.org_x[l];
+    q.ray.org_y[l] = s.org_y[l];
+    q.ray.org_z[l] = s.org_z[l];
+    q.ray.dir_x[l] = s.dir_x[l];
+    q.ray.dir_y[l] = s.dir_y[l];
+    q.ray.dir_z[l] = s.dir_z[l];
+    q.ray.tfar[l] = s.tfar[l];
+    left[l] = s.tfar[l];
+    q.geomID[l] = invalid_id;
+    const float side = tb.points.nx[k] * s.dir_x[l] + tb.points.ny[k] * s.dir_y[l] + tb.points.nz[k] * s.dir_z[l];
+    med[l] = side >= 0.f ? tb.points.medf[k] : tb.points.medb[k];
+    T[0][l] = T[1][l] = T[2][l] = 1.f;
+  }
+  for (int round = 0; some; ++round) {
+    trace(v, q);
+    some = false;
+    for (int l = 0; l < packet_width; ++l) {
+      if (!v[l]) continue;
+      const bool hit = q.geomID[l] != invalid_id;
+      const float t = hit ? q.ray.tfar[l] : left[l];
+      if (med[l] >= 0)
+        for (int c = 0; c < 3; ++c) T[c][l] *= transmit(M.sigma_t[c][med[l]], t);
+      if (hit && M.geom_interface[q.geomID[l]] && round + 1 < max_interface_crossings) {
+        cross_interface(G, q, l, t, med[l]);
+        left[l] -= t;
+        q.ray.tfar[l] = left[l];
+        some = true;
+        continue;
+      }
+      if (hit) T[0][l] = T[1][l] = T[2][l] = 0.f;
+      v[l] = 0;
+      const int k = p * packet_width + l;
+      tb.tech.cr[k] *= T[0][l];
+      tb.tech.cg[k] *= T[1][l];
+      tb.tech.cb[k] *= T[2][l];
+      s.tfar[l] = T[0][l] + T[1][l] + T[2][l] > 0.f ? s.tfar[l] : -INFINITY;
+    }
+  }
+}
+
+}  // namespace media_detail
+
+// The shadow rays of a scene with media but no surface rays pass between media
+// (MediumView::has_interfaces false), after their occlusion queries: every surface
+// occludes, so an unoccluded ray runs in the medium at its origin alone
+// (media_detail::shadow_one_medium). The numbers of shadow_media's walk for the same rays.
+inline void shadow_transmittance(const GeomView& G, TileBuffers& tb, int count) {
+  for (int k = 0; k < count; ++k)
+    if (tb.tech.valid[k]) media_detail::shadow_one_medium(G.media, tb, k);
+}
+
+// The shadow rays of the shading points [0, count) (valid lanes, tb.shadow) of a scene
+// with surfaces rays pass between media: first an occlusion query per packet in which
+// those surfaces do not occlude but mark the rays that meet them (occlude(valid, packet,
+// crossed), crossed by the packet's ray ids, which this sets to the lanes); an occluded
+// ray's contribution is 0, an unoccluded one that met none runs in the medium at its
+// origin alone, and only the rest are walked through the media (shadow_walk, trace(valid,
+// packet): nearest hits). The same numbers as walking every ray, at the cost of an
+// occlusion query for the rays that stay in one medium (most, where the interfaces bound
+// a room or a volume the lights are inside).
+template <class Occlude, class Trace>
+inline void shadow_media(const GeomView& G, TileBuffers& tb, int count, Occlude&& occlude, Trace&& trace) {
   for (int p = 0; p < packets_for(count); ++p) {
+    const int32_t* valid = tb.tech.valid + p * packet_width;
+    bool any = false;
+    for (int l = 0; l < packet_width; ++l) any = any || valid[l];
+    if (!any) continue;
     Ray16& s = tb.shadow[p];
+    alignas(64) int32_t crossed[packet_width] = {}, walk[packet_width] = {};
+    for (int l = 0; l < packet_width; ++l) s.id[l] = static_cast<uint32_t>(l);
+    occlude(valid, s, crossed);
     bool some = false;
     for (int l = 0; l < packet_width; ++l) {
-      const int k = p * packet_width + l;
-      v[l] = k < count && tb.tech.valid[k] ? -1 : 0;
-      if (!v[l]) continue;
-      some = true;
-      q.ray.org_x[l] = s.org_x[l];
-      q.ray.org_y[l] = s.org_y[l];
-      q.ray.org_z[l] = s.org_z[l];
-      q.ray.dir_x[l] = s.dir_x[l];
-      q.ray.dir_y[l] = s.dir_y[l];
-      q.ray.dir_z[l] = s.dir_z[l];
-      q.ray.tfar[l] = s.tfar[l];
-      left[l] = s.tfar[l];
-      q.geomID[l] = invalid_id;
-      const float side = tb.points.nx[k] * s.dir_x[l] + tb.points.ny[k] * s.dir_y[l] + tb.points.nz[k] * s.dir_z[l];
-      med[l] = side >= 0.f ? tb.points.medf[k] : tb.points.medb[k];
-      T[0][l] = T[1][l] = T[2][l] = 1.f;
-    }
-    for (int round = 0; some; ++round) {
-      trace(v, q);
-      some = false;
-      for (int l = 0; l < packet_width; ++l) {
-        if (!v[l]) continue;
-        const bool hit = q.geomID[l] != invalid_id;
-        const float t = hit ? q.ray.tfar[l] : left[l];
-        if (med[l] >= 0)
-          for (int c = 0; c < 3; ++c) T[c][l] *= transmit(M.sigma_t[c][med[l]], t);
-        if (hit && M.geom_interface[q.geomID[l]] && round + 1 < max_interface_crossings) {
-          cross_interface(G, q, l, t, med[l]);
-          left[l] -= t;
-          q.ray.tfar[l] = left[l];
-          some = true;
-          continue;
-        }
-        if (hit) T[0][l] = T[1][l] = T[2][l] = 0.f;
-        v[l] = 0;
-        const int k = p * packet_width + l;
-        tb.tech.cr[k] *= T[0][l];
-        tb.tech.cg[k] *= T[1][l];
-        tb.tech.cb[k] *= T[2][l];
-        s.tfar[l] = T[0][l] + T[1][l] + T[2][l] > 0.f ? s.tfar[l] : -INFINITY;
+      if (!valid[l]) continue;
+      if (crossed[l] && s.tfar[l] != -INFINITY) {
+        walk[l] = 1;
+        some = true;
+      } else {
+        media_detail::shadow_one_medium(G.media, tb, p * packet_width + l);
       }
     }
+    if (some) media_detail::shadow_walk(G, tb, p, walk, trace);
+  }
+}
+
+// Every valid shadow ray of [0, count) walked through the media (shadow_walk), with no
+// occlusion query first: the reference the tests hold shadow_media to.
+template <class Trace>
+inline void shadow_media_walked(const GeomView& G, TileBuffers& tb, int count, Trace&& trace) {
+  for (int p = 0; p < packets_for(count); ++p) {
+    int32_t lanes[packet_width];
+    for (int l = 0; l < packet_width; ++l) {
+      const int k = p * packet_width + l;
+      lanes[l] = k < count && tb.tech.valid[k] ? 1 : 0;
+    }
+    media_detail::shadow_walk(G, tb, p, lanes, trace);
   }
 }
 

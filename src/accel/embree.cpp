@@ -90,6 +90,37 @@ static void attach_alpha(RTCGeometry g, const AlphaShape* shape) {
   rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
 }
 
+// Every occlusion query's context: crossed, when the query asks, gets a lane's mark (by
+// the ray's id) where the ray met a surface rays pass between media (passes_between_media).
+struct OcclusionContext {
+  RTCIntersectContext ctx;
+  int32_t* crossed = nullptr;
+};
+
+static OcclusionContext occlusion_context(bool coherent, int32_t* crossed) {
+  OcclusionContext oc;
+  rtcInitIntersectContext(&oc.ctx);
+  oc.ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  oc.crossed = crossed;
+  return oc;
+}
+
+// The occlusion filter of a surface rays pass between media: past its alpha test (a hole
+// is no crossing), a query that asks records the crossing and goes on behind it, so its
+// answer is whether any other surface occludes; a query that does not ask is occluded
+// here, as by any surface.
+static void interface_occluded_filter(const RTCFilterFunctionNArguments* args) {
+  if (args->geometryUserPtr) alpha_filter(args);
+  const auto* oc = reinterpret_cast<const OcclusionContext*>(args->context);
+  if (!oc->crossed) return;
+  const unsigned n = args->N;
+  for (unsigned i = 0; i < n; ++i) {
+    if (args->valid[i] != -1) continue;
+    oc->crossed[RTCRayN_id(args->ray, n, i)] = 1;
+    args->valid[i] = 0;
+  }
+}
+
 Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make_unique<Impl>()) {
   const auto t0 = std::chrono::steady_clock::now();
   impl_->device = rtcNewDevice(options.device_config.empty() ? nullptr : options.device_config.c_str());
@@ -148,6 +179,10 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
       rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.indices.data(), 0,
                                  3 * sizeof(uint32_t), nt);
       if (alpha) attach_alpha(g, alpha);
+      if (passes_between_media(scene, m.material, m.medium_inside, m.medium_outside, m.emissive())) {
+        rtcSetGeometryUserData(g, const_cast<AlphaShape*>(alpha));
+        rtcSetGeometryOccludedFilterFunction(g, interface_occluded_filter);
+      }
       rtcCommitGeometry(g);
       attach(sc, g, id, m.object);
       rtcReleaseGeometry(g);
@@ -173,6 +208,10 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
       v[2] = s.center.z;
       v[3] = s.radius;
       if (alpha) attach_alpha(g, alpha);
+      if (passes_between_media(scene, s.material, s.medium_inside, s.medium_outside, emissive)) {
+        rtcSetGeometryUserData(g, const_cast<AlphaShape*>(alpha));
+        rtcSetGeometryOccludedFilterFunction(g, interface_occluded_filter);
+      }
       rtcCommitGeometry(g);
       attach(sc, g, id, s.object);
       rtcReleaseGeometry(g);
@@ -195,6 +234,8 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
     auto* first = static_cast<uint32_t*>(
         rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT, sizeof(uint32_t), ns));
     for (size_t s = 0; s < ns; ++s) first[s] = static_cast<uint32_t>(4 * s);
+    if (passes_between_media(scene, c.material, c.medium_inside, c.medium_outside, false))
+      rtcSetGeometryOccludedFilterFunction(g, interface_occluded_filter);
     rtcCommitGeometry(g);
     attach(impl_->scene, g, id, c.object);
     rtcReleaseGeometry(g);
@@ -250,11 +291,9 @@ void Accel::intersect16(const int32_t* valid, RayHit16& packet, bool coherent, B
   if (inst) impl_->fix_instances(valid, packet);
 }
 
-void Accel::occluded16(const int32_t* valid, Ray16& packet, bool coherent) const noexcept {
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
-  ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-  rtcOccluded16(valid, impl_->scene, &ctx, reinterpret_cast<RTCRay16*>(&packet));
+void Accel::occluded16(const int32_t* valid, Ray16& packet, bool coherent, int32_t* crossed) const noexcept {
+  OcclusionContext oc = occlusion_context(coherent, crossed);
+  rtcOccluded16(valid, impl_->scene, &oc.ctx, reinterpret_cast<RTCRay16*>(&packet));
 }
 
 static RTCRayHitNp to_np(Accel::StreamRays& r) {
@@ -288,11 +327,9 @@ void Accel::intersect_stream(StreamRays& r, unsigned n, bool coherent, Bvh bvh) 
 }
 
 void Accel::occluded_stream(StreamRays& r, unsigned n, bool coherent) const noexcept {
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
-  ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  OcclusionContext oc = occlusion_context(coherent, nullptr);
   RTCRayHitNp np = to_np(r);
-  rtcOccludedNp(impl_->scene, &ctx, &np.ray, n);
+  rtcOccludedNp(impl_->scene, &oc.ctx, &np.ray, n);
 }
 
 void Accel::intersect1(RayHit16& p, int i) const noexcept {

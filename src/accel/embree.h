@@ -40,7 +40,10 @@ class Accel {
   // valid[i] = -1 for active lanes, 0 for inactive (Embree's convention).
   void intersect16(const int32_t* valid, RayHit16& packet, bool coherent,
                    Bvh bvh = Bvh::scene) const noexcept;
-  void occluded16(const int32_t* valid, Ray16& packet, bool coherent) const noexcept;
+  // crossed (16 lanes, or null): a surface rays pass between media (passes_between_media)
+  // does not occlude; the query sets crossed[packet.id[i]] = 1 for a ray i that met one
+  // (ids in 0..15, the caller's). Without it, such a surface occludes like any other.
+  void occluded16(const int32_t* valid, Ray16& packet, bool coherent, int32_t* crossed = nullptr) const noexcept;
   void intersect1(RayHit16& packet, int lane) const noexcept;  // reference path for tests
   // The same rays through Embree's stream API (rtcIntersectNp / rtcOccludedNp on
   // pointer-SoA arrays of n rays): used only to measure packets against streams.

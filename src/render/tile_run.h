@@ -92,15 +92,20 @@ inline int active_lanes(const int32_t* valid) {
 }
 
 // The shadow packets' valid lanes (tb.tech.valid): occlusion queries, counted. In a scene
-// with media: nearest hits, through the interfaces, with each medium's transmittance
-// (wave/media.h shadow_media); where no surface is an interface, occlusion queries and the
-// transmittance of the medium at each ray's origin (shadow_transmittance: the same numbers).
+// with media: with the transmittance of each ray's medium; where some surface is an
+// interface, the rays that meet one are walked through them (wave/media.h shadow_media),
+// else the transmittance of the medium at each ray's origin (shadow_transmittance).
 inline void trace_shadow(const TileContext& c, TileBuffers& tb, StageTimer& timer, int packets, bool rec, ThreadProfile* tp) {
   clear_high_vector_registers();
   if (c.v.geom.has_media && c.v.geom.media.has_interfaces) {
-    for (int p = 0; p < packets; ++p) tb.stats.rays_shadow += static_cast<uint64_t>(active_lanes(tb.tech.valid + p * packet_width));
-    shadow_media(c.v.geom, tb, tb.points.count,
-                 [&](const int32_t* valid, RayHit16& q) { c.accel.intersect16(valid, q, false, Bvh::scene); });
+    shadow_media(
+        c.v.geom, tb, tb.points.count,
+        [&](const int32_t* valid, Ray16& s, int32_t* crossed) {
+          if (rec) timer.untimed([&] { record(tp->rays.shadow, s, valid); });
+          c.accel.occluded16(valid, s, false, crossed);
+          tb.stats.rays_shadow += static_cast<uint64_t>(active_lanes(valid));
+        },
+        [&](const int32_t* valid, RayHit16& q) { c.accel.intersect16(valid, q, false, Bvh::scene); });
     return;
   }
   for (int p = 0; p < packets; ++p) {

@@ -448,22 +448,20 @@ void build_material_table(SceneViews& v, const Scene& scene) {
 // tuile does not render (warned at load) are vacuum here.
 void build_media_table(SceneViews& v, const Scene& scene) {
   GeomView& G = v.geom;
-  const auto rendered = [&](int m) { return m >= 0 && scene.media[static_cast<size_t>(m)].supported ? m : -1; };
   G.has_media = (scene.features & feat_media) != 0;
   if (!G.has_media) return;
   const size_t geoms = static_cast<size_t>(G.geom_count);
-  auto sides = [&](int in, int out, bool interface) {
-    in = rendered(in);
-    out = rendered(out);
+  auto sides = [&](int in, int out, int material, bool emissive) {
+    in = rendered_medium(scene, in);
+    out = rendered_medium(scene, out);
     const bool change = in != out;
     v.med_geom_in.push_back(change ? in : -1);
     v.med_geom_out.push_back(change ? out : -1);
-    v.med_geom_interface.push_back(interface && change ? 1 : 0);
+    v.med_geom_interface.push_back(passes_between_media(scene, material, in, out, emissive) ? 1 : 0);
   };
-  auto interface = [&](int material) { return material >= 0 && scene.materials[static_cast<size_t>(material)].interface; };
-  for (const Mesh& m : scene.meshes) sides(m.medium_inside, m.medium_outside, interface(m.material) && !m.emissive());
-  for (const Sphere& s : scene.spheres) sides(s.medium_inside, s.medium_outside, interface(s.material) && !s.emissive());
-  for (const Curves& c : scene.curves) sides(c.medium_inside, c.medium_outside, interface(c.material));
+  for (const Mesh& m : scene.meshes) sides(m.medium_inside, m.medium_outside, m.material, m.emissive());
+  for (const Sphere& s : scene.spheres) sides(s.medium_inside, s.medium_outside, s.material, s.emissive());
+  for (const Curves& c : scene.curves) sides(c.medium_inside, c.medium_outside, c.material, false);
   // the spare row of the geometry table (build_geometry_table) in the tables that lack it,
   // so that medium m's row is geoms + 1 + m in every one
   v.geom_material.push_back(static_cast<int32_t>(scene.materials.size()));
@@ -472,7 +470,7 @@ void build_media_table(SceneViews& v, const Scene& scene) {
   v.uvs.push_back(nullptr);
   v.normals.push_back(nullptr);
   v.curve_points.push_back(nullptr);
-  sides(-1, -1, false);
+  sides(-1, -1, -1, false);
   G.media.geom0 = static_cast<int32_t>(geoms + 1);
   const int32_t phase0 = static_cast<int32_t>(v.mat_kind.size());
   for (size_t i = 0; i < scene.media.size(); ++i) {
@@ -513,7 +511,7 @@ void build_media_table(SceneViews& v, const Scene& scene) {
     v.normals.push_back(nullptr);
     v.curve_points.push_back(nullptr);
     const int m = static_cast<int>(i);
-    sides(m, m, false);  // (a point in the medium: the medium on both sides, stage-set)
+    sides(m, m, -1, false);  // (a point in the medium: the medium on both sides, stage-set)
   }
   v.bsdf_kinds |= bsdf_phase;
   MediumView& M = G.media;
@@ -529,7 +527,7 @@ void build_media_table(SceneViews& v, const Scene& scene) {
   M.geom_out = v.med_geom_out.data();
   M.geom_interface = v.med_geom_interface.data();
   M.has_interfaces = std::any_of(v.med_geom_interface.begin(), v.med_geom_interface.end(), [](int32_t i) { return i != 0; });
-  M.camera = rendered(scene.camera_medium);
+  M.camera = rendered_medium(scene, scene.camera_medium);
   point_tables(v);  // the tables grew: their views again
 }
 

@@ -505,4 +505,14 @@ Scene load_scene(const std::string& path, const LoadOptions& options) {
   return s;
 }
 
+int rendered_medium(const Scene& scene, int medium) {
+  return medium >= 0 && scene.media[static_cast<size_t>(medium)].supported ? medium : -1;
+}
+
+bool passes_between_media(const Scene& scene, int material, int medium_inside, int medium_outside, bool emissive) {
+  return (scene.features & feat_media) && !emissive && material >= 0 &&
+         scene.materials[static_cast<size_t>(material)].interface &&
+         rendered_medium(scene, medium_inside) != rendered_medium(scene, medium_outside);
+}
+
 }  // namespace tuile

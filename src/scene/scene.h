@@ -287,6 +287,13 @@ struct Scene {
 // Throws SceneError naming the mesh on bad data. Degenerate triangles are kept for
 // geometry but never become light sources.
 void finalize_scene(Scene& scene);
+// The medium a shape's side holds as rendered: m, or -1 (vacuum) for none or a medium of a
+// type tuile does not render.
+int rendered_medium(const Scene& scene, int medium);
+// Whether rays pass a shape without a vertex (pbrt-v4's "interface" material, not
+// emissive, between two different media as rendered): the walks of wave/media.h cross it,
+// and Embree's occlusion queries report crossing it instead of stopping there.
+bool passes_between_media(const Scene& scene, int material, int medium_inside, int medium_outside, bool emissive);
 // The kernels' view of a mesh's alpha (wave/alpha.h), pointing into the mesh and the
 // scene's float textures: the Embree filters' and the light stage's.
 struct AlphaShape;
