@@ -3,12 +3,14 @@
 // without absorbing is invisible under a uniform sky (a white furnace) for every strategy;
 // with absorption, its image against an independent random walk in double; light-only,
 // phase-only and MIS agree in a foggy room the camera sits in; shadow rays walked only
-// where they meet an interface give the bits of walking them all; and stiff media.
+// where they meet an interface give the bits of walking them all, and the free flights'
+// first round in SIMD the scalar bits; and stiff media.
 #include <gtest/gtest.h>
 
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <memory>
 #include <random>
 #include <string>
@@ -340,18 +342,15 @@ TEST(MediaRender, ShadowRaysWithoutInterfacesGiveTheBitsOfTracingThroughThem) {
   }
 }
 
-// Shadow rays in a scene with interfaces (wave/media.h shadow_media): an occlusion query in
-// which the interfaces do not occlude but mark the rays that meet them, then a walk of the
-// marked ones alone, against walking every ray (shadow_media_walked), lane by lane: the
-// same transmittance bits and the same occlusion. A box of medium 0 (interface), a box of
-// medium 1 nested in it (interface), an opaque block in the first, a cut-out interface sheet
-// (alpha 0.5: half of the rays pass a hole, which is no crossing) and shadow rays of random
-// lengths from points in all three regions; each kind of ray (walked, in one medium,
-// occluded) must occur. And the query itself: without its marks an interface occludes.
-TEST(MediaRender, ShadowRaysWalkOnlyWhereTheyMeetAnInterface) {
+namespace {
+
+// A box of medium 0 (interface), a box of medium 1 nested in it (interface), an opaque
+// block in the first and a cut-out interface sheet (alpha 0.5) outside: the scene of the
+// lane-by-lane media tests below. Medium 0 scatters (and emits emission0), 1 only absorbs.
+Scene nested_boxes(Rgb emission0 = {0, 0, 0}) {
   Scene s;
   s.source = "test:nested-boxes";
-  s.media.push_back(homogeneous({0.7f, 1.3f, 0.2f}, {0.3f, 0.1f, 0.5f}));
+  s.media.push_back(homogeneous({0.7f, 1.3f, 0.2f}, {0.3f, 0.1f, 0.5f}, 0, emission0));
   s.media.push_back(homogeneous({2.0f, 0.4f, 1.0f}, {0, 0, 0}));
   s.materials.push_back(interface_material());
   s.materials.push_back(diffuse_material(Rgb{0.5f, 0.5f, 0.5f}));
@@ -376,14 +375,42 @@ TEST(MediaRender, ShadowRaysWalkOnlyWhereTheyMeetAnInterface) {
   sheet.alpha.value = 0.5f;
   s.meshes.push_back(sheet);
   finalize_scene(s);
+  return s;
+}
+
+// The medium at a point of nested_boxes() (outside the block)
+int nested_medium_at(vec3f p) {
+  const auto in = [&](float h) { return std::fabs(p.x) < h && std::fabs(p.y) < h && std::fabs(p.z) < h; };
+  return in(0.3f) ? 1 : in(1.f) ? 0 : -1;
+}
+
+// A point of nested_boxes() in none of its surfaces' insides but the media's
+vec3f nested_point(std::mt19937& rng) {
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  vec3f p;
+  do p = {-1.6f + 3.2f * U(rng), -1.6f + 3.2f * U(rng), -1.6f + 3.2f * U(rng)};
+  while (p.x > 0.35f && p.x < 0.65f && std::fabs(p.y) < 0.95f && std::fabs(p.z) < 0.95f);
+  return p;
+}
+
+}  // namespace
+
+// Shadow rays in a scene with interfaces (wave/media.h shadow_media): an occlusion query in
+// which the interfaces do not occlude but mark the rays that meet them, then a walk of the
+// marked ones alone, against walking every ray (shadow_media_walked), lane by lane: the
+// same transmittance bits and the same occlusion. A box of medium 0 (interface), a box of
+// medium 1 nested in it (interface), an opaque block in the first, a cut-out interface sheet
+// (alpha 0.5: half of the rays pass a hole, which is no crossing) and shadow rays of random
+// lengths from points in all three regions; each kind of ray (walked, in one medium,
+// occluded) must occur. And the query itself: without its marks an interface occludes;
+// and the route of scenes without interfaces (plain occlusion queries, then
+// shadow_transmittance) gives the walk's bits for every ray that meets no interface.
+TEST(MediaRender, ShadowRaysWalkOnlyWhereTheyMeetAnInterface) {
+  const Scene s = nested_boxes();
   ASSERT_TRUE(s.meshes[3].has_alpha());
   const Accel accel(s);
   const SceneViews views = build_views(s, LightPick::power);
   ASSERT_TRUE(views.geom.media.has_interfaces);
-  const auto medium_at = [](vec3f p) {
-    const auto in = [&](float h) { return std::fabs(p.x) < h && std::fabs(p.y) < h && std::fabs(p.z) < h; };
-    return in(0.3f) ? 1 : in(1.f) ? 0 : -1;
-  };
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> U(0.f, 1.f);
   int walked = 0, one_medium = 0, occluded = 0;
@@ -392,10 +419,8 @@ TEST(MediaRender, ShadowRaysWalkOnlyWhereTheyMeetAnInterface) {
     const int n = 16 * 8 - 3;  // a partial last packet
     t->points.count = n;
     for (int k = 0; k < n; ++k) {
-      vec3f p;
-      do p = {-1.6f + 3.2f * U(rng), -1.6f + 3.2f * U(rng), -1.6f + 3.2f * U(rng)};
-      while (p.x > 0.35f && p.x < 0.65f && std::fabs(p.y) < 0.95f && std::fabs(p.z) < 0.95f);
-      const int m = medium_at(p);
+      const vec3f p = nested_point(rng);
+      const int m = nested_medium_at(p);
       t->points.nx[k] = 0, t->points.ny[k] = 1, t->points.nz[k] = 0;
       t->points.medf[k] = t->points.medb[k] = m;
       std::normal_distribution<float> N;
@@ -412,25 +437,31 @@ TEST(MediaRender, ShadowRaysWalkOnlyWhereTheyMeetAnInterface) {
       t->tech.cr[k] = 0.5f + U(rng), t->tech.cg[k] = 0.5f + U(rng), t->tech.cb[k] = 0.5f + U(rng);
     }
     for (int k = n; k < max_tile_lanes; ++k) t->tech.valid[k] = 0;
-    auto w = std::make_unique<TileBuffers>(*t);
+    auto w = std::make_unique<TileBuffers>(*t), o = std::make_unique<TileBuffers>(*t);
     const auto trace = [&](const int32_t* v, RayHit16& q) { accel.intersect16(v, q, false, Bvh::scene); };
-    int crossed_here = 0;
+    std::vector<int> met(static_cast<size_t>(n), 0);
     shadow_media(
         views.geom, *t, n,
         [&](const int32_t* v, Ray16& r, int32_t* crossed) {
+          const int p = static_cast<int>(&r - t->shadow);
           Ray16 plain = r;
           accel.occluded16(v, plain, false);  // without marks: an interface occludes
           accel.occluded16(v, r, false, crossed);
           for (int l = 0; l < packet_width; ++l) {
             if (!v[l]) continue;
             if (r.tfar[l] == -INFINITY) ++occluded;
-            else if (crossed[l]) ++walked, ++crossed_here;
+            else if (crossed[l]) ++walked;
             else ++one_medium;
+            met[static_cast<size_t>(p * packet_width + l)] = crossed[l];
             EXPECT_EQ(plain.tfar[l] == -INFINITY, crossed[l] || r.tfar[l] == -INFINITY) << "lane " << l;
           }
         },
         trace);
     shadow_media_walked(views.geom, *w, n, trace);
+    // the route of scenes without interfaces: plain occlusion queries, then the medium at
+    // each origin; the walk's bits wherever a ray meets no interface
+    for (int p = 0; p < packets_for(n); ++p) accel.occluded16(o->tech.valid + p * packet_width, o->shadow[p], false);
+    shadow_transmittance(views.geom, *o, n);
     for (int k = 0; k < n; ++k) {
       if (!t->tech.valid[k]) continue;
       const int l = k % packet_width;
@@ -438,10 +469,86 @@ TEST(MediaRender, ShadowRaysWalkOnlyWhereTheyMeetAnInterface) {
       EXPECT_EQ(t->tech.cr[k], w->tech.cr[k]) << "round " << round << " lane " << k;
       EXPECT_EQ(t->tech.cg[k], w->tech.cg[k]) << "round " << round << " lane " << k;
       EXPECT_EQ(t->tech.cb[k], w->tech.cb[k]) << "round " << round << " lane " << k;
+      if (met[static_cast<size_t>(k)]) continue;
+      EXPECT_EQ(o->shadow[k / packet_width].tfar[l] == -INFINITY, w->shadow[k / packet_width].tfar[l] == -INFINITY) << k;
+      EXPECT_EQ(o->tech.cr[k], w->tech.cr[k]) << "round " << round << " lane " << k;
+      EXPECT_EQ(o->tech.cg[k], w->tech.cg[k]) << "round " << round << " lane " << k;
+      EXPECT_EQ(o->tech.cb[k], w->tech.cb[k]) << "round " << round << " lane " << k;
     }
   }
   std::printf("[ shadow rays ] walked %d, in one medium %d, occluded %d\n", walked, one_medium, occluded);
   EXPECT_GT(walked, 100);
   EXPECT_GT(one_medium, 100);
   EXPECT_GT(occluded, 100);
+}
+
+// The free flights' first round in SIMD (wave/media.h first_flights_simd) against the
+// scalar rounds alone (medium_flights<false>), lane by lane, every output bit: the
+// weights, the emission, the medium at the hit, the hits (collisions as the medium's row)
+// and which rays stay valid, for rays from the three regions of nested_boxes() (medium 0
+// scatters and emits, medium 1 only absorbs, outside none; some rays pass interfaces and
+// run the scalar rounds in both), with hero channels and distances drawn at random. Each
+// kind of end (a collision, a surface, nowhere) must occur.
+TEST(MediaRender, FirstFlightsInSimdGiveTheScalarBits) {
+  const Scene s = nested_boxes({0.5f, 2.0f, 1.0f});
+  const Accel accel(s);
+  const SceneViews views = build_views(s, LightPick::power);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  std::normal_distribution<float> N;
+  int collisions = 0, surfaces = 0, nowhere = 0;
+  const auto trace = [&](const int32_t* v, RayHit16& q) { accel.intersect16(v, q, false, Bvh::scene); };
+  for (int round = 0; round < 30; ++round) {
+    const int n = 16 * 8 - 5;
+    auto a = std::make_unique<TileBuffers>();
+    for (int k = 0; k < n; ++k) {
+      const vec3f p = nested_point(rng);
+      const vec3f d = normalize(vec3f{N(rng), N(rng), N(rng)});
+      RayHit16& r = a->bounce[k / packet_width];
+      const int l = k % packet_width;
+      r.ray.org_x[l] = p.x, r.ray.org_y[l] = p.y, r.ray.org_z[l] = p.z;
+      r.ray.dir_x[l] = d.x, r.ray.dir_y[l] = d.y, r.ray.dir_z[l] = d.z;
+      r.ray.tnear[l] = 0;
+      r.ray.tfar[l] = 3.0e38f;
+      r.ray.mask[l] = ~0u;
+      r.ray.time[l] = 0;
+      r.geomID[l] = invalid_id;
+      r.instID[0][l] = invalid_id;
+      a->tech.valid[k] = k % 9 == 4 ? 0 : -1;
+      a->media.med[k] = nested_medium_at(p);
+      a->media.u0[k] = U(rng);
+      a->media.u1[k] = U(rng);
+    }
+    for (int k = n; k < max_tile_lanes; ++k) a->tech.valid[k] = 0;
+    for (int p = 0; p < packets_for(n); ++p) accel.intersect16(a->tech.valid + p * packet_width, a->bounce[p], false);
+    auto b = std::make_unique<TileBuffers>(*a);
+    uint64_t rej_a = 0, rej_b = 0;
+    medium_flights<true>(views.geom, a->bounce, a->tech.valid, n, a->media, rej_a, trace);
+    medium_flights<false>(views.geom, b->bounce, b->tech.valid, n, b->media, rej_b, trace);
+    EXPECT_EQ(rej_a, rej_b);
+    for (int k = 0; k < n; ++k) {
+      const int p = k / packet_width, l = k % packet_width;
+      ASSERT_EQ(a->tech.valid[k], b->tech.valid[k]) << k;
+      if (!a->tech.valid[k]) continue;
+      const MediumLanes &x = a->media, &y = b->media;
+      for (const auto& [u, v] : {std::pair{x.wr[k], y.wr[k]}, {x.wg[k], y.wg[k]}, {x.wb[k], y.wb[k]}, {x.er[k], y.er[k]},
+                                 {x.eg[k], y.eg[k]}, {x.eb[k], y.eb[k]}})
+        ASSERT_EQ(std::memcmp(&u, &v, sizeof(float)), 0) << "round " << round << " lane " << k << ": " << u << " vs " << v;
+      ASSERT_EQ(x.med[k], y.med[k]) << k;
+      const RayHit16 &ra = a->bounce[p], &rb = b->bounce[p];
+      ASSERT_EQ(ra.geomID[l], rb.geomID[l]) << k;
+      ASSERT_EQ(ra.primID[l], rb.primID[l]) << k;
+      for (const auto& [u, v] : {std::pair{ra.ray.tfar[l], rb.ray.tfar[l]}, {ra.Ng_x[l], rb.Ng_x[l]}, {ra.Ng_y[l], rb.Ng_y[l]},
+                                 {ra.Ng_z[l], rb.Ng_z[l]}, {ra.u[l], rb.u[l]}, {ra.v[l], rb.v[l]}, {ra.ray.org_x[l], rb.ray.org_x[l]},
+                                 {ra.ray.org_y[l], rb.ray.org_y[l]}, {ra.ray.org_z[l], rb.ray.org_z[l]}})
+        ASSERT_EQ(std::memcmp(&u, &v, sizeof(float)), 0) << "round " << round << " lane " << k << ": " << u << " vs " << v;
+      if (ra.geomID[l] == invalid_id) ++nowhere;
+      else if (static_cast<int32_t>(ra.geomID[l]) >= views.geom.media.geom0) ++collisions;
+      else ++surfaces;
+    }
+  }
+  std::printf("[ flights ] collisions %d, surfaces %d, nowhere %d\n", collisions, surfaces, nowhere);
+  EXPECT_GT(collisions, 200);
+  EXPECT_GT(surfaces, 100);
+  EXPECT_GT(nowhere, 100);
 }

@@ -27,8 +27,10 @@
 // - point_media (wave/surface_hits.h, run by the hit stages): which medium lies on each side
 //   of a shading point (ShadingPoints::medf, medb): a surface that separates two media (its
 //   MediumInterface) says; any other keeps the medium its ray came through.
-// Scalar per lane (the media's rays are a minority of the lanes, and their loops differ per
-// lane); the numbers are lane_math's, the same bits on every machine.
+// Scalar per lane (the media's rays are often a minority of the lanes, and their loops
+// differ per lane), but for the flights' first round of the rays that start in a
+// scattering medium and meet no interface (first_flights_simd: the scalar round's
+// operations, lane for lane); the numbers are lane_math's, the same bits on every machine.
 #pragma once
 #include <algorithm>
 #include <cmath>
@@ -81,6 +83,77 @@ inline void cross_interface(const GeomView& G, RayHit16& r, int l, float t, int3
   r.geomID[l] = invalid_id;
 }
 
+// The first round of medium_flights for the lanes [l0, l0 + simd_width) of packet r (tile
+// lanes from k0) that start in a medium that scatters and whose hit, if any, is not an
+// interface (pending and ml.med >= 0 on entry; count bounds the lanes): each flight ends in
+// this round, at a collision or at the hit (or nowhere), as the scalar round computes it,
+// operation for operation, so every lane has the scalar bits. The other lanes are left as
+// they were, pending, for the scalar rounds.
+inline void first_flights_simd(const GeomView& G, RayHit16& r, int l0, int k0, int count, MediumLanes& ml) {
+  using T = vfloat;
+  using I = vint;
+  const MediumView& M = G.media;
+  const int k = k0 + l0;
+  const I lane = lane_iota_i32<T>() + I(k);
+  const I m = load_i32<T>(ml.med + k);
+  const I g = load_i32<T>(reinterpret_cast<const int32_t*>(r.geomID + l0));
+  const auto hit_i = g != I(-1);
+  const auto in_med = m >= I(0);
+  const I ms = sel(in_med, m, I(0));
+  const auto pending_i = (load_i32<T>(ml.pending + k) != I(0)) && (lane < I(count)) && in_med;
+  if (none(f_mask_from_i(pending_i))) return;
+  const auto interface_i = hit_i && (gather(M.geom_interface, sel(hit_i, g, I(0))) != I(0));
+  const auto scatters_i = gather(M.scatters, ms) != I(0);
+  const vmask mine = f_mask_from_i(pending_i && scatters_i && !interface_i);
+  if (none(mine)) return;
+  const vmask hit = f_mask_from_i(hit_i);
+  const T t = sel(hit, load<T>(r.ray.tfar + l0), T(INFINITY));
+  const T st[3] = {gather(M.sigma_t[0], ms), gather(M.sigma_t[1], ms), gather(M.sigma_t[2], ms)};
+  const I hero = load_i32<T>(ml.hero + k);
+  const T sh = sel(f_mask_from_i(hero == I(0)), st[0], sel(f_mask_from_i(hero == I(1)), st[1], st[2]));
+  const T tau = load<T>(ml.tau + k);
+  const vmask scattered = mine && (sh > T(0.f)) && (tau < sh * t);
+  const vmask passed = mine && !scattered;
+  const T ts = tau / sh;
+  T E[3];
+  for (int c = 0; c < 3; ++c) {
+    const T od = sel(scattered, T(0.f) + st[c] * ts, sel(st[c] > T(0.f), T(0.f) + st[c] * t, T(0.f)));
+    E[c] = lane_math::exp_nonpositive(-od);
+  }
+  // a collision: the weight tr sigma_s / pdf and the emission tr sigma_a Le / pdf
+  T pdf = T(0.f);
+  for (int c = 0; c < 3; ++c) pdf += st[c] * E[c];
+  pdf *= T(1.f / 3.f);
+  const T inv_s = sel(pdf > T(0.f), T(1.f) / pdf, T(0.f));
+  // the hit (or nowhere): the weight tr / P(flight this far)
+  T pass = T(0.f);
+  for (int c = 0; c < 3; ++c) pass += E[c];
+  pass *= T(1.f / 3.f);
+  const T inv_p = sel(pass > T(0.f), T(1.f) / pass, T(0.f));
+  const vmask emits = scattered && f_mask_from_i(gather(M.emits, ms) != I(0));
+  float* w[3] = {ml.wr + k, ml.wg + k, ml.wb + k};
+  float* e[3] = {ml.er + k, ml.eg + k, ml.eb + k};
+  for (int c = 0; c < 3; ++c) {
+    const T tr = E[c] * T(1.f);
+    const T ws = tr * gather(M.sigma_s[c], ms) * inv_s;
+    const T wp = T(1.f) * E[c] * inv_p;
+    store(w[c], sel(scattered, ws, sel(passed, wp, load<T>(w[c]))));
+    const T old_e = load<T>(e[c]);
+    store(e[c], sel(emits, old_e + tr * gather(M.emit[c], ms) * inv_s, old_e));
+  }
+  // a collision becomes a hit of the medium's row at it; the ray as it left its origin
+  const auto scattered_i = i_mask_from_f(scattered);
+  store(reinterpret_cast<int32_t*>(r.geomID + l0), sel(scattered_i, I(M.geom0) + ms, g));
+  store(reinterpret_cast<int32_t*>(r.primID + l0), sel(scattered_i, I(0), load_i32<T>(reinterpret_cast<const int32_t*>(r.primID + l0))));
+  store(r.u + l0, sel(scattered, T(0.f), load<T>(r.u + l0)));
+  store(r.v + l0, sel(scattered, T(0.f), load<T>(r.v + l0)));
+  store(r.Ng_x + l0, sel(scattered, -load<T>(r.ray.dir_x + l0), load<T>(r.Ng_x + l0)));
+  store(r.Ng_y + l0, sel(scattered, -load<T>(r.ray.dir_y + l0), load<T>(r.Ng_y + l0)));
+  store(r.Ng_z + l0, sel(scattered, -load<T>(r.ray.dir_z + l0), load<T>(r.Ng_z + l0)));
+  store(r.ray.tfar + l0, sel(scattered, T(0.f) + ts, load<T>(r.ray.tfar + l0)));
+  store(ml.pending + k, sel(i_mask_from_f(mine), I(0), load_i32<T>(ml.pending + k)));
+}
+
 }  // namespace media_detail
 
 // The flights of rays [0, count) of the packets (valid[k] != 0: traced), each in medium
@@ -92,7 +165,7 @@ inline void cross_interface(const GeomView& G, RayHit16& r, int l, float t, int3
 // the throughput at the origin), ml.med the medium at the hit. trace(valid, packet)
 // re-traces the lanes that passed an interface. Rays dropped (too many interfaces) get
 // valid 0, counted in rejected.
-template <class Trace>
+template <bool Simd = true, class Trace>
 inline void medium_flights(const GeomView& G, RayHit16* packets, int32_t* valid, int count, MediumLanes& ml,
                            uint64_t& rejected, Trace&& trace) {
   using namespace media_detail;
@@ -101,9 +174,15 @@ inline void medium_flights(const GeomView& G, RayHit16* packets, int32_t* valid,
   // depth: the same bits), for the rays that start in none and stop at their first hit
   const float pass0 = (expn(-0.f) + expn(-0.f) + expn(-0.f)) * (1.f / 3.f);
   const float w0 = expn(-0.f) * (pass0 > 0.f ? 1.f / pass0 : 0.f);
-  // every ray's optical depth to its collision and hero channel (a loop the compiler
-  // vectorises: the log of the rays that never need it costs less than a branch per ray)
-  for (int k = 0; k < count; ++k) {
+  // every ray's optical depth to its collision and hero channel, in SIMD (the log of the
+  // rays that never need it costs less than a branch per ray); the scalar bits
+  int k1 = 0;
+  for (; k1 + simd_width <= count; k1 += simd_width) {
+    const vfloat u1 = load<vfloat>(ml.u1 + k1), u0 = load<vfloat>(ml.u0 + k1);
+    store(ml.tau + k1, -lane_math::log_positive(max(vfloat(1.f) - u1, vfloat(1e-30f))));
+    store(ml.hero + k1, min(to_i32(u0 * vfloat(3.f)), vint(2)));
+  }
+  for (int k = k1; k < count; ++k) {
     ml.tau[k] = -lane_math::log_positive(std::max(1.f - ml.u1[k], 1e-30f));
     ml.hero[k] = std::min(static_cast<int>(ml.u0[k] * 3.f), 2);
   }
@@ -127,6 +206,10 @@ inline void medium_flights(const GeomView& G, RayHit16* packets, int32_t* valid,
     ml.oz[k] = r.ray.org_z[l];
     ml.tbase[k] = 0.f;
   }
+  // the flights that end in their first round without an interface, in SIMD
+  if (Simd && any)
+    for (int p = 0; p < packets_for(count); ++p)
+      for (int l0 = 0; l0 < packet_width; l0 += simd_width) first_flights_simd(G, packets[p], l0, p * packet_width, count, ml);
   for (int round = 0; any; ++round) {
     bool again = false;
     for (int k = 0; k < count; ++k) {
@@ -244,26 +327,43 @@ inline void medium_flights(const GeomView& G, RayHit16* packets, int32_t* valid,
 
 namespace media_detail {
 
-// Shadow ray k (packet k / 16, lane k % 16) after an occlusion query in which no surface
-// but those rays pass between media could stop it, and which met none of those: occluded
-// (Embree's tfar -inf), its contribution is 0; else it ran in the medium at its origin
-// alone, whose transmittance over its length multiplies its contribution.
-inline void shadow_one_medium(const MediumView& M, TileBuffers& tb, int k) {
-  Ray16& s = tb.shadow[k / packet_width];
-  const int l = k % packet_width;
-  if (s.tfar[l] == -INFINITY) {
-    tb.tech.cr[k] = tb.tech.cg[k] = tb.tech.cb[k] = 0.f;
-    return;
+// The shadow rays of packet p in lanes [l0, l0 + simd_width) where lanes is set, after an
+// occlusion query in which no surface but those rays pass between media could stop them,
+// and which met none of those: an occluded one's (Embree's tfar -inf) contribution is 0;
+// another ran in the medium at its origin alone (by its point's geometric normal), whose
+// transmittance over its length multiplies its contribution. In SIMD, the operations of
+// shadow_walk's single segment in order: the same bits.
+inline void shadow_one_medium(const MediumView& M, TileBuffers& tb, int p, int l0, const vmask& lanes) {
+  using T = vfloat;
+  using I = vint;
+  Ray16& s = tb.shadow[p];
+  const int k = p * packet_width + l0;
+  const T tfar = load<T>(s.tfar + l0);
+  const vmask occluded = lanes && (tfar == T(-INFINITY));
+  const T side = load<T>(tb.points.nx + k) * load<T>(s.dir_x + l0) + load<T>(tb.points.ny + k) * load<T>(s.dir_y + l0) +
+                 load<T>(tb.points.nz + k) * load<T>(s.dir_z + l0);
+  const I m = sel(i_mask_from_f(side >= T(0.f)), load_i32<T>(tb.points.medf + k), load_i32<T>(tb.points.medb + k));
+  const vmask in = lanes && !occluded && f_mask_from_i(m >= I(0));
+  if (none(in) && none(occluded)) return;
+  const I ms = sel(i_mask_from_f(in), m, I(0));
+  T tr[3];
+  for (int c = 0; c < 3; ++c) {
+    const T st = gather(M.sigma_t[c], ms);
+    tr[c] = sel(st > T(0.f), lane_math::exp_nonpositive(-st * tfar), T(1.f));
   }
-  const float side = tb.points.nx[k] * s.dir_x[l] + tb.points.ny[k] * s.dir_y[l] + tb.points.nz[k] * s.dir_z[l];
-  const int32_t m = side >= 0.f ? tb.points.medf[k] : tb.points.medb[k];
-  if (m < 0) return;
-  float T[3];
-  for (int c = 0; c < 3; ++c) T[c] = transmit(M.sigma_t[c][m], s.tfar[l]);
-  tb.tech.cr[k] *= T[0];
-  tb.tech.cg[k] *= T[1];
-  tb.tech.cb[k] *= T[2];
-  if (!(T[0] + T[1] + T[2] > 0.f)) s.tfar[l] = -INFINITY;
+  float* contribution[3] = {tb.tech.cr + k, tb.tech.cg + k, tb.tech.cb + k};
+  for (int c = 0; c < 3; ++c) {
+    const T old = load<T>(contribution[c]);
+    store(contribution[c], sel(occluded, T(0.f), sel(in, old * tr[c], old)));
+  }
+  const vmask dark = in && !(tr[0] + tr[1] + tr[2] > T(0.f));
+  store(s.tfar + l0, sel(dark, T(-INFINITY), tfar));
+}
+
+// The lanes of [l0, l0 + simd_width) of packet p whose flag is set, below count.
+inline vmask flagged_lanes(const int32_t* flags, int p, int l0, int count) {
+  const vint lane = lane_iota_i32<vfloat>() + vint(p * packet_width + l0);
+  return f_mask_from_i((load_i32<vfloat>(flags + l0) != vint(0)) && (lane < vint(count)));
 }
 
 // The shadow rays of packet p whose lanes[l] is set, walked through the media: each
@@ -332,10 +432,11 @@ inline void shadow_walk(const GeomView& G, TileBuffers& tb, int p, const int32_t
 // The shadow rays of a scene with media but no surface rays pass between media
 // (MediumView::has_interfaces false), after their occlusion queries: every surface
 // occludes, so an unoccluded ray runs in the medium at its origin alone
-// (media_detail::shadow_one_medium). The numbers of shadow_media's walk for the same rays.
+// (media_detail::shadow_one_medium, in SIMD). The numbers of walking the same rays.
 inline void shadow_transmittance(const GeomView& G, TileBuffers& tb, int count) {
-  for (int k = 0; k < count; ++k)
-    if (tb.tech.valid[k]) media_detail::shadow_one_medium(G.media, tb, k);
+  for (int p = 0; p < packets_for(count); ++p)
+    for (int l0 = 0; l0 < packet_width; l0 += simd_width)
+      media_detail::shadow_one_medium(G.media, tb, p, l0, media_detail::flagged_lanes(tb.tech.valid + p * packet_width, p, l0, count));
 }
 
 // The shadow rays of the shading points [0, count) (valid lanes, tb.shadow) of a scene
@@ -358,16 +459,15 @@ inline void shadow_media(const GeomView& G, TileBuffers& tb, int count, Occlude&
     alignas(64) int32_t crossed[packet_width] = {}, walk[packet_width] = {};
     for (int l = 0; l < packet_width; ++l) s.id[l] = static_cast<uint32_t>(l);
     occlude(valid, s, crossed);
+    alignas(64) int32_t one[packet_width];
     bool some = false;
     for (int l = 0; l < packet_width; ++l) {
-      if (!valid[l]) continue;
-      if (crossed[l] && s.tfar[l] != -INFINITY) {
-        walk[l] = 1;
-        some = true;
-      } else {
-        media_detail::shadow_one_medium(G.media, tb, p * packet_width + l);
-      }
+      walk[l] = valid[l] && crossed[l] && s.tfar[l] != -INFINITY;
+      one[l] = valid[l] && !walk[l];
+      some = some || walk[l];
     }
+    for (int l0 = 0; l0 < packet_width; l0 += simd_width)
+      media_detail::shadow_one_medium(G.media, tb, p, l0, media_detail::flagged_lanes(one, p, l0, count));
     if (some) media_detail::shadow_walk(G, tb, p, walk, trace);
   }
 }
