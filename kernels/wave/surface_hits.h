@@ -196,10 +196,11 @@ TUILE_FLATTEN inline HitGeometry<T> hit_geometry_lanes(const GeomView& G, const 
     rel = rel * (gather(G.sphere_center + 3, s4) / length(rel));
     const Vec3<T> xs = c + rel;
     // Not pbrt's gamma(5) |x| (its spheres sit at the origin of their object space): the
-    // ray leaving the point is intersected by Embree in world space, whose sphere test
-    // errs by a few 1e-6 of |o - c| and r near t = 0, so a smaller offset let 2% of the
-    // rays leaving a sphere hit it again at their origin (tests/test_stress.cpp,
-    // StressPaths). 2^-16 (|x_i| + r): those tests pass down to 2^-21, so a margin of 32.
+    // ray leaving the point is intersected in world space (accel/embree.cpp's sphere
+    // test, in double; the offset was set for Embree's own sphere primitive, whose test
+    // erred by a few 1e-6 of |o - c| and r near t = 0, so that a smaller offset let 2% of
+    // the rays leaving a sphere hit it again at their origin: tests/test_stress.cpp,
+    // StressPaths). 2^-16 (|x_i| + r): those tests passed down to 2^-21, a margin of 32.
     const T r = gather(G.sphere_center + 3, s4);
     const T k(0x1p-16f);
     x = sel(sphere, xs, x);

@@ -5,6 +5,7 @@
 #include <embree3/rtcore.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstddef>
 #include <cstring>
 #include <algorithm>
@@ -30,6 +31,7 @@ struct Accel::Impl {
   std::once_flag emitters_built;
   std::string error;
   std::vector<AlphaShape> alpha;  // the shapes with an alpha, each geometry's user data (reserved: stable)
+  std::vector<struct SphereShape> spheres;  // each sphere's user data (reserved: stable)
   std::vector<RTCScene> objects;  // one BVH per instanced object (the second level)
   // Instances: Embree reports an instance's hits with the geometry's ID in its object's
   // scene and the instance geometry's ID (inst_base + i) in instID; fix_instances turns
@@ -121,6 +123,134 @@ static void interface_occluded_filter(const RTCFilterFunctionNArguments* args) {
   }
 }
 
+// A sphere as Embree user geometry: its own ray test, in double per ray. Embree's
+// SPHERE_POINT primitives intersect packets one ray at a time through its curve machinery,
+// which made every ray of a scene with one sphere several times slower (bench/results.md,
+// "Spheres as user geometry"). filtered: the shape has an alpha or rays pass it between
+// media, so a candidate hit goes through the geometry's filter functions (with the alpha's
+// AlphaShape as their user data, as for the other shapes).
+struct SphereShape {
+  double cx = 0, cy = 0, cz = 0, r = 0;
+  const AlphaShape* alpha = nullptr;
+  bool filtered = false;
+};
+
+static void sphere_bounds(const RTCBoundsFunctionArguments* args) {
+  const auto* s = static_cast<const SphereShape*>(args->geometryUserPtr);
+  const float c[3] = {static_cast<float>(s->cx), static_cast<float>(s->cy), static_cast<float>(s->cz)};
+  const float r = static_cast<float>(s->r);
+  // widened by a float step each way: the bounds in float, the test in double
+  args->bounds_o->lower_x = std::nextafter(c[0] - r, -INFINITY);
+  args->bounds_o->lower_y = std::nextafter(c[1] - r, -INFINITY);
+  args->bounds_o->lower_z = std::nextafter(c[2] - r, -INFINITY);
+  args->bounds_o->upper_x = std::nextafter(c[0] + r, INFINITY);
+  args->bounds_o->upper_y = std::nextafter(c[1] + r, INFINITY);
+  args->bounds_o->upper_z = std::nextafter(c[2] + r, INFINITY);
+}
+
+// The nearest t in (tnear, tfar] where the ray o + t d meets the sphere, or -1: the
+// roots in the form of Haines et al. ("Precision Improvements for Ray/Sphere
+// Intersection", Ray Tracing Gems 2019), the discriminant from the distance of the line to
+// the centre, so that neither a far sphere nor a ray leaving its surface loses the root.
+static double sphere_hit(const SphereShape& s, const double o[3], const double d[3], double tnear, double tfar) {
+  const double f[3] = {o[0] - s.cx, o[1] - s.cy, o[2] - s.cz};
+  const double a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  if (!(a > 0)) return -1;
+  const double b = -(f[0] * d[0] + f[1] * d[1] + f[2] * d[2]);  // -b / 2 of the usual form
+  const double l[3] = {f[0] + b / a * d[0], f[1] + b / a * d[1], f[2] + b / a * d[2]};
+  const double disc = a * (s.r * s.r - (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]));
+  if (!(disc >= 0)) return -1;
+  const double c = f[0] * f[0] + f[1] * f[1] + f[2] * f[2] - s.r * s.r;
+  const double q = b + std::copysign(std::sqrt(disc), b);
+  double t0 = q / a, t1 = q != 0 ? c / q : t0;
+  if (t0 > t1) std::swap(t0, t1);
+  if (t0 > tnear && t0 <= tfar) return t0;
+  if (t1 > tnear && t1 <= tfar) return t1;
+  return -1;
+}
+
+static void sphere_intersect(const RTCIntersectFunctionNArguments* args) {
+  const auto* s = static_cast<const SphereShape*>(args->geometryUserPtr);
+  const unsigned n = args->N;
+  RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, n);
+  RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, n);
+  for (unsigned i = 0; i < n; ++i) {
+    if (args->valid[i] != -1) continue;
+    const double o[3] = {RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i)};
+    const double d[3] = {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i)};
+    const double td = sphere_hit(*s, o, d, RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i));
+    if (td < 0) continue;
+    const float t = static_cast<float>(td);
+    if (!(t <= RTCRayN_tfar(ray, n, i))) continue;
+    RTCHit h;
+    h.Ng_x = static_cast<float>(o[0] + td * d[0] - s->cx);
+    h.Ng_y = static_cast<float>(o[1] + td * d[1] - s->cy);
+    h.Ng_z = static_cast<float>(o[2] + td * d[2] - s->cz);
+    h.u = h.v = 0.f;
+    h.primID = args->primID;
+    h.geomID = args->geomID;
+    h.instID[0] = args->context->instID[0];
+    if (s->filtered) {
+      // the filter sees the candidate as a hit of one ray (its id kept for the marks)
+      RTCRay r1;
+      r1.org_x = RTCRayN_org_x(ray, n, i), r1.org_y = RTCRayN_org_y(ray, n, i), r1.org_z = RTCRayN_org_z(ray, n, i);
+      r1.dir_x = RTCRayN_dir_x(ray, n, i), r1.dir_y = RTCRayN_dir_y(ray, n, i), r1.dir_z = RTCRayN_dir_z(ray, n, i);
+      r1.tnear = RTCRayN_tnear(ray, n, i), r1.tfar = t, r1.time = 0, r1.mask = RTCRayN_mask(ray, n, i);
+      r1.id = RTCRayN_id(ray, n, i), r1.flags = 0;
+      int keep = -1;
+      RTCFilterFunctionNArguments fa{&keep, const_cast<AlphaShape*>(s->alpha), args->context, reinterpret_cast<RTCRayN*>(&r1),
+                                     reinterpret_cast<RTCHitN*>(&h), 1};
+      rtcFilterIntersection(args, &fa);
+      if (keep != -1) continue;
+    }
+    RTCRayN_tfar(ray, n, i) = t;
+    RTCHitN_Ng_x(hit, n, i) = h.Ng_x;
+    RTCHitN_Ng_y(hit, n, i) = h.Ng_y;
+    RTCHitN_Ng_z(hit, n, i) = h.Ng_z;
+    RTCHitN_u(hit, n, i) = 0.f;
+    RTCHitN_v(hit, n, i) = 0.f;
+    RTCHitN_primID(hit, n, i) = h.primID;
+    RTCHitN_geomID(hit, n, i) = h.geomID;
+    RTCHitN_instID(hit, n, i, 0) = h.instID[0];
+  }
+}
+
+static void sphere_occluded(const RTCOccludedFunctionNArguments* args) {
+  const auto* s = static_cast<const SphereShape*>(args->geometryUserPtr);
+  const unsigned n = args->N;
+  RTCRayN* ray = args->ray;
+  for (unsigned i = 0; i < n; ++i) {
+    if (args->valid[i] != -1) continue;
+    const double o[3] = {RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i)};
+    const double d[3] = {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i)};
+    const double td = sphere_hit(*s, o, d, RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i));
+    if (td < 0) continue;
+    const float t = static_cast<float>(td);
+    if (!(t <= RTCRayN_tfar(ray, n, i))) continue;
+    if (s->filtered) {
+      RTCRay r1;
+      r1.org_x = RTCRayN_org_x(ray, n, i), r1.org_y = RTCRayN_org_y(ray, n, i), r1.org_z = RTCRayN_org_z(ray, n, i);
+      r1.dir_x = RTCRayN_dir_x(ray, n, i), r1.dir_y = RTCRayN_dir_y(ray, n, i), r1.dir_z = RTCRayN_dir_z(ray, n, i);
+      r1.tnear = RTCRayN_tnear(ray, n, i), r1.tfar = t, r1.time = 0, r1.mask = RTCRayN_mask(ray, n, i);
+      r1.id = RTCRayN_id(ray, n, i), r1.flags = 0;
+      RTCHit h;
+      h.Ng_x = static_cast<float>(o[0] + td * d[0] - s->cx);
+      h.Ng_y = static_cast<float>(o[1] + td * d[1] - s->cy);
+      h.Ng_z = static_cast<float>(o[2] + td * d[2] - s->cz);
+      h.u = h.v = 0.f;
+      h.primID = args->primID;
+      h.geomID = args->geomID;
+      h.instID[0] = args->context->instID[0];
+      int keep = -1;
+      RTCFilterFunctionNArguments fa{&keep, const_cast<AlphaShape*>(s->alpha), args->context, reinterpret_cast<RTCRayN*>(&r1),
+                                     reinterpret_cast<RTCHitN*>(&h), 1};
+      rtcFilterOcclusion(args, &fa);
+      if (keep != -1) continue;
+    }
+    RTCRayN_tfar(ray, n, i) = -INFINITY;
+  }
+}
+
 Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make_unique<Impl>()) {
   const auto t0 = std::chrono::steady_clock::now();
   impl_->device = rtcNewDevice(options.device_config.empty() ? nullptr : options.device_config.c_str());
@@ -143,6 +273,7 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
   // Each emitter is a second geometry object on the same shared buffers, attached to the
   // emitters' scene under the same ID.
   impl_->alpha.reserve(scene.meshes.size() + scene.spheres.size());
+  impl_->spheres.reserve(scene.spheres.size());
   // Instanced objects' shapes go to their object's scene under local IDs 0, 1, ... (rows
   // maps them back to the scene's rows); every other shape to the scene under its row.
   for (size_t o = 0; o < scene.objects.size(); ++o) {
@@ -198,20 +329,26 @@ Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make
       impl_->alpha.push_back(a);
       alpha = &impl_->alpha.back();
     }
+    const bool passes = passes_between_media(scene, s.material, s.medium_inside, s.medium_outside, emissive);
+    SphereShape shape;
+    shape.cx = s.center.x, shape.cy = s.center.y, shape.cz = s.center.z, shape.r = s.radius;
+    shape.alpha = alpha;
+    shape.filtered = alpha || passes;
+    impl_->spheres.push_back(shape);
+    const SphereShape* user = &impl_->spheres.back();
     for (RTCScene sc : {impl_->scene, impl_->emitters}) {
       if (sc == impl_->emitters && !emissive) continue;
-      RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
-      auto* v = static_cast<float*>(
-          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
-      v[0] = s.center.x;
-      v[1] = s.center.y;
-      v[2] = s.center.z;
-      v[3] = s.radius;
-      if (alpha) attach_alpha(g, alpha);
-      if (passes_between_media(scene, s.material, s.medium_inside, s.medium_outside, emissive)) {
-        rtcSetGeometryUserData(g, const_cast<AlphaShape*>(alpha));
-        rtcSetGeometryOccludedFilterFunction(g, interface_occluded_filter);
+      RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_USER);
+      rtcSetGeometryUserPrimitiveCount(g, 1);
+      rtcSetGeometryUserData(g, const_cast<SphereShape*>(user));
+      rtcSetGeometryBoundsFunction(g, sphere_bounds, const_cast<SphereShape*>(user));
+      rtcSetGeometryIntersectFunction(g, sphere_intersect);
+      rtcSetGeometryOccludedFunction(g, sphere_occluded);
+      if (alpha) {
+        rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
+        rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
       }
+      if (passes) rtcSetGeometryOccludedFilterFunction(g, interface_occluded_filter);
       rtcCommitGeometry(g);
       attach(sc, g, id, s.object);
       rtcReleaseGeometry(g);
