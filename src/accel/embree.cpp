@@ -13,6 +13,8 @@
 #include <mutex>
 #include <vector>
 
+#include <xsimd/xsimd.hpp>
+
 #include "wave/alpha.h"
 
 namespace tuile {
@@ -169,16 +171,73 @@ static double sphere_hit(const SphereShape& s, const double o[3], const double d
   return -1;
 }
 
+// sphere_hit for the rays [i0, i0 + W) of an N-wide packet (W doubles a SIMD register),
+// into t (-1: none): the same operations in the same order, so the same bits per ray.
+using vdouble = xsimd::batch<double>;
+static void sphere_hits_simd(const SphereShape& s, RTCRayN* ray, unsigned n, unsigned i0, double* t) {
+  constexpr unsigned W = vdouble::size;
+  alignas(64) double v[8][W];
+  for (unsigned k = 0; k < W; ++k) {
+    const unsigned i = i0 + k;
+    v[0][k] = RTCRayN_org_x(ray, n, i), v[1][k] = RTCRayN_org_y(ray, n, i), v[2][k] = RTCRayN_org_z(ray, n, i);
+    v[3][k] = RTCRayN_dir_x(ray, n, i), v[4][k] = RTCRayN_dir_y(ray, n, i), v[5][k] = RTCRayN_dir_z(ray, n, i);
+    v[6][k] = RTCRayN_tnear(ray, n, i), v[7][k] = RTCRayN_tfar(ray, n, i);
+  }
+  const vdouble d[3] = {vdouble::load_aligned(v[3]), vdouble::load_aligned(v[4]), vdouble::load_aligned(v[5])};
+  const vdouble f[3] = {vdouble::load_aligned(v[0]) - vdouble(s.cx), vdouble::load_aligned(v[1]) - vdouble(s.cy),
+                        vdouble::load_aligned(v[2]) - vdouble(s.cz)};
+  const vdouble a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  const vdouble b = -(f[0] * d[0] + f[1] * d[1] + f[2] * d[2]);
+  const vdouble l[3] = {f[0] + b / a * d[0], f[1] + b / a * d[1], f[2] + b / a * d[2]};
+  const vdouble disc = a * (vdouble(s.r * s.r) - (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]));
+  const vdouble c = f[0] * f[0] + f[1] * f[1] + f[2] * f[2] - vdouble(s.r * s.r);
+  const vdouble q = b + xsimd::copysign(xsimd::sqrt(disc), b);
+  const vdouble t0 = q / a, t1 = xsimd::select(q != vdouble(0.), c / q, t0);
+  const vdouble lo = xsimd::select(t0 > t1, t1, t0), hi = xsimd::select(t0 > t1, t0, t1);
+  const vdouble tn = vdouble::load_aligned(v[6]), tf = vdouble::load_aligned(v[7]);
+  vdouble r = xsimd::select((hi > tn) && (hi <= tf), hi, vdouble(-1.));
+  r = xsimd::select((lo > tn) && (lo <= tf), lo, r);
+  r = xsimd::select((a > vdouble(0.)) && (disc >= vdouble(0.)), r, vdouble(-1.));
+  r.store_unaligned(t);
+}
+
+// The nearest hit of each valid ray of an N-wide packet, in td (-1: none): in SIMD where
+// a register's rays hold two valid ones or more (Embree also calls with a single valid ray
+// of a packet, when it traverses the packet's rays one at a time), else one ray at a time.
+static void sphere_hits(const SphereShape& s, const int* valid, RTCRayN* ray, unsigned n, double* td) {
+  constexpr unsigned W = vdouble::size;
+  const auto one = [&](unsigned i) {
+    const double o[3] = {RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i)};
+    const double d[3] = {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i)};
+    td[i] = sphere_hit(s, o, d, RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i));
+  };
+  for (unsigned i0 = 0; i0 < n; i0 += W) {
+    unsigned live = 0;
+    for (unsigned k = i0; k < i0 + W && k < n; ++k) live += valid[k] == -1;
+    if (live >= 2 && i0 + W <= n) {
+      sphere_hits_simd(s, ray, n, i0, td + i0);
+      continue;
+    }
+    for (unsigned k = i0; k < i0 + W && k < n; ++k) {
+      td[k] = -1;
+      if (valid[k] == -1) one(k);
+    }
+  }
+}
+
 static void sphere_intersect(const RTCIntersectFunctionNArguments* args) {
   const auto* s = static_cast<const SphereShape*>(args->geometryUserPtr);
   const unsigned n = args->N;
   RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, n);
   RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, n);
+  double tds[16];
+  if (n > 16) return;  // (Embree's widest packet is 16)
+  sphere_hits(*s, args->valid, ray, n, tds);
   for (unsigned i = 0; i < n; ++i) {
     if (args->valid[i] != -1) continue;
     const double o[3] = {RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i)};
     const double d[3] = {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i)};
-    const double td = sphere_hit(*s, o, d, RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i));
+    const double td = tds[i];
     if (td < 0) continue;
     const float t = static_cast<float>(td);
     if (!(t <= RTCRayN_tfar(ray, n, i))) continue;
@@ -219,11 +278,14 @@ static void sphere_occluded(const RTCOccludedFunctionNArguments* args) {
   const auto* s = static_cast<const SphereShape*>(args->geometryUserPtr);
   const unsigned n = args->N;
   RTCRayN* ray = args->ray;
+  double tds[16];
+  if (n > 16) return;  // (Embree's widest packet is 16)
+  sphere_hits(*s, args->valid, ray, n, tds);
   for (unsigned i = 0; i < n; ++i) {
     if (args->valid[i] != -1) continue;
     const double o[3] = {RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i)};
     const double d[3] = {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i)};
-    const double td = sphere_hit(*s, o, d, RTCRayN_tnear(ray, n, i), RTCRayN_tfar(ray, n, i));
+    const double td = tds[i];
     if (td < 0) continue;
     const float t = static_cast<float>(td);
     if (!(t <= RTCRayN_tfar(ray, n, i))) continue;
