@@ -225,52 +225,67 @@ static void sphere_hits(const SphereShape& s, const int* valid, RTCRayN* ray, un
   }
 }
 
+// Ray i of an N-wide packet, met by the sphere at td (t in float): the hit (Ng from the
+// centre to the point, u = v = 0) and the ray as one ray ending there, as the filter
+// functions see a candidate (its id kept for the media's marks).
+struct SphereCandidate {
+  RTCRay ray;
+  RTCHit hit;
+};
+static SphereCandidate sphere_candidate(const SphereShape& s, RTCRayN* ray, unsigned n, unsigned i, double td, float t,
+                                        unsigned primID, unsigned geomID, const RTCIntersectContext* context) {
+  SphereCandidate c;
+  RTCRay& r = c.ray;
+  r.org_x = RTCRayN_org_x(ray, n, i), r.org_y = RTCRayN_org_y(ray, n, i), r.org_z = RTCRayN_org_z(ray, n, i);
+  r.dir_x = RTCRayN_dir_x(ray, n, i), r.dir_y = RTCRayN_dir_y(ray, n, i), r.dir_z = RTCRayN_dir_z(ray, n, i);
+  r.tnear = RTCRayN_tnear(ray, n, i), r.tfar = t, r.time = 0, r.mask = RTCRayN_mask(ray, n, i);
+  r.id = RTCRayN_id(ray, n, i), r.flags = 0;
+  RTCHit& h = c.hit;
+  h.Ng_x = static_cast<float>(static_cast<double>(r.org_x) + td * r.dir_x - s.cx);
+  h.Ng_y = static_cast<float>(static_cast<double>(r.org_y) + td * r.dir_y - s.cy);
+  h.Ng_z = static_cast<float>(static_cast<double>(r.org_z) + td * r.dir_z - s.cz);
+  h.u = h.v = 0.f;
+  h.primID = primID;
+  h.geomID = geomID;
+  h.instID[0] = context->instID[0];
+  return c;
+}
+
+// The filter functions' verdict on a candidate (for a sphere with an alpha, or one rays
+// pass between media); Filter is rtcFilterIntersection or rtcFilterOcclusion.
+template <class Args, class Filter>
+static bool sphere_filter_keeps(const SphereShape& s, const Args* args, SphereCandidate& c, Filter filter) {
+  if (!s.filtered) return true;
+  int keep = -1;
+  RTCFilterFunctionNArguments fa{&keep, const_cast<AlphaShape*>(s.alpha), args->context, reinterpret_cast<RTCRayN*>(&c.ray),
+                                 reinterpret_cast<RTCHitN*>(&c.hit), 1};
+  filter(args, &fa);
+  return keep == -1;
+}
+
 static void sphere_intersect(const RTCIntersectFunctionNArguments* args) {
   const auto* s = static_cast<const SphereShape*>(args->geometryUserPtr);
   const unsigned n = args->N;
   RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, n);
   RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, n);
-  double tds[16];
+  double td[16];
   if (n > 16) return;  // (Embree's widest packet is 16)
-  sphere_hits(*s, args->valid, ray, n, tds);
+  sphere_hits(*s, args->valid, ray, n, td);
   for (unsigned i = 0; i < n; ++i) {
-    if (args->valid[i] != -1) continue;
-    const double o[3] = {RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i)};
-    const double d[3] = {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i)};
-    const double td = tds[i];
-    if (td < 0) continue;
-    const float t = static_cast<float>(td);
+    if (args->valid[i] != -1 || td[i] < 0) continue;
+    const float t = static_cast<float>(td[i]);
     if (!(t <= RTCRayN_tfar(ray, n, i))) continue;
-    RTCHit h;
-    h.Ng_x = static_cast<float>(o[0] + td * d[0] - s->cx);
-    h.Ng_y = static_cast<float>(o[1] + td * d[1] - s->cy);
-    h.Ng_z = static_cast<float>(o[2] + td * d[2] - s->cz);
-    h.u = h.v = 0.f;
-    h.primID = args->primID;
-    h.geomID = args->geomID;
-    h.instID[0] = args->context->instID[0];
-    if (s->filtered) {
-      // the filter sees the candidate as a hit of one ray (its id kept for the marks)
-      RTCRay r1;
-      r1.org_x = RTCRayN_org_x(ray, n, i), r1.org_y = RTCRayN_org_y(ray, n, i), r1.org_z = RTCRayN_org_z(ray, n, i);
-      r1.dir_x = RTCRayN_dir_x(ray, n, i), r1.dir_y = RTCRayN_dir_y(ray, n, i), r1.dir_z = RTCRayN_dir_z(ray, n, i);
-      r1.tnear = RTCRayN_tnear(ray, n, i), r1.tfar = t, r1.time = 0, r1.mask = RTCRayN_mask(ray, n, i);
-      r1.id = RTCRayN_id(ray, n, i), r1.flags = 0;
-      int keep = -1;
-      RTCFilterFunctionNArguments fa{&keep, const_cast<AlphaShape*>(s->alpha), args->context, reinterpret_cast<RTCRayN*>(&r1),
-                                     reinterpret_cast<RTCHitN*>(&h), 1};
-      rtcFilterIntersection(args, &fa);
-      if (keep != -1) continue;
-    }
+    SphereCandidate c = sphere_candidate(*s, ray, n, i, td[i], t, args->primID, args->geomID, args->context);
+    if (!sphere_filter_keeps(*s, args, c, rtcFilterIntersection)) continue;
     RTCRayN_tfar(ray, n, i) = t;
-    RTCHitN_Ng_x(hit, n, i) = h.Ng_x;
-    RTCHitN_Ng_y(hit, n, i) = h.Ng_y;
-    RTCHitN_Ng_z(hit, n, i) = h.Ng_z;
+    RTCHitN_Ng_x(hit, n, i) = c.hit.Ng_x;
+    RTCHitN_Ng_y(hit, n, i) = c.hit.Ng_y;
+    RTCHitN_Ng_z(hit, n, i) = c.hit.Ng_z;
     RTCHitN_u(hit, n, i) = 0.f;
     RTCHitN_v(hit, n, i) = 0.f;
-    RTCHitN_primID(hit, n, i) = h.primID;
-    RTCHitN_geomID(hit, n, i) = h.geomID;
-    RTCHitN_instID(hit, n, i, 0) = h.instID[0];
+    RTCHitN_primID(hit, n, i) = c.hit.primID;
+    RTCHitN_geomID(hit, n, i) = c.hit.geomID;
+    RTCHitN_instID(hit, n, i, 0) = c.hit.instID[0];
   }
 }
 
@@ -278,36 +293,16 @@ static void sphere_occluded(const RTCOccludedFunctionNArguments* args) {
   const auto* s = static_cast<const SphereShape*>(args->geometryUserPtr);
   const unsigned n = args->N;
   RTCRayN* ray = args->ray;
-  double tds[16];
+  double td[16];
   if (n > 16) return;  // (Embree's widest packet is 16)
-  sphere_hits(*s, args->valid, ray, n, tds);
+  sphere_hits(*s, args->valid, ray, n, td);
   for (unsigned i = 0; i < n; ++i) {
-    if (args->valid[i] != -1) continue;
-    const double o[3] = {RTCRayN_org_x(ray, n, i), RTCRayN_org_y(ray, n, i), RTCRayN_org_z(ray, n, i)};
-    const double d[3] = {RTCRayN_dir_x(ray, n, i), RTCRayN_dir_y(ray, n, i), RTCRayN_dir_z(ray, n, i)};
-    const double td = tds[i];
-    if (td < 0) continue;
-    const float t = static_cast<float>(td);
+    if (args->valid[i] != -1 || td[i] < 0) continue;
+    const float t = static_cast<float>(td[i]);
     if (!(t <= RTCRayN_tfar(ray, n, i))) continue;
     if (s->filtered) {
-      RTCRay r1;
-      r1.org_x = RTCRayN_org_x(ray, n, i), r1.org_y = RTCRayN_org_y(ray, n, i), r1.org_z = RTCRayN_org_z(ray, n, i);
-      r1.dir_x = RTCRayN_dir_x(ray, n, i), r1.dir_y = RTCRayN_dir_y(ray, n, i), r1.dir_z = RTCRayN_dir_z(ray, n, i);
-      r1.tnear = RTCRayN_tnear(ray, n, i), r1.tfar = t, r1.time = 0, r1.mask = RTCRayN_mask(ray, n, i);
-      r1.id = RTCRayN_id(ray, n, i), r1.flags = 0;
-      RTCHit h;
-      h.Ng_x = static_cast<float>(o[0] + td * d[0] - s->cx);
-      h.Ng_y = static_cast<float>(o[1] + td * d[1] - s->cy);
-      h.Ng_z = static_cast<float>(o[2] + td * d[2] - s->cz);
-      h.u = h.v = 0.f;
-      h.primID = args->primID;
-      h.geomID = args->geomID;
-      h.instID[0] = args->context->instID[0];
-      int keep = -1;
-      RTCFilterFunctionNArguments fa{&keep, const_cast<AlphaShape*>(s->alpha), args->context, reinterpret_cast<RTCRayN*>(&r1),
-                                     reinterpret_cast<RTCHitN*>(&h), 1};
-      rtcFilterOcclusion(args, &fa);
-      if (keep != -1) continue;
+      SphereCandidate c = sphere_candidate(*s, ray, n, i, td[i], t, args->primID, args->geomID, args->context);
+      if (!sphere_filter_keeps(*s, args, c, rtcFilterOcclusion)) continue;
     }
     RTCRayN_tfar(ray, n, i) = -INFINITY;
   }
