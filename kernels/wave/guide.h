@@ -1,6 +1,6 @@
 // Path guiding (--guide, Estimator::guide): a learned distribution of the light that
 // arrives at each region of the scene, mixed with BSDF sampling at the points whose
-// surface is diffuse (Lambert). After Müller, Gross & Novák 2017 ("Practical Path
+// surface is diffuse (Lambert) and with phase-function sampling at points inside a medium. After Müller, Gross & Novák 2017 ("Practical Path
 // Guiding"): a binary tree over space, refined where many path vertices fall, whose leaves
 // hold a distribution over directions. Here the directional part is a fixed grid of
 // guide_res x guide_res cells on the equal-area octahedral square (light/sky_map.h: the
@@ -15,8 +15,8 @@
 // samples and of the emitters and sky the BSDF samples reach) is the mixture's
 //   p(wi) = alpha p_guide(wi) + (1 - alpha) p_bsdf(wi)
 // (a delta lobe of the BSDF keeps its delta, drawn with probability (1 - alpha) times its
-// own). A point is guided where its material is diffuse and its leaf
-// learned a distribution; the same test decides in the BSDF and the light stages, so both
+// own). A point is guided where its material is diffuse, or it is in a medium, and its leaf
+// learned a distribution for its class; the same test decides in the BSDF and the light stages, so both
 // see the same density.
 #pragma once
 #include <cstdint>
@@ -30,10 +30,12 @@ namespace tuile {
 
 inline constexpr int guide_res = 16;                       // cells per side of the square
 inline constexpr int guide_cells = guide_res * guide_res;  // per distribution
-// Each leaf learns one distribution per class of surface orientation: the axis its normal
-// (facing the viewer) is closest to, and that axis's sign. A leaf that holds a floor and
-// a wall keeps their light apart.
-inline constexpr int guide_classes = 6;
+// Each leaf learns one distribution per class of point: for a surface, the axis its normal
+// (facing the viewer) is closest to, and that axis's sign (a leaf that holds a floor and a
+// wall keeps their light apart); a point inside a participating medium (its phase
+// function's, which has no side) is the last class, guide_medium_class.
+inline constexpr int guide_classes = 7;
+inline constexpr int guide_medium_class = 6;
 
 // The guide as the kernels read it (src/render/guide.h builds it).
 struct GuideView {
@@ -48,7 +50,7 @@ struct GuideView {
   float alpha = 0.5f;             // the probability of drawing from the guide at a guided point
 };
 
-// The class of the normal n (guide_classes).
+// The class of a surface point of normal n (guide_classes).
 template <class T> inline i32_t<T> guide_class(const Vec3<T>& n) {
   const T ax = abs(n.x), ay = abs(n.y), az = abs(n.z);
   const auto xm = ax >= ay && ax >= az, ym = !xm && ay >= az;
@@ -57,8 +59,8 @@ template <class T> inline i32_t<T> guide_class(const Vec3<T>& n) {
   return to_i32(c);
 }
 
-// The distribution of the leaf holding x for a point of normal n (-1: none learned).
-template <class T> inline i32_t<T> guide_dist(const GuideView& g, const Vec3<T>& x, const Vec3<T>& n) {
+// The distribution of the leaf holding x for a point of class cls (-1: none learned).
+template <class T> inline i32_t<T> guide_dist(const GuideView& g, const Vec3<T>& x, const i32_t<T>& cls) {
   i32_t<T> node(0);
   for (int32_t s = 0; s < g.depth; ++s) {
     const i32_t<T> c = gather(g.child, node);
@@ -70,7 +72,11 @@ template <class T> inline i32_t<T> guide_dist(const GuideView& g, const Vec3<T>&
     const i32_t<T> right = sel(i_mask_from_f(coord >= sp), i32_t<T>(1), i32_t<T>(0));
     node = sel(inner, c + right, node);
   }
-  return gather(g.leaf_dist, node * i32_t<T>(guide_classes) + guide_class(n));
+  return gather(g.leaf_dist, node * i32_t<T>(guide_classes) + cls);
+}
+// ... for a surface point of normal n.
+template <class T> inline i32_t<T> guide_dist(const GuideView& g, const Vec3<T>& x, const Vec3<T>& n) {
+  return guide_dist(g, x, guide_class(n));
 }
 
 // The guide's density (solid angle) of the unit direction d in distribution dist (>= 0).
@@ -98,9 +104,12 @@ template <class T> inline Vec3<T> guide_sample(const GuideView& g, const i32_t<T
 }
 
 // Whether a material kind is guided: diffuse surfaces (a coated diffuse's glossy or mirror
-// coat, sampled half as often, lost more than the guide gained: bench/results.md).
+// coat, sampled half as often, lost more than the guide gained: bench/results.md) and
+// points inside a medium (the phase function's: volume path guiding, where the light a
+// medium point sees comes through a lens or a gap, as a volumetric caustic's does).
 template <class T> inline mask_t<T> guided_kind(const i32_t<T>& kind) {
-  return f_mask_from_i(kind == i32_t<T>(static_cast<int32_t>(MaterialKind::diffuse)));
+  return f_mask_from_i(kind == i32_t<T>(static_cast<int32_t>(MaterialKind::diffuse)) ||
+                       kind == i32_t<T>(static_cast<int32_t>(MaterialKind::phase)));
 }
 
 // --guide: the share alpha of the guide at shading points [k, k + width) (0 where the point
@@ -109,9 +118,16 @@ template <class T> inline mask_t<T> guided_kind(const i32_t<T>& kind) {
 template <class T, unsigned Bsdfs>
 inline T guide_share(const GeomView& G, const ShadingPoints& P, int k, const Vec3<T>& x, i32_t<T>& dist) {
   const Vec3<T> n = load3<T>(P.nx + k, P.ny + k, P.nz + k);
-  const i32_t<T> d = guide_dist(*G.guide, x, n);
-  auto m = f_mask_from_i(d >= i32_t<T>(0));
-  if constexpr (Bsdfs != bsdf_diffuse) m = m && guided_kind<T>(gather(G.mat_kind, load_i32<T>(P.mat + k)));
+  i32_t<T> cls = guide_class(n);
+  auto m = mask_t<T>(true);
+  if constexpr (Bsdfs != bsdf_diffuse) {
+    const i32_t<T> kind = gather(G.mat_kind, load_i32<T>(P.mat + k));
+    m = guided_kind<T>(kind);
+    if constexpr ((Bsdfs & bsdf_phase) != 0)
+      cls = sel(kind == i32_t<T>(static_cast<int32_t>(MaterialKind::phase)), i32_t<T>(guide_medium_class), cls);
+  }
+  const i32_t<T> d = guide_dist(*G.guide, x, cls);
+  m = m && f_mask_from_i(d >= i32_t<T>(0));
   dist = sel(d >= i32_t<T>(0), d, i32_t<T>(0));
   return sel(m, T(G.guide->alpha), T(0.f));
 }

@@ -61,12 +61,22 @@ TUILE_FLATTEN inline void sample_bsdf_lanes(const GeomView& G, const Estimator& 
     bs.pdf = sel(mixed && !bs.delta, pb_mix, bs.pdf);
     if (any(from_guide)) {  // a direction of the guide: the BSDF's value and density for it
       const Vec3<T> wg = guide_sample(*G.guide, dist, u0, u1);
-      // guided points are diffuse (guided_kind): the Lambertian lobe is their whole BSDF,
-      // so the other kinds' lobes in the packet need not be evaluated for this direction
-      const BsdfEval<T> fe = Lambert<T>{bsdf.rho}.eval(SurfacePoint<T>{bsdf.n, bsdf.wo}, wg);
-      const T pg_mix = guide_mixture_pdf(G, alpha, dist, wg, fe.pdf);
+      // guided points are diffuse or in a medium (guided_kind): the Lambertian lobe, or the
+      // phase function, is their whole BSDF, so the other kinds' lobes in the packet need
+      // not be evaluated for this direction
+      BsdfEval<T> fe = Lambert<T>{bsdf.rho}.eval(SurfacePoint<T>{bsdf.n, bsdf.wo}, wg);
       const T cos_s = dot(ns, wg);
-      const T cos_x = (Bsdfs & bsdf_transmits) != 0 ? abs(cos_s) : cos_s;
+      T cos_x = (Bsdfs & bsdf_transmits) != 0 ? abs(cos_s) : cos_s;
+      if constexpr ((Bsdfs & bsdf_phase) != 0) {
+        const auto ph = bsdf.is(MaterialKind::phase);
+        if (any(ph)) {
+          const T p = hg_phase(dot(bsdf.wo, wg), bsdf.param(mp_hg_g));
+          fe.f = {sel(ph, p, fe.f.r), sel(ph, p, fe.f.g), sel(ph, p, fe.f.b)};
+          fe.pdf = sel(ph, p, fe.pdf);
+          cos_x = sel(ph, T(1.f), cos_x);  // a point in a medium: no cosine
+        }
+      }
+      const T pg_mix = guide_mixture_pdf(G, alpha, dist, wg, fe.pdf);
       const auto ok = cos_x > T(0.f) && pg_mix > T(0.f);
       const T r = sel(ok, cos_x / sel(ok, pg_mix, T(1.f)), T(0.f));
       bs.wi = sel(from_guide, wg, bs.wi);

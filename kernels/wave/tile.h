@@ -226,7 +226,7 @@ struct GuidePathLanes {
   static constexpr int vertices = 16;
   alignas(64) float x[vertices][lane_array], y[vertices][lane_array], z[vertices][lane_array];
   alignas(64) float dx[vertices][lane_array], dy[vertices][lane_array], dz[vertices][lane_array];
-  alignas(64) float nx[vertices][lane_array], ny[vertices][lane_array], nz[vertices][lane_array];
+  alignas(64) int32_t cls[vertices][lane_array];  // the point's class (wave/guide.h guide_classes)
   alignas(64) float pdf[vertices][lane_array];
   alignas(64) float tr[vertices][lane_array], tg[vertices][lane_array], tb[vertices][lane_array];
   alignas(64) float cr[vertices + 1][lane_array], cg[vertices + 1][lane_array], cb[vertices + 1][lane_array];

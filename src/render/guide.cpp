@@ -75,11 +75,9 @@ void guide_bilinear_cells(const Vec3<float>& d, int cell[4], float w[4]) noexcep
   }
 }
 
-void Guide::record(float x, float y, float z, float nx, float ny, float nz, float dx, float dy, float dz,
-                   float value) noexcept {
-  if (!(value >= 0.f) || !std::isfinite(x + y + z + dx + dy + dz + nx + ny + nz)) return;
-  const size_t slot = static_cast<size_t>(node_of(x, y, z)) * guide_classes +
-                      static_cast<size_t>(guide_class<float>(Vec3<float>(nx, ny, nz)));
+void Guide::record(float x, float y, float z, int cls, float dx, float dy, float dz, float value) noexcept {
+  if (!(value >= 0.f) || !std::isfinite(x + y + z + dx + dy + dz) || cls < 0 || cls >= guide_classes) return;
+  const size_t slot = static_cast<size_t>(node_of(x, y, z)) * guide_classes + static_cast<size_t>(cls);
   int cell[4];
   float w[4];
   guide_bilinear_cells(Vec3<float>(dx, dy, dz), cell, w);

@@ -37,13 +37,14 @@ class Guide {
   uint32_t learn() const noexcept { return learn_; }
   // The end of the learning iteration that sample s belongs to (s < learn()).
   uint32_t iteration_end(uint32_t s) const noexcept;
-  // Adds one record: at point (x, y, z) of normal n (facing the viewer) light of luminance
-  // `value` per unit density came along the unit direction d (the path's L_in cos / p).
+  // Adds one record: at point (x, y, z) of class cls (guide_class of its normal facing the
+  // viewer, or guide_medium_class) light of luminance `value` per unit density came along
+  // the unit direction d (the path's L_in cos / p; L_in / p in a medium).
   // Filtered in direction (after Müller 2019, "Practical Path Guiding in Production"): the
   // value is shared among the four cells nearest d by bilinear weights
   // (guide_bilinear_cells), so that a direction's light does not depend on which side of a
   // cell's edge it fell. Thread-safe.
-  void record(float x, float y, float z, float nx, float ny, float nz, float dx, float dy, float dz, float value) noexcept;
+  void record(float x, float y, float z, int cls, float dx, float dy, float dz, float value) noexcept;
   // Ends the iteration that ends at sample `until`: refines the tree, turns the records into
   // the distributions, clears them.
   void rebuild(uint32_t until);
@@ -60,8 +61,12 @@ class Guide {
   static constexpr double split_records = 4000;
   static constexpr int max_depth = 24;
   static constexpr uint64_t min_records = 64;  // a leaf with fewer learns no distribution
-  static constexpr double fixed_scale = 16777216.0;  // 2^24: a record's value in fixed point
-  static constexpr float max_value = 65536.f;       // records clamp to this (the guide only, never the image)
+  // A record's value in fixed point: 2^20, and records clamp to 2^23 (the guide only, never
+  // the image), so that a cell's 64-bit sum holds 2^21 records at the clamp. The clamp is
+  // high: the rare records that carry most of a caustic's light (a lamp of radiance 5e5
+  // seen through a glass sphere, over a density of 1 / (4 pi)) are what the guide must learn.
+  static constexpr double fixed_scale = 1048576.0;
+  static constexpr float max_value = 8388608.f;
 
  private:
   struct Box {

@@ -171,8 +171,7 @@ inline void guide_vertex_path(const GeomView& G, TileBuffers& tb, int vertex) {
   for (int k = 0; k < tb.points.count; ++k) {
     const int i = tb.points.lane[k];
     const int32_t kind = G.mat_kind[tb.points.mat[k]];
-    const bool ok = tb.tech.valid[k] && !tb.tech.delta[k] && tb.tech.pdf[k] > 0.f &&
-                    kind == static_cast<int32_t>(MaterialKind::diffuse);
+    const bool ok = tb.tech.valid[k] && !tb.tech.delta[k] && tb.tech.pdf[k] > 0.f && guided_kind<float>(kind);
     g.ok[v][i] = ok;
     if (!ok) continue;
     const RayHit16& r = tb.bounce[k / packet_width];
@@ -183,16 +182,17 @@ inline void guide_vertex_path(const GeomView& G, TileBuffers& tb, int vertex) {
     g.dx[v][i] = r.ray.dir_x[l];
     g.dy[v][i] = r.ray.dir_y[l];
     g.dz[v][i] = r.ray.dir_z[l];
-    // the record is L_in cos / p: the guide learns the light times the cosine at the point
-    // (the product a diffuse surface integrates), not the light alone
+    // the record is L_in cos / p at a surface: the guide learns the light times the cosine
+    // at the point (the product a diffuse surface integrates), not the light alone; in a
+    // medium, L_in / p (the phase function has no cosine)
+    const bool medium = kind == static_cast<int32_t>(MaterialKind::phase);
     const float nx = G.shading_normals ? tb.points.snx[k] : tb.points.nx[k];
     const float ny = G.shading_normals ? tb.points.sny[k] : tb.points.ny[k];
     const float nz = G.shading_normals ? tb.points.snz[k] : tb.points.nz[k];
-    const float cosine = std::abs(nx * r.ray.dir_x[l] + ny * r.ray.dir_y[l] + nz * r.ray.dir_z[l]);
+    const float cosine = medium ? 1.f : std::abs(nx * r.ray.dir_x[l] + ny * r.ray.dir_y[l] + nz * r.ray.dir_z[l]);
     g.pdf[v][i] = tb.tech.pdf[k] / std::max(cosine, 1e-6f);
-    g.nx[v][i] = tb.points.nx[k];
-    g.ny[v][i] = tb.points.ny[k];
-    g.nz[v][i] = tb.points.nz[k];
+    g.cls[v][i] = medium ? guide_medium_class
+                         : guide_class<float>(Vec3<float>(tb.points.nx[k], tb.points.ny[k], tb.points.nz[k]));
     g.tr[v][i] = tb.path.throughput_r[k];
     g.tg[v][i] = tb.path.throughput_g[k];
     g.tb[v][i] = tb.path.throughput_b[k];
@@ -208,8 +208,8 @@ inline void guide_record_sample(Guide& guide, TileBuffers& tb, int lanes) {
       if (v < GuidePathLanes::vertices && g.ok[v][i]) {
         auto in = [](float s, float t) { return t > 0.f ? s / t : 0.f; };
         const float L = luminance(in(sr, g.tr[v][i]), in(sg, g.tg[v][i]), in(sb, g.tb[v][i]));
-        guide.record(g.x[v][i], g.y[v][i], g.z[v][i], g.nx[v][i], g.ny[v][i], g.nz[v][i], g.dx[v][i], g.dy[v][i],
-                     g.dz[v][i], L / g.pdf[v][i]);
+        guide.record(g.x[v][i], g.y[v][i], g.z[v][i], g.cls[v][i], g.dx[v][i], g.dy[v][i], g.dz[v][i],
+                     L / g.pdf[v][i]);
       }
       sr += g.cr[v][i];
       sg += g.cg[v][i];
