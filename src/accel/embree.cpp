@@ -263,20 +263,28 @@ static bool sphere_filter_keeps(const SphereShape& s, const Args* args, SphereCa
   return keep == -1;
 }
 
+// Both sphere callbacks: each valid ray of the packet whose nearest root lies within its
+// tfar, as f(i, td, t) (the root in double, and as the float Embree stores).
+template <class Args, class F> static void for_each_sphere_root(const SphereShape& s, const Args* args, RTCRayN* ray, F&& f) {
+  const unsigned n = args->N;
+  double td[16];
+  if (n > 16) return;  // (Embree's widest packet is 16)
+  sphere_hits(s, args->valid, ray, n, td);
+  for (unsigned i = 0; i < n; ++i) {
+    if (args->valid[i] != -1 || td[i] < 0) continue;
+    const float t = static_cast<float>(td[i]);
+    if (t <= RTCRayN_tfar(ray, n, i)) f(i, td[i], t);
+  }
+}
+
 static void sphere_intersect(const RTCIntersectFunctionNArguments* args) {
   const auto* s = static_cast<const SphereShape*>(args->geometryUserPtr);
   const unsigned n = args->N;
   RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, n);
   RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, n);
-  double td[16];
-  if (n > 16) return;  // (Embree's widest packet is 16)
-  sphere_hits(*s, args->valid, ray, n, td);
-  for (unsigned i = 0; i < n; ++i) {
-    if (args->valid[i] != -1 || td[i] < 0) continue;
-    const float t = static_cast<float>(td[i]);
-    if (!(t <= RTCRayN_tfar(ray, n, i))) continue;
-    SphereCandidate c = sphere_candidate(*s, ray, n, i, td[i], t, args->primID, args->geomID, args->context);
-    if (!sphere_filter_keeps(*s, args, c, rtcFilterIntersection)) continue;
+  for_each_sphere_root(*s, args, ray, [&](unsigned i, double td, float t) {
+    SphereCandidate c = sphere_candidate(*s, ray, n, i, td, t, args->primID, args->geomID, args->context);
+    if (!sphere_filter_keeps(*s, args, c, rtcFilterIntersection)) return;
     RTCRayN_tfar(ray, n, i) = t;
     RTCHitN_Ng_x(hit, n, i) = c.hit.Ng_x;
     RTCHitN_Ng_y(hit, n, i) = c.hit.Ng_y;
@@ -286,26 +294,20 @@ static void sphere_intersect(const RTCIntersectFunctionNArguments* args) {
     RTCHitN_primID(hit, n, i) = c.hit.primID;
     RTCHitN_geomID(hit, n, i) = c.hit.geomID;
     RTCHitN_instID(hit, n, i, 0) = c.hit.instID[0];
-  }
+  });
 }
 
 static void sphere_occluded(const RTCOccludedFunctionNArguments* args) {
   const auto* s = static_cast<const SphereShape*>(args->geometryUserPtr);
   const unsigned n = args->N;
   RTCRayN* ray = args->ray;
-  double td[16];
-  if (n > 16) return;  // (Embree's widest packet is 16)
-  sphere_hits(*s, args->valid, ray, n, td);
-  for (unsigned i = 0; i < n; ++i) {
-    if (args->valid[i] != -1 || td[i] < 0) continue;
-    const float t = static_cast<float>(td[i]);
-    if (!(t <= RTCRayN_tfar(ray, n, i))) continue;
+  for_each_sphere_root(*s, args, ray, [&](unsigned i, double td, float t) {
     if (s->filtered) {
-      SphereCandidate c = sphere_candidate(*s, ray, n, i, td[i], t, args->primID, args->geomID, args->context);
-      if (!sphere_filter_keeps(*s, args, c, rtcFilterOcclusion)) continue;
+      SphereCandidate c = sphere_candidate(*s, ray, n, i, td, t, args->primID, args->geomID, args->context);
+      if (!sphere_filter_keeps(*s, args, c, rtcFilterOcclusion)) return;
     }
     RTCRayN_tfar(ray, n, i) = -INFINITY;
-  }
+  });
 }
 
 Accel::Accel(const Scene& scene, const EmbreeOptions& options) : impl_(std::make_unique<Impl>()) {
