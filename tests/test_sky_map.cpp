@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <bit>
 #include <array>
 #include <functional>
 
@@ -134,6 +135,154 @@ TEST(SkyMap, EqualAreaSquareRoundTrip) {
       ASSERT_EQ(pv.get(l), sv);
     }
   }
+}
+
+// The search from the cut points finds the interval the whole CDF's binary search finds,
+// for every u on a fine grid, at the cuts themselves (j / cuts) and one float either side,
+// at each CDF value and one float either side, in the scalar reference and every SIMD
+// lane: on a busy map's rows, a row with runs of empty texels (equal CDF values), a map of
+// one bright texel, and maps whose rows are shorter than four (one cut).
+TEST(SkyMap, CutPointsFindTheIntervalOfTheWholeSearch) {
+  std::vector<SkyMap> maps;
+  for (int res : {1, 2, 3, 5, 32, 64}) {
+    maps.push_back(map_of(image_of(res, res, [&](int x, int y) { return busy_texel(x, y, res); })));
+    maps.push_back(map_of(image_of(res, res, [&](int x, int y) {
+      return (x % 7 < 3 || y == 1) ? Rgb{0, 0, 0} : Rgb{float(1 + (x * y) % 5), 1, 1};
+    })));
+  }
+  maps.push_back(map_of(image_of(16, 16, [](int x, int y) { return x == 11 && y == 3 ? Rgb{5, 6, 7} : Rgb{0, 0, 0}; })));
+  int checked = 0;
+  for (const SkyMap& m : maps)
+    for (int dist : {sky_dist_full, sky_dist_compensated}) {
+      const SkyMapView v = sky_map_view(m);
+      const SkyDistView& d = v.dist[dist];
+      const int n = m.res;
+      ASSERT_EQ(d.cuts, static_cast<int32_t>(std::bit_ceil(static_cast<unsigned>(std::max(n / 4, 1)))));
+      for (int row = -1; row < n; ++row) {  // -1: the marginal
+        const float* cdf = row < 0 ? d.marg_cdf : d.cond_cdf + row * (n + 1);
+        const int32_t* cut = row < 0 ? d.marg_cut : d.cond_cut + row * (d.cuts + 1);
+        std::vector<float> us;
+        for (int k = 0; k < 4099; ++k) us.push_back(static_cast<float>(k) / 4099.f);
+        for (int j = 0; j <= d.cuts; ++j) {
+          const float t = static_cast<float>(j) / static_cast<float>(d.cuts);
+          us.insert(us.end(), {t, std::nextafter(t, 0.f), std::nextafter(t, 1.f)});
+        }
+        for (int i = 0; i <= n; ++i) us.insert(us.end(), {cdf[i], std::nextafter(cdf[i], 0.f), std::nextafter(cdf[i], 1.f)});
+        us.erase(std::remove_if(us.begin(), us.end(), [](float u) { return !(u >= 0.f && u < 1.f); }), us.end());
+        while (us.size() % simd_width != 0) us.push_back(0.5f);
+        for (size_t k = 0; k < us.size(); k += simd_width) {
+          const vint lanes = find_interval_cut<vfloat>(cdf, vint(0), cut, vint(0), d.cuts, vfloat::load_unaligned(&us[k]));
+          for (int l = 0; l < simd_width; ++l) {
+            const float u = us[k + static_cast<size_t>(l)];
+            const int32_t whole = find_interval<float>(cdf, n, 0, u);
+            ASSERT_EQ(find_interval_cut<float>(cdf, 0, cut, 0, d.cuts, u), whole) << "res " << n << " row " << row << " u " << u;
+            ASSERT_EQ(lanes.get(l), whole) << "res " << n << " row " << row << " u " << u << " lane " << l;
+            ++checked;
+          }
+        }
+      }
+    }
+  EXPECT_GT(checked, 1000000);
+}
+
+// The lanes of a batch that draw from a map, few (one by one through the scalar template)
+// or many (the batch's gathers), in batches of one and two registers, give each lane the
+// scalar reference's direction, density, texel and radiance bit for bit; lanes of a
+// constant sky (no map) keep the uniform sphere's. Every count of map lanes, each lane
+// with its own rotated frame, both distributions.
+template <class T> void expect_sky_lanes_match_scalar(const SkyMapView& view) {
+  constexpr int W = lane_traits<T>::width;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  for (int dist : {sky_dist_full, sky_dist_compensated})
+    for (int lanes = 0; lanes <= W; ++lanes)
+      for (int round = 0; round < 4; ++round) {
+        std::vector<int> order(W);
+        for (int i = 0; i < W; ++i) order[static_cast<size_t>(i)] = i;
+        std::shuffle(order.begin(), order.end(), rng);
+        alignas(64) float p0x[W], ax[9][W], u1[W], u2[W], lr[W], lg[W], lb[W];
+        std::vector<LightGeom<float>> gs(W);
+        for (int i = 0; i < W; ++i) {
+          p0x[i] = -1.f;
+          const float t = 6.2831853f * U(rng), c = std::cos(t), sn = std::sin(t);
+          const vec3f e1{c, sn, 0}, e2{-sn * 0.6f, c * 0.6f, 0.8f}, n = cross(e1, e2);
+          const vec3f axes[3] = {e1, e2, n};
+          for (int a = 0; a < 3; ++a) {
+            ax[3 * a][i] = axes[a].x;
+            ax[3 * a + 1][i] = axes[a].y;
+            ax[3 * a + 2][i] = axes[a].z;
+          }
+          u1[i] = U(rng);
+          u2[i] = U(rng);
+          lr[i] = 1.f + U(rng);
+          lg[i] = 2.f + U(rng);
+          lb[i] = 3.f + U(rng);
+        }
+        // the other lanes: a constant sky (p0.x -1) or a distant source whose p0.x falls in
+        // the maps' range (it must take no map)
+        alignas(64) int32_t type[W];
+        for (int i = 0; i < W; ++i) {
+          const bool distant = U(rng) < 0.5f;
+          type[i] = static_cast<int32_t>(distant ? LightKind::distant : LightKind::infinite);
+          if (distant) p0x[i] = 0.f;
+        }
+        for (int j = 0; j < lanes; ++j) {
+          p0x[order[static_cast<size_t>(j)]] = 0.f;
+          type[order[static_cast<size_t>(j)]] = static_cast<int32_t>(LightKind::infinite);
+        }
+        LightGeom<T> g;
+        g.type = load_i32<T>(type);
+        g.p0 = {load<T>(p0x), T(0.f), T(0.f)};
+        g.e1 = {load<T>(ax[0]), load<T>(ax[1]), load<T>(ax[2])};
+        g.e2 = {load<T>(ax[3]), load<T>(ax[4]), load<T>(ax[5])};
+        g.n = {load<T>(ax[6]), load<T>(ax[7]), load<T>(ax[8])};
+        g.sky_maps = &view;
+        g.sky_map_count = 1;
+        g.sky_dist = dist;
+        const SkySample<T> s = Sky::sample_direction(g, load<T>(u1), load<T>(u2));
+        T r = load<T>(lr), gr = load<T>(lg), b = load<T>(lb);
+        Sky::apply_texel(g, s.texel, r, gr, b);
+        alignas(64) float wx[W], wy[W], wz[W], pdf[W], cr[W], cg[W], cb[W];
+        alignas(64) int32_t tex[W];
+        store(wx, s.wi.x);
+        store(wy, s.wi.y);
+        store(wz, s.wi.z);
+        store(pdf, s.pdf);
+        store(tex, s.texel);
+        store(cr, r);
+        store(cg, gr);
+        store(cb, b);
+        for (int i = 0; i < W; ++i) {
+          LightGeom<float> h = sky_geom(view, dist);
+          h.type = type[i];
+          h.p0.x = p0x[i];
+          h.e1 = {ax[0][i], ax[1][i], ax[2][i]};
+          h.e2 = {ax[3][i], ax[4][i], ax[5][i]};
+          h.n = {ax[6][i], ax[7][i], ax[8][i]};
+          const SkySample<float> q = Sky::sample_direction(h, u1[i], u2[i]);
+          float qr = lr[i], qg = lg[i], qb = lb[i];
+          Sky::apply_texel(h, q.texel, qr, qg, qb);
+          const std::string at = "width " + std::to_string(W) + ", " + std::to_string(lanes) + " map lanes, lane " +
+                                 std::to_string(i) + ", dist " + std::to_string(dist);
+          ASSERT_EQ(wx[i], q.wi.x) << at;
+          ASSERT_EQ(wy[i], q.wi.y) << at;
+          ASSERT_EQ(wz[i], q.wi.z) << at;
+          ASSERT_EQ(pdf[i], q.pdf) << at;
+          ASSERT_EQ(tex[i], q.texel) << at;
+          ASSERT_EQ(tex[i] >= 0, p0x[i] == 0.f && type[i] == static_cast<int32_t>(LightKind::infinite)) << at;
+          ASSERT_EQ(cr[i], qr) << at;
+          ASSERT_EQ(cg[i], qg) << at;
+          ASSERT_EQ(cb[i], qb) << at;
+        }
+      }
+}
+
+TEST(SkyMap, FewAndManyMapLanesGiveTheScalarBits) {
+  const int res = 32;
+  const SkyMap m = map_of(image_of(res, res, [&](int x, int y) { return busy_texel(x, y, res); }));
+  const SkyMapView view = sky_map_view(m);
+  expect_sky_lanes_match_scalar<vfloat>(view);
+  expect_sky_lanes_match_scalar<vfloat2>(view);
 }
 
 // Both distributions of a busy map: the density of directions integrates to 1 over the

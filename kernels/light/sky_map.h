@@ -6,8 +6,9 @@
 // piecewise-constant density over solid angle: pdf(w) = pdf_uv(texel of w) / (4 pi).
 //
 // Sampling: a piecewise-constant 2-D distribution over the texels (rows by their marginal,
-// then a column in the row: pbrt-v4's PiecewiseConstant2D), found by a branch-free binary
-// search of the CDFs with gathers (the same bits in every lane and the scalar reference).
+// then a column in the row: pbrt-v4's PiecewiseConstant2D), found by a binary search with
+// gathers that starts from the CDFs' cut points (the same bits in every lane and the scalar
+// reference, and the same interval as a search of the whole CDF).
 // Each map has two distributions, built by src/scene/sky_map.cpp:
 //   full:        the texels' mean channel (pbrt-v4's GetSamplingDistribution);
 //   compensated: max(value - mean, 0) (Karlik et al. 2019, "MIS compensation"; pbrt-v4's
@@ -32,6 +33,12 @@ struct SkyDistView {
   const float* func = nullptr;      // res * res weights, row-major (>= 0, not all zero)
   const float* cond_cdf = nullptr;  // res rows of res + 1 values: 0 ... 1 within the row
   const float* marg_cdf = nullptr;  // res + 1 values over the rows: 0 ... 1
+  // cut points (a guide table, Chen and Asau 1974) of each row's CDF and of the marginal:
+  // cuts + 1 per CDF, the j-th the largest i < res with cdf[i] <= j / cuts (cuts a power
+  // of two), so the interval of u lies between those of floor(u cuts) and the next
+  const int32_t* cond_cut = nullptr;  // res rows of cuts + 1
+  const int32_t* marg_cut = nullptr;  // cuts + 1
+  int32_t cuts = 1;
   float inv_mean = 0;               // 1 / the mean of func: func * inv_mean is the density over the unit square
 };
 
@@ -98,6 +105,26 @@ template <class T> inline i32_t<T> find_interval(const float* cdf, int32_t n, co
   return i;
 }
 
+// The same interval from the cut points (cut: the CDF's cuts + 1 entries, cuts a power of
+// two): the search starts between the cuts around u, within a few values where the CDF is
+// smooth, instead of log2(n) steps whose first ones miss the cache. The same i for every u
+// in [0, 1): with j = floor(u cuts) (exact), cdf[cut[j]] <= j / cuts <= u, and the answer's
+// cdf <= u < (j + 1) / cuts puts it at or below cut[j + 1].
+template <class T>
+inline i32_t<T> find_interval_cut(const float* cdf, const i32_t<T>& base, const int32_t* cut, const i32_t<T>& cut_base, int32_t cuts,
+                                  const T& u) {
+  i32_t<T> j = to_i32(u * T(static_cast<float>(cuts)));
+  j = sel(j < i32_t<T>(0), i32_t<T>(0), sel(j > i32_t<T>(cuts - 1), i32_t<T>(cuts - 1), j));
+  i32_t<T> lo = gather(cut, cut_base + j), hi = gather(cut, cut_base + j + i32_t<T>(1));
+  for (auto open = lo < hi; any(open); open = lo < hi) {
+    const i32_t<T> mid = lo + ((hi - lo + i32_t<T>(1)) >> 1);
+    const auto le = open && i_mask_from_f(gather(cdf, base + sel(open, mid, lo)) <= u);
+    hi = sel(open && !le, mid - i32_t<T>(1), hi);
+    lo = sel(le, mid, lo);
+  }
+  return lo;
+}
+
 // A point of the unit square drawn from a map's distribution: the point, its texel and the
 // density over the square (func * inv_mean of that texel).
 template <class T> struct SkyMapSample {
@@ -111,11 +138,11 @@ template <class T> inline SkyMapSample<T> sample_sky_map(const SkyMapView& m, in
   const SkyDistView& d = m.dist[dist];
   const int32_t n = m.res;
   const T one_minus = T(0x1.fffffep-1f);
-  const i32_t<T> row = find_interval<T>(d.marg_cdf, n, i32_t<T>(0), u2);
+  const i32_t<T> row = find_interval_cut<T>(d.marg_cdf, i32_t<T>(0), d.marg_cut, i32_t<T>(0), d.cuts, u2);
   const T c0 = gather(d.marg_cdf, row), c1 = gather(d.marg_cdf, row + i32_t<T>(1));
   const T dv = min(max((u2 - c0) / sel(c1 > c0, c1 - c0, T(1.f)), T(0.f)), one_minus);
   const i32_t<T> base = row * i32_t<T>(n + 1);
-  const i32_t<T> col = find_interval<T>(d.cond_cdf, n, base, u1);
+  const i32_t<T> col = find_interval_cut<T>(d.cond_cdf, base, d.cond_cut, row * i32_t<T>(d.cuts + 1), d.cuts, u1);
   const T k0 = gather(d.cond_cdf, base + col), k1 = gather(d.cond_cdf, base + col + i32_t<T>(1));
   const T du = min(max((u1 - k0) / sel(k1 > k0, k1 - k0, T(1.f)), T(0.f)), one_minus);
   SkyMapSample<T> s;

@@ -195,6 +195,8 @@ struct SkyMap {
   std::vector<float> r, g, b;      // res * res each, row-major, top row first
   struct Dist {
     std::vector<float> func, cond_cdf, marg_cdf;  // SkyDistView's tables
+    std::vector<int32_t> cond_cut, marg_cut;       // their cut points (SkyDistView)
+    int32_t cuts = 1;
     float inv_mean = 0;
   } dist[2];                       // sky_dist_full, sky_dist_compensated
   double mean[3] = {0, 0, 0};      // the texels' mean per channel (the power's)

@@ -170,6 +170,17 @@ bool make_sky_map(const std::string& name, const RgbImage& img, SkyMap& out, std
 
 namespace {
 
+// The cut points of a CDF of n + 1 values (non-decreasing, cdf[0] = 0): for j = 0 ... cuts,
+// the largest i < n with cdf[i] <= j / cuts (exact in float: cuts is a power of two).
+void build_cuts(const float* cdf, int32_t n, int32_t cuts, int32_t* out) {
+  int32_t i = 0;
+  for (int32_t j = 0; j <= cuts; ++j) {
+    const float t = static_cast<float>(j) / static_cast<float>(cuts);
+    while (i + 1 < n && cdf[i + 1] <= t) ++i;
+    out[j] = i;
+  }
+}
+
 // The tables of one distribution from its weights (all >= 0; all zero: uniform).
 void build_dist(std::vector<float> func, int res, SkyMap::Dist& d) {
   const size_t n = static_cast<size_t>(res);
@@ -201,6 +212,15 @@ void build_dist(std::vector<float> func, int res, SkyMap::Dist& d) {
     acc += row_sum[y];
   }
   d.marg_cdf[n] = 1.f;
+  // a quarter as many cuts as texels in a row (at least one): a search from a cut spans a
+  // few values of one cache line where the row is smooth
+  const int32_t ni = static_cast<int32_t>(n);
+  d.cuts = static_cast<int32_t>(std::bit_ceil(static_cast<uint32_t>(std::max(ni / 4, 1))));
+  const size_t stride = static_cast<size_t>(d.cuts) + 1;
+  d.cond_cut.assign(n * stride, 0);
+  d.marg_cut.assign(stride, 0);
+  for (size_t y = 0; y < n; ++y) build_cuts(&d.cond_cdf[y * (n + 1)], ni, d.cuts, &d.cond_cut[y * stride]);
+  build_cuts(d.marg_cdf.data(), ni, d.cuts, d.marg_cut.data());
   d.inv_mean = static_cast<float>(static_cast<double>(func.size()) / total);
   d.func = std::move(func);
 }
@@ -242,7 +262,9 @@ SkyMapView sky_map_view(const SkyMap& m) {
   v.g = m.g.data();
   v.b = m.b.data();
   for (int d = 0; d < 2; ++d)
-    v.dist[d] = {m.dist[d].func.data(), m.dist[d].cond_cdf.data(), m.dist[d].marg_cdf.data(), m.dist[d].inv_mean};
+    v.dist[d] = {m.dist[d].func.data(),     m.dist[d].cond_cdf.data(), m.dist[d].marg_cdf.data(),
+                 m.dist[d].cond_cut.data(), m.dist[d].marg_cut.data(), m.dist[d].cuts,
+                 m.dist[d].inv_mean};
   return v;
 }
 
