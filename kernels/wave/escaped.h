@@ -63,6 +63,20 @@ template <class T> inline void sky_radiance(const LightView& L, int32_t i, const
   Sky::apply_texel(geo, Sky::texel_along(geo, d), r, g, b);
 }
 
+// The same radiance and the density the sky's light samples give d (light/sample.h's
+// pdf_sky_direction: not including the pick), from one lookup of the texel along d.
+template <class T> inline T sky_radiance_pdf(const LightView& L, int32_t i, const Vec3<T>& d, T& r, T& g, T& b) {
+  using Sky = LightKindOps<LightKind::infinite>;
+  r = T(L.Lr[i]);
+  g = T(L.Lg[i]);
+  b = T(L.Lb[i]);
+  const LightGeom<T> geo = broadcast_light<T>(L, i);
+  if (L.sky_map_count == 0) return finite_or_zero(T(Sky::constant_pdf(geo.sky_dist)));
+  const i32_t<T> texel = Sky::texel_along(geo, d);
+  Sky::apply_texel(geo, texel, r, g, b);
+  return finite_or_zero(Sky::pdf_of_texel(geo, texel));
+}
+
 // Lanes [i, i + width) of the camera packets: those among the first `lanes` whose ray was
 // traced and escaped add every sky's radiance along it.
 template <class T> inline void escaped_camera_lanes(const LightView& L, TileBuffers& tb, int i, int lanes) {
@@ -115,13 +129,12 @@ inline uint32_t escaped_bounce_lanes(const LightView& L, const Estimator& est, f
   T pdf_one_sky(0.f);  // the light technique's density of the direction where there is one sky (optimal MIS)
   for (int s = 0; s < L.sky_count; ++s) {
     const int32_t sky = L.sky_light[s];
-    const LightGeom<T> g = broadcast_light<T>(L, sky);
-    const T pdf_l = sky_pick_pmf<T>(L, x, n, sky) * pdf_sky_direction<kind_sky>(g, d);
+    T Le_r, Le_g, Le_b;
+    const T pdf_dir = sky_radiance_pdf<T>(L, sky, d, Le_r, Le_g, Le_b);
+    const T pdf_l = sky_pick_pmf<T>(L, x, n, sky) * pdf_dir;
     if (L.sky_count == 1) pdf_one_sky = pdf_l;
     T w = bsdf_technique_weight<T>(est, rate_light, rate_bsdf, pdf_b, pdf_l);
     if constexpr (Delta) w = sel(f_mask_from_i(load_i32<T>(tb.tech.delta + k) != i32_t<T>(0)), T(1.f), w);
-    T Le_r, Le_g, Le_b;
-    sky_radiance<T>(L, sky, d, Le_r, Le_g, Le_b);
     const T factor = w / T(rate_bsdf);
     acc_r = acc_r + beta_r * Le_r * factor;
     acc_g = acc_g + beta_g * Le_g * factor;

@@ -126,15 +126,19 @@ template <> struct LightKindOps<LightKind::infinite> {
     });
     return texel;
   }
-  // The density sample_direction gives the direction wi.
-  template <class T> TUILE_OUT_OF_LINE static T pdf_direction(const LightGeom<T>& g, const Vec3<T>& wi) {
+  // The density sample_direction gives a direction whose texel is texel (texel_along's).
+  template <class T> TUILE_OUT_OF_LINE static T pdf_of_texel(const LightGeom<T>& g, const i32_t<T>& texel) {
     T pdf(constant_pdf(g.sky_dist));
     for_each_map(g, [&](const SkyMapView& map, const mask_t<T>& m) {
-      T pu, pv;
-      equal_area_sphere_to_square(to_sky_frame(wi, g.e1, g.e2, g.n), pu, pv);
-      pdf = sel(m, sky_map_pdf_uv<T>(map, g.sky_dist, sky_texel(map.res, pu, pv)) * T(inv_4pi_f), pdf);
+      const i32_t<T> t = sel(i_mask_from_f(m), texel, i32_t<T>(0));
+      pdf = sel(m, sky_map_pdf_uv<T>(map, g.sky_dist, t) * T(inv_4pi_f), pdf);
     });
     return pdf;
+  }
+  // The density sample_direction gives the direction wi.
+  template <class T> static T pdf_direction(const LightGeom<T>& g, const Vec3<T>& wi) {
+    if (g.sky_map_count == 0) return T(constant_pdf(g.sky_dist));
+    return pdf_of_texel(g, texel_along(g, wi));
   }
   // The radiance (r, gr, b: the table's on entry) times the texel of the map lanes (texel
   // from sample_direction or texel_along; lanes with texel -1 keep theirs).
