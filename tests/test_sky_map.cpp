@@ -319,17 +319,17 @@ TEST(SkyMap, DistributionsIntegrateSampleAndAgree) {
     }
     EXPECT_LT(mismatched, samples / 1000) << "dist " << dist;
     for (int t = 0; t < res * res; ++t)
-      expd[static_cast<size_t>(t)] = samples * m.dist[dist].func[static_cast<size_t>(t)] * m.dist[dist].inv_mean / (res * res);
+      expd[static_cast<size_t>(t)] = samples * m.weight(dist, static_cast<size_t>(t)) * m.dist[dist].inv_mean / (res * res);
     const Chi2 c = chi2_test(obs, expd);
     std::printf("[ sky map ] dist %d: chi2 %.1f dof %d p %.3g, %d of %d pdf mismatches\n", dist, c.chi2, c.dof, c.p, mismatched, samples);
     EXPECT_GT(c.p, 1e-3) << "dist " << dist;
   }
   // the compensated distribution leaves the texels below the mean to BSDF sampling
   double mean = 0;
-  for (int t = 0; t < res * res; ++t) mean += m.dist[sky_dist_full].func[static_cast<size_t>(t)];
+  for (int t = 0; t < res * res; ++t) mean += m.weight(sky_dist_full, static_cast<size_t>(t));
   mean /= res * res;
   for (int t = 0; t < res * res; ++t)
-    EXPECT_EQ(m.dist[sky_dist_compensated].func[static_cast<size_t>(t)] == 0.f, m.dist[sky_dist_full].func[static_cast<size_t>(t)] <= mean * (1 + 1e-6)) << t;
+    EXPECT_EQ(m.weight(sky_dist_compensated, static_cast<size_t>(t)) == 0.f, m.weight(sky_dist_full, static_cast<size_t>(t)) <= mean * (1 + 1e-6)) << t;
 }
 
 // A map of one bright texel: every sample lands in it, with the density of that texel (N^2

@@ -16,7 +16,8 @@
 //                the directions darker than the mean to the BSDF technique, so it is used
 //                only where BSDF sampling also covers every direction (MIS, and RIS with
 //                BSDF candidates: LightView::sky_dist).
-// Reads: the map's texels (planar R G B, row-major, top row first) and distribution tables.
+// Reads: the map's texels (R G B and the compensated distribution's weight, four floats a
+// texel, row-major, top row first) and distribution tables.
 #pragma once
 #include <bit>
 #include <cstdint>
@@ -30,7 +31,8 @@ inline constexpr int sky_dist_full = 0, sky_dist_compensated = 1;
 
 // One piecewise-constant distribution over a map's res x res texels.
 struct SkyDistView {
-  const float* func = nullptr;      // res * res weights, row-major (>= 0, not all zero)
+  const float* func = nullptr;      // res * res weights, row-major (>= 0, not all zero), texel i's at func[i * stride]
+  int32_t stride = 1;               // (4 where they sit beside the texels' radiance: SkyMapView::texels)
   const float* cond_cdf = nullptr;  // res rows of res + 1 values: 0 ... 1 within the row
   const float* marg_cdf = nullptr;  // res + 1 values over the rows: 0 ... 1
   // cut points (a guide table, Chen and Asau 1974) of each row's CDF and of the marginal:
@@ -45,7 +47,7 @@ struct SkyDistView {
 // A map as the kernels read it.
 struct SkyMapView {
   int32_t res = 0;
-  const float *r = nullptr, *g = nullptr, *b = nullptr;  // res * res texels each, row-major, top row first
+  const float* texels = nullptr;  // res * res texels, row-major, top row first: r, g, b and a weight each
   SkyDistView dist[2];                                    // sky_dist_full, sky_dist_compensated
 };
 
@@ -150,13 +152,14 @@ template <class T> inline SkyMapSample<T> sample_sky_map(const SkyMapView& m, in
   s.pu = (to_f32(col) + du) / fn;
   s.pv = (to_f32(row) + dv) / fn;
   s.texel = row * i32_t<T>(n) + col;
-  s.pdf_uv = gather(d.func, s.texel) * T(d.inv_mean);
+  s.pdf_uv = gather(d.func, s.texel * i32_t<T>(d.stride)) * T(d.inv_mean);
   return s;
 }
 
 // The density over the square of the texel's cell under the distribution.
 template <class T> inline T sky_map_pdf_uv(const SkyMapView& m, int dist, const i32_t<T>& texel) {
-  return gather(m.dist[dist].func, texel) * T(m.dist[dist].inv_mean);
+  const SkyDistView& d = m.dist[dist];
+  return gather(d.func, texel * i32_t<T>(d.stride)) * T(d.inv_mean);
 }
 
 // Direction d (world) in the light's frame (orthonormal axes ex, ey, ez), and back.

@@ -13,6 +13,7 @@
 #include "bsdf/bsdf.h"
 #include "lanes/vec.h"
 #include "light/kinds.h"
+#include "light/sky_map.h"
 #include "sample/filter.h"
 
 namespace tuile {
@@ -192,9 +193,16 @@ struct Medium {
 struct SkyMap {
   std::string file;                // as the scene names it (for messages and `tuile info`)
   int res = 0;
-  std::vector<float> r, g, b;      // res * res each, row-major, top row first
+  // res * res texels, row-major, top row first, four floats each: r, g, b and the
+  // compensated distribution's weight (SkyMapView::texels: one cache line per texel for
+  // the lookups of a light sample, whose density and radiance both read it)
+  std::vector<float> texels;
+  Rgb texel(size_t i) const { return {texels[4 * i], texels[4 * i + 1], texels[4 * i + 2]}; }
+  // distribution d's weight of texel i (the full one's in its func, the compensated one's
+  // in the texels)
+  float weight(int d, size_t i) const { return d == sky_dist_compensated ? texels[4 * i + 3] : dist[d].func[i]; }
   struct Dist {
-    std::vector<float> func, cond_cdf, marg_cdf;  // SkyDistView's tables
+    std::vector<float> func, cond_cdf, marg_cdf;  // SkyDistView's tables (func empty: in texels)
     std::vector<int32_t> cond_cut, marg_cut;       // their cut points (SkyDistView)
     int32_t cuts = 1;
     float inv_mean = 0;

@@ -156,14 +156,9 @@ bool make_sky_map(const std::string& name, const RgbImage& img, SkyMap& out, std
     }
   out.file = name;
   out.res = img.width;
-  out.r.resize(n);
-  out.g.resize(n);
-  out.b.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    out.r[i] = img.rgb[3 * i];
-    out.g[i] = img.rgb[3 * i + 1];
-    out.b[i] = img.rgb[3 * i + 2];
-  }
+  out.texels.assign(4 * n, 0.f);
+  for (size_t i = 0; i < n; ++i)
+    for (size_t c = 0; c < 3; ++c) out.texels[4 * i + c] = img.rgb[3 * i + c];
   build_sky_distributions(out);
   return true;
 }
@@ -228,14 +223,15 @@ void build_dist(std::vector<float> func, int res, SkyMap::Dist& d) {
 }  // namespace
 
 void build_sky_distributions(SkyMap& m) {
-  const size_t n = m.r.size();
+  const size_t n = m.texels.size() / 4;
   std::vector<float> func(n);
   double sum[3] = {0, 0, 0}, mean_f = 0;
   for (size_t i = 0; i < n; ++i) {
-    func[i] = (m.r[i] + m.g[i] + m.b[i]) / 3.f;  // pbrt-v4: the channels' average
-    sum[0] += m.r[i];
-    sum[1] += m.g[i];
-    sum[2] += m.b[i];
+    const Rgb t = m.texel(i);
+    func[i] = (t.r + t.g + t.b) / 3.f;  // pbrt-v4: the channels' average
+    sum[0] += t.r;
+    sum[1] += t.g;
+    sum[2] += t.b;
     mean_f += func[i];
   }
   for (int c = 0; c < 3; ++c) m.mean[c] = n ? sum[c] / static_cast<double>(n) : 0;
@@ -247,24 +243,34 @@ void build_sky_distributions(SkyMap& m) {
   for (size_t i = 0; i < n; ++i) {
     comp[i] = static_cast<float>(std::max(0.0, static_cast<double>(func[i]) - mean_f));
     comp_sum += comp[i];
-    m.constant = m.constant && m.r[i] == m.r[0] && m.g[i] == m.g[0] && m.b[i] == m.b[0];
+    const Rgb t = m.texel(i), t0 = m.texel(0);
+    m.constant = m.constant && t.r == t0.r && t.g == t0.g && t.b == t0.b;
   }
   // (a constant map's compensated distribution is its uniform one: the whole map)
   m.compensated_share = m.constant || !(mean_f > 0) ? 1.0 : comp_sum / static_cast<double>(n) / mean_f;
   build_dist(std::move(func), m.res, m.dist[sky_dist_full]);
   build_dist(std::move(comp), m.res, m.dist[sky_dist_compensated]);
+  // the compensated weights (the default's: MIS) beside each texel's radiance
+  SkyMap::Dist& c = m.dist[sky_dist_compensated];
+  for (size_t i = 0; i < n; ++i) m.texels[4 * i + 3] = c.func[i];
+  c.func = std::vector<float>();
 }
 
 SkyMapView sky_map_view(const SkyMap& m) {
   SkyMapView v;
   v.res = m.res;
-  v.r = m.r.data();
-  v.g = m.g.data();
-  v.b = m.b.data();
-  for (int d = 0; d < 2; ++d)
-    v.dist[d] = {m.dist[d].func.data(),     m.dist[d].cond_cdf.data(), m.dist[d].marg_cdf.data(),
-                 m.dist[d].cond_cut.data(), m.dist[d].marg_cut.data(), m.dist[d].cuts,
+  v.texels = m.texels.data();
+  for (int d = 0; d < 2; ++d) {
+    const bool in_texels = d == sky_dist_compensated;
+    v.dist[d] = {in_texels ? m.texels.data() + 3 : m.dist[d].func.data(),
+                 in_texels ? 4 : 1,
+                 m.dist[d].cond_cdf.data(),
+                 m.dist[d].marg_cdf.data(),
+                 m.dist[d].cond_cut.data(),
+                 m.dist[d].marg_cut.data(),
+                 m.dist[d].cuts,
                  m.dist[d].inv_mean};
+  }
   return v;
 }
 
@@ -276,7 +282,7 @@ double sky_map_upper_illuminance(const SkyMap& m) {
       const vec3f w = equal_area_square_to_sphere((x + 0.5f) / static_cast<float>(n), (y + 0.5f) / static_cast<float>(n));
       if (w.z <= 0) continue;
       const size_t i = static_cast<size_t>(y) * static_cast<size_t>(n) + static_cast<size_t>(x);
-      e += luminance(Rgb{m.r[i], m.g[i], m.b[i]}) * static_cast<double>(w.z);
+      e += luminance(m.texel(i)) * static_cast<double>(w.z);
     }
   // each texel subtends 4 pi / n^2 steradians
   return e * 4.0 * 3.14159265358979323846 / (static_cast<double>(n) * static_cast<double>(n));

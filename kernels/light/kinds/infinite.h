@@ -156,9 +156,10 @@ template <> struct LightKindOps<LightKind::infinite> {
           store(c[2], b);
           for (int i = 0; i < W; ++i) {
             if (on[i] == 0.f || tex[i] < 0) continue;
-            c[0][i] = c[0][i] * map.r[tex[i]];
-            c[1][i] = c[1][i] * map.g[tex[i]];
-            c[2][i] = c[2][i] * map.b[tex[i]];
+            const float* t = map.texels + 4 * static_cast<size_t>(tex[i]);
+            c[0][i] = c[0][i] * t[0];
+            c[1][i] = c[1][i] * t[1];
+            c[2][i] = c[2][i] * t[2];
           }
           r = load<T>(c[0]);
           gr = load<T>(c[1]);
@@ -168,10 +169,10 @@ template <> struct LightKindOps<LightKind::infinite> {
       }
       const auto mi = i_mask_from_f(in_map) && texel >= i32_t<T>(0);
       const mask_t<T> m = f_mask_from_i(mi);
-      const i32_t<T> t = sel(mi, texel, i32_t<T>(0));
-      r = sel(m, r * gather(map.r, t), r);
-      gr = sel(m, gr * gather(map.g, t), gr);
-      b = sel(m, b * gather(map.b, t), b);
+      const i32_t<T> t = sel(mi, texel, i32_t<T>(0)) * i32_t<T>(4);
+      r = sel(m, r * gather(map.texels, t), r);
+      gr = sel(m, gr * gather(map.texels + 1, t), gr);
+      b = sel(m, b * gather(map.texels + 2, t), b);
     });
   }
   // the shadow ray goes as far as a ray can: no end point to offset
