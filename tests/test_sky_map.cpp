@@ -630,6 +630,17 @@ TEST(SkyMap, BadMapsAreErrorsWithFileAndLine) {
     }
   }
   fs::remove_all(dir);
+  // a map larger than the lookups index: refused before its texels are read
+  RgbImage huge;
+  huge.width = huge.height = sky_map_max_res + 1;
+  SkyMap m;
+  std::string why;
+  EXPECT_FALSE(make_sky_map("huge", huge, m, why));
+  EXPECT_NE(why.find("more than 16384 texels a side"), std::string::npos) << why;
+  RgbImage small;
+  small.width = small.height = 2;
+  small.rgb.assign(12, 1.f);
+  EXPECT_TRUE(make_sky_map("small", small, m, why)) << why;
 }
 
 // `tuile envmap`: a latitude-longitude map whose upper half (theta < pi / 2) is red and

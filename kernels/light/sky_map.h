@@ -28,6 +28,9 @@
 namespace tuile {
 
 inline constexpr int sky_dist_full = 0, sky_dist_compensated = 1;
+// The largest map, texels a side (`tuile envmap --resolution`'s too): its lookups index four
+// floats a texel in 32 bits.
+inline constexpr int32_t sky_map_max_res = 16384;
 
 // One piecewise-constant distribution over a map's res x res texels.
 struct SkyDistView {

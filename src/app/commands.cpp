@@ -537,7 +537,7 @@ namespace tuile {
 void add_envmap_flags(CLI::App& app, EnvmapFlags& f) {
   app.add_option("input", f.in, "latitude-longitude map (2:1; theta from +z at the top row, phi from +x towards +y)")->required();
   app.add_option("output", f.out, "the equal-area square: .exr (float RGB) or .pfm")->required();
-  app.add_option("--resolution", f.resolution, "texels per side (default: the input's width)")->check(CLI::Range(0, 16384));
+  app.add_option("--resolution", f.resolution, "texels per side (default: the input's width)")->check(CLI::Range(0, static_cast<int>(sky_map_max_res)));
   app.add_option("--samples", f.samples, "bilinear lookups per side of each texel, averaged (default 4)")->check(CLI::Range(1, 16));
 }
 

@@ -145,6 +145,12 @@ bool make_sky_map(const std::string& name, const RgbImage& img, SkyMap& out, std
              "map with `tuile envmap`)";
     return false;
   }
+  if (img.width > sky_map_max_res) {
+    reason = "the image is " + std::to_string(img.width) + " x " + std::to_string(img.height) + ", more than " +
+             std::to_string(sky_map_max_res) + " texels a side (its texels and distributions would take over " +
+             std::to_string(static_cast<long long>(img.width) * img.width * 36 >> 30) + " GiB; `tuile envmap --resolution` makes a smaller one)";
+    return false;
+  }
   const size_t n = static_cast<size_t>(img.width) * static_cast<size_t>(img.height);
   for (size_t i = 0; i < 3 * n; ++i)
     if (!std::isfinite(img.rgb[i]) || img.rgb[i] < 0) {

@@ -56,9 +56,9 @@ template <> struct LightKindOps<LightKind::infinite> {
 
   // Whether the lanes of m are few enough to take one at a time (a batch has at most an
   // eighth of its lanes in the map): a sky is a few per cent of a scene's light picks, yet
-  // most batches of a light stage hold one such lane, and the batch's binary searches cost
-  // twenty gathers of every lane, where one lane's costs twenty loads. The scalar lanes
-  // run the same templates at T = float: the same bits.
+  // most batches of a light stage hold one such lane, and the batch's searches gather for
+  // every lane where one lane's takes a few loads. The scalar lanes run the same templates
+  // at T = float: the same bits.
   template <class T> static bool few_lanes(const mask_t<T>& m) {
     if constexpr (lane_traits<T>::width == 1) return false;
     else return count(m) <= lane_traits<T>::width / 8;
