@@ -52,29 +52,29 @@ template <class T> inline T sky_pick_pmf(const LightView& L, const Vec3<T>& x, c
 }
 
 // The radiance of sky entry i along the world direction d: its table radiance, times the
-// texel of its environment map along d where it has one (light/kinds/infinite.h).
-template <class T> inline void sky_radiance(const LightView& L, int32_t i, const Vec3<T>& d, T& r, T& g, T& b) {
-  r = T(L.Lr[i]);
-  g = T(L.Lg[i]);
-  b = T(L.Lb[i]);
-  if (L.sky_map_count == 0) return;
-  using Sky = LightKindOps<LightKind::infinite>;
-  const LightGeom<T> geo = broadcast_light<T>(L, i);
-  Sky::apply_texel(geo, Sky::texel_along(geo, d), r, g, b);
-}
-
-// The same radiance and the density the sky's light samples give d (light/sample.h's
-// pdf_sky_direction: not including the pick), from one lookup of the texel along d.
-template <class T> inline T sky_radiance_pdf(const LightView& L, int32_t i, const Vec3<T>& d, T& r, T& g, T& b) {
+// texel of its environment map along d where it has one (light/kinds/infinite.h). With
+// Pdf, returns also the density the sky's light samples give d (light/sample.h's
+// pdf_sky_direction: not including the pick), from the same lookup of the texel.
+template <class T, bool Pdf> inline T sky_lookup(const LightView& L, int32_t i, const Vec3<T>& d, T& r, T& g, T& b) {
   using Sky = LightKindOps<LightKind::infinite>;
   r = T(L.Lr[i]);
   g = T(L.Lg[i]);
   b = T(L.Lb[i]);
   const LightGeom<T> geo = broadcast_light<T>(L, i);
-  if (L.sky_map_count == 0) return finite_or_zero(T(Sky::constant_pdf(geo.sky_dist)));
+  if (L.sky_map_count == 0) {
+    if constexpr (Pdf) return finite_or_zero(T(Sky::constant_pdf(geo.sky_dist)));
+    return T(0.f);
+  }
   const i32_t<T> texel = Sky::texel_along(geo, d);
   Sky::apply_texel(geo, texel, r, g, b);
-  return finite_or_zero(Sky::pdf_of_texel(geo, texel));
+  if constexpr (Pdf) return finite_or_zero(Sky::pdf_of_texel(geo, texel));
+  return T(0.f);
+}
+template <class T> inline void sky_radiance(const LightView& L, int32_t i, const Vec3<T>& d, T& r, T& g, T& b) {
+  sky_lookup<T, false>(L, i, d, r, g, b);
+}
+template <class T> inline T sky_radiance_pdf(const LightView& L, int32_t i, const Vec3<T>& d, T& r, T& g, T& b) {
+  return sky_lookup<T, true>(L, i, d, r, g, b);
 }
 
 // Lanes [i, i + width) of the camera packets: those among the first `lanes` whose ray was
