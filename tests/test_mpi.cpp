@@ -1,6 +1,6 @@
 // Rendering over MPI ranks, run for real with mpirun (--oversubscribe, and
 // --allow-run-as-root where the tests run as root): K = 1 to 4 ranks give the bytes of the
-// single-process render; a scene that fails to load is reported once; a rank that exits,
+// single-process render, guided renders too; a scene that fails to load is reported once; a rank that exits,
 // or stops answering, ends the job with a message naming it, within the timeout, and rank
 // 0 writes the complete passes it has. Skipped with a message where tuile was built
 // without MPI or mpirun is missing.
@@ -96,6 +96,43 @@ TEST(Mpi, AnyNumberOfRanksGivesTheSingleProcessBytes) {
       EXPECT_EQ(static_cast<uint32_t>(*got), spp);
     }
   }
+}
+
+// --guide: the ranks sum their records after each of the guide's learning iterations, so a
+// guided render has the single process's bytes: one whose iterations all fall in its first
+// pass (several steps of one pass, added as one process adds them), and one resumed from a
+// single process's checkpoint in the middle of an iteration (its first units render the
+// learning samples again; the iteration [16, 32) then ends with records of both kinds).
+TEST(Mpi, GuidedRendersGiveTheSingleProcessBytes) {
+  std::string why;
+  if (!mpi_ready(why)) GTEST_SKIP() << why;
+  TempDir dir;
+  const std::string args = " render built-in:cornell --res 96x64 --max-depth 4 --guide --guide-learn 32 --quiet ";
+  std::string out;
+  ASSERT_EQ(run(std::string(TUILE_BINARY) + args + "--spp 40 -o " + (dir / "one.exr"), out), 0) << out;
+  for (int k = 2; k <= 3; ++k) {
+    const std::string exr = dir / ("k" + std::to_string(k) + ".exr");
+    ASSERT_EQ(run(mpirun(k) + args + "--spp 40 -o " + exr, out), 0) << k << " ranks: " << out;
+    EXPECT_TRUE(same_pixels(dir / "one.exr", exr)) << k << " ranks";
+  }
+  // the guide changed the image (it is used, not only learned)
+  ASSERT_EQ(run(std::string(TUILE_BINARY) + " render built-in:cornell --res 96x64 --max-depth 4 --quiet --spp 40 -o " +
+                    (dir / "plain.exr"),
+                out),
+            0)
+      << out;
+  EXPECT_FALSE(same_pixels(dir / "one.exr", dir / "plain.exr"));
+  // resumed at sample 20, inside the iteration [16, 32): in one process and over three ranks
+  for (const std::string name : {"resumed-one", "resumed-mpi"}) {
+    const std::string exr = dir / (name + ".exr");
+    ASSERT_EQ(run(std::string(TUILE_BINARY) + args + "--spp 20 --checkpoint 1000 -o " + exr, out), 0) << out;
+    const std::string launch = name == "resumed-one" ? std::string(TUILE_BINARY) : mpirun(3);
+    ASSERT_EQ(run(launch + args + "--spp 40 --resume -o " + exr, out), 0) << name << ": " << out;
+    const int* got = read_exr_metadata(exr).find_integer("spp");
+    ASSERT_NE(got, nullptr);
+    EXPECT_EQ(*got, 40);
+  }
+  EXPECT_TRUE(same_pixels(dir / "resumed-one.exr", dir / "resumed-mpi.exr"));
 }
 
 TEST(Mpi, AMissingSceneIsReportedOnce) {

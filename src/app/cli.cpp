@@ -56,8 +56,8 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
   app.add_flag("--guide", f.guide,
                "path guiding (unbiased): a distribution of the light arriving at each region of the scene, learned "
                "from the first --guide-learn samples' paths, drawn from at diffuse points and in media with "
-               "probability --guide-alpha and mixed with BSDF sampling (MIS sees the mixture's density); one process "
-               "(not over MPI)");
+               "probability --guide-alpha and mixed with BSDF sampling (MIS sees the mixture's density); over MPI the "
+               "ranks learn together (the single process's image)");
   app.add_option("--guide-learn", f.guide_learn, "--guide: the samples per pixel it learns from (iterations of 1, 1, 2, 4, ...)")
       ->capture_default_str();
   app.add_option("--guide-alpha", f.guide_alpha, "--guide: the share of directions drawn from the guide")->capture_default_str();

@@ -5,6 +5,13 @@
 // single-process render, whatever rank rendered what. Workers render a unit with the same
 // Renderer on their own threads and send back the tiles' sums in double.
 //
+// With --guide, the guide learns from every tile of each learning iteration before the next
+// one: the units are also cut at the iterations' ends (steps), and after the last unit of an
+// iteration rank 0 sends no more until every rank has added its records into one sum
+// (integers: the same sums, whichever rank recorded what) and made the guide from it. A
+// resumed render's units first render the samples the guide learns from again, their image
+// dropped. So every rank's guide, and the image, are those of a single process.
+//
 // Failures end the job with a message naming the rank: a scene that fails to load (the
 // error printed once, by rank 0, with how many ranks met it), a unit that throws, or a rank
 // that sends nothing for --mpi-timeout seconds (rank 0 writes the complete passes it has
@@ -33,6 +40,7 @@
 #include "app/signals.h"
 #include "dist/dist.h"
 #include "render/checkpoint.h"
+#include "render/guide.h"
 #include "render/passes.h"
 #include "render/render.h"
 
@@ -45,12 +53,12 @@ namespace {
 // Seconds rank 0 waits, after a stop signal, for the units in flight.
 constexpr double stop_grace_seconds = 0.25;
 
-enum Tag : int { tag_unit = 1, tag_result = 2, tag_stop = 3, tag_error = 4, tag_report = 5 };
+enum Tag : int { tag_unit = 1, tag_result = 2, tag_stop = 3, tag_error = 4, tag_report = 5, tag_guide = 6 };
 
 // Per pixel of a result: sum r g b, sum of squares r g b, MIS-weight sum and count, largest sample.
 constexpr int values_per_pixel = 9;
 // A result message: these header values, then the pixels of the unit's tiles in order.
-enum Header : int { h_pass = 0, h_block, h_seconds, h_rays_camera, h_rays_shadow, h_rays_bounce, h_rays_vis,
+enum Header : int { h_step = 0, h_block, h_seconds, h_rays_camera, h_rays_shadow, h_rays_bounce, h_rays_vis,
                     h_rej_camera, h_rej_light, h_rej_bsdf, header_size };
 
 struct Mpi {
@@ -93,15 +101,28 @@ std::string agree_on_errors(const Mpi& mpi, const std::string& mine, int& failed
   return text;
 }
 
-// The units of a render: for every pass from `done` to spp, every block of tiles.
+// A step: samples [begin, end) of pass `pass` (-1: samples a resumed render learns its guide
+// from again, whose image is dropped); `barrier`: a learning iteration of the guide ends
+// with it, so its records are summed over the ranks before the next step starts.
+struct Step {
+  int pass = 0;
+  uint32_t begin = 0, end = 0;
+  bool barrier = false;
+};
+
+// The units of a render: for every step (the passes from `done` to spp, cut at the guide's
+// iterations), every block of tiles.
 struct Units {
   std::vector<uint32_t> pass_begin, pass_end;  // per pass
+  std::vector<Step> steps;
+  std::vector<int> pass_steps;  // per pass, its steps
   int blocks = 0, tiles_per_block = 1, tiles = 0;
   std::vector<int> block_tiles(int b) const {
     std::vector<int> t;
     for (int i = b * tiles_per_block; i < std::min(tiles, (b + 1) * tiles_per_block); ++i) t.push_back(i);
     return t;
   }
+  int count() const { return static_cast<int>(steps.size()) * blocks; }
 };
 
 Units plan_units(const Renderer& r, const PassPlan& plan, uint32_t done, uint32_t spp, int workers, int tile_side) {
@@ -112,6 +133,20 @@ Units plan_units(const Renderer& r, const PassPlan& plan, uint32_t done, uint32_
     u.pass_end.push_back(e);
     s = e;
   }
+  u.pass_steps.assign(u.pass_begin.size(), 0);
+  const Guide* g = r.guide();
+  // cuts [b, e) at the guide's iterations while it learns
+  auto add = [&](int pass, uint32_t b, uint32_t e) {
+    for (uint32_t s = b; s < e;) {
+      const bool learning = g && s < g->learn();
+      const uint32_t t = learning ? std::min(e, g->iteration_end(s)) : e;
+      u.steps.push_back({pass, s, t, learning && t == g->iteration_end(s)});
+      if (pass >= 0) ++u.pass_steps[static_cast<size_t>(pass)];
+      s = t;
+    }
+  };
+  if (g) add(-1, 0, std::min(done, g->learn()));
+  for (size_t k = 0; k < u.pass_begin.size(); ++k) add(static_cast<int>(k), u.pass_begin[k], u.pass_end[k]);
   u.tiles = r.tile_count();
   // about 2^20 samples a unit at the largest pass, and at least four units per worker a pass
   uint32_t widest = 1;
@@ -141,6 +176,7 @@ void test_failure_hook(const Mpi& mpi) {
 }
 
 void run_worker(const Mpi& mpi, Renderer& renderer, const Units& u, int width, int height) {
+  renderer.guide_restart();  // every render learns from sample 0 (bench renders again)
   Film film;
   film.reset(width, height);
   WorkerReport rep;
@@ -154,9 +190,26 @@ void run_worker(const Mpi& mpi, Renderer& renderer, const Units& u, int width, i
     MPI_Recv(unit, 2, MPI_UINT32_T, 0, st.MPI_TAG, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
     rep.comm_seconds += seconds_since(w0);
     if (st.MPI_TAG == tag_stop) break;
+    if (st.MPI_TAG == tag_guide) {  // a learning iteration ended: every rank sums its records
+      const auto g0 = std::chrono::steady_clock::now();
+      std::vector<uint64_t> rec = renderer.guide_records();
+      // nonblocking as rank 0's (a blocking collective does not match a nonblocking one)
+      MPI_Request req;
+      MPI_Iallreduce(MPI_IN_PLACE, rec.data(), static_cast<int>(rec.size()), MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD, &req);
+      MPI_Wait(&req, MPI_STATUS_IGNORE);
+      rep.comm_seconds += seconds_since(g0);
+      try {
+        renderer.guide_end_iteration(u.steps[unit[0]].end, rec);
+      } catch (const std::exception& e) {
+        const std::string text = e.what();
+        MPI_Send(text.data(), static_cast<int>(text.size()), MPI_CHAR, 0, tag_error, MPI_COMM_WORLD);
+      }
+      continue;
+    }
     if (!first) test_failure_hook(mpi);
     first = false;
-    const uint32_t pass = unit[0], block = unit[1];
+    const Step& step = u.steps[unit[0]];
+    const uint32_t block = unit[1];
     try {
       const std::vector<int> tiles = u.block_tiles(static_cast<int>(block));
       // the unit's pixels start from zero, so each gets exactly its tile's sums
@@ -171,9 +224,10 @@ void run_worker(const Mpi& mpi, Renderer& renderer, const Units& u, int width, i
           }
       }
       film.samples = 0;
-      const RenderStats rs = renderer.render(film, u.pass_begin[pass], u.pass_end[pass], nullptr, &tiles);
+      const RenderStats rs = renderer.guide() ? renderer.render_guided_part(film, step.begin, step.end, tiles)
+                                              : renderer.render(film, step.begin, step.end, nullptr, &tiles);
       msg.assign(header_size, 0.0);
-      msg[h_pass] = pass;
+      msg[h_step] = unit[0];
       msg[h_block] = block;
       msg[h_seconds] = rs.seconds;
       msg[h_rays_camera] = static_cast<double>(rs.rays_camera);
@@ -224,23 +278,42 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
                              const std::atomic<bool>* stop, const std::function<void(const Film&)>& after_pass,
                              bool progress) {
   CoordinatorResult out;
+  renderer.guide_restart();  // rank 0 keeps its guide's tree in step with the workers'
   const int workers = mpi.size - 1;
   const int passes = static_cast<int>(u.pass_begin.size());
-  const int total_units = passes * u.blocks;
+  const int total_units = u.count();
   int next_unit = 0, merged_passes = 0;
-  std::map<std::pair<int, int>, std::vector<double>> pending;  // (pass, block) -> result
+  // (pass, block) -> the sums of its steps so far, and how many steps they are
+  std::map<std::pair<int, int>, std::vector<double>> pending;
+  std::map<std::pair<int, int>, int> pending_steps;
+  std::vector<int> returned(u.steps.size(), 0);  // per step, its blocks in
+  // the first step that ends a learning iteration whose records are not summed yet: no unit
+  // after it goes out before that (steps.size(): none)
+  auto next_barrier = [&](size_t from) {
+    while (from < u.steps.size() && !u.steps[from].barrier) ++from;
+    return from;
+  };
+  size_t barrier = next_barrier(0);
   std::vector<int> outstanding(static_cast<size_t>(mpi.size), 0);
   std::vector<std::chrono::steady_clock::time_point> last_heard(static_cast<size_t>(mpi.size),
                                                                  std::chrono::steady_clock::now());
+  auto can_send = [&] {
+    return next_unit < total_units && static_cast<size_t>(next_unit / u.blocks) <= barrier;
+  };
   auto send_unit = [&](int w) {
     const uint32_t unit[2] = {static_cast<uint32_t>(next_unit / u.blocks), static_cast<uint32_t>(next_unit % u.blocks)};
     MPI_Send(unit, 2, MPI_UINT32_T, w, tag_unit, MPI_COMM_WORLD);
     ++next_unit;
     ++outstanding[static_cast<size_t>(w)];
+    last_heard[static_cast<size_t>(w)] = std::chrono::steady_clock::now();
   };
   // two units in flight per worker, so none waits for rank 0 between units
-  for (int round = 0; round < 2; ++round)
-    for (int w = 1; w <= workers && next_unit < total_units; ++w) send_unit(w);
+  auto fill = [&] {
+    for (int round = 0; round < 2; ++round)
+      for (int w = 1; w <= workers && can_send(); ++w)
+        if (outstanding[static_cast<size_t>(w)] < 2) send_unit(w);
+  };
+  fill();
   const auto t0 = std::chrono::steady_clock::now();
   bool stopping = false;
   auto stop_time = t0;
@@ -252,6 +325,37 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
     }
     bool busy = false;
     for (int w = 1; w <= workers; ++w) busy = busy || outstanding[static_cast<size_t>(w)] > 0;
+    if (!stopping && !busy && barrier < u.steps.size() && returned[barrier] == u.blocks) {
+      // a learning iteration of the guide is complete (every unit up to it is in: none is
+      // sent past it, so no worker is still recording or sending): every rank adds its
+      // records into one sum and makes the guide from it; rank 0 (which records nothing)
+      // waits for the sum with the timeout, as for a unit
+      const uint32_t msg[2] = {static_cast<uint32_t>(barrier), 0};
+      for (int w = 1; w <= workers; ++w) MPI_Send(msg, 2, MPI_UINT32_T, w, tag_guide, MPI_COMM_WORLD);
+      std::vector<uint64_t> rec = renderer.guide_records();
+      MPI_Request req;
+      MPI_Iallreduce(MPI_IN_PLACE, rec.data(), static_cast<int>(rec.size()), MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD, &req);
+      const auto r0 = std::chrono::steady_clock::now();
+      for (int done = 0; !done;) {
+        MPI_Test(&req, &done, MPI_STATUS_IGNORE);
+        if (done) break;
+        if (stop && stop->load()) {  // e.g. mpirun ending the job because a rank died
+          out.reason = StopReason::cancelled;
+          out.stats.seconds = seconds_since(t0);
+          return out;
+        }
+        if (seconds_since(r0) > timeout) {
+          out.failure = "the ranks have not all sent the guide's records for " + std::to_string(static_cast<int>(timeout)) +
+                        " s (--mpi-timeout)";
+          return out;
+        }
+        sleep_briefly();
+      }
+      renderer.guide_end_iteration(u.steps[barrier].end, rec);
+      barrier = next_barrier(barrier + 1);
+      fill();
+      continue;
+    }
     if (!busy) break;  // stopping, and nothing more will come
     // after a stop signal the units in flight get a short grace (a rank that died never answers)
     if (stopping && seconds_since(stop_time) > stop_grace_seconds) break;
@@ -284,14 +388,33 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
     std::vector<double> msg(static_cast<size_t>(n));
     MPI_Recv(msg.data(), n, MPI_DOUBLE, w, tag_result, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
     --outstanding[static_cast<size_t>(w)];
-    if (!stopping && next_unit < total_units) send_unit(w);
-    const int pass = static_cast<int>(msg[h_pass]), block = static_cast<int>(msg[h_block]);
-    pending[{pass, block}] = std::move(msg);
+    if (!stopping && can_send()) send_unit(w);
+    const int step = static_cast<int>(msg[h_step]), block = static_cast<int>(msg[h_block]);
+    ++returned[static_cast<size_t>(step)];
+    const int pass = u.steps[static_cast<size_t>(step)].pass;
+    if (pass < 0) continue;  // the guide learning again on a resume: the image has these samples
+    // a pass's steps come in order (a barrier stands between two of one pass): their sums
+    // are added as a single process adds them to the pass's film, which starts from zero
+    std::vector<double>& acc = pending[{pass, block}];
+    if (acc.empty()) {
+      acc = std::move(msg);
+    } else {
+      for (int h = h_seconds; h < header_size; ++h) acc[static_cast<size_t>(h)] += msg[static_cast<size_t>(h)];
+      for (size_t at = header_size; at < acc.size(); at += values_per_pixel) {
+        for (int v = 0; v < values_per_pixel - 1; ++v) acc[at + static_cast<size_t>(v)] += msg[at + static_cast<size_t>(v)];
+        const size_t m = at + values_per_pixel - 1;
+        acc[m] = std::max(acc[m], msg[m]);
+      }
+    }
+    ++pending_steps[{pass, block}];
     // add every pass whose blocks are all in, in pass order, blocks in order
     for (;;) {
       const int k = merged_passes;
       bool complete = k < passes;
-      for (int b = 0; b < u.blocks && complete; ++b) complete = pending.count({k, b}) > 0;
+      for (int b = 0; b < u.blocks && complete; ++b) {
+        const auto it = pending_steps.find({k, b});
+        complete = it != pending_steps.end() && it->second == u.pass_steps[static_cast<size_t>(k)];
+      }
       if (!complete) break;
       for (int b = 0; b < u.blocks; ++b) {
         std::vector<double>& m = pending[{k, b}];
@@ -318,6 +441,7 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
         s.rejected_light += static_cast<uint64_t>(m[h_rej_light]);
         s.rejected_bsdf += static_cast<uint64_t>(m[h_rej_bsdf]);
         pending.erase({k, b});
+        pending_steps.erase({k, b});
       }
       film.samples += u.pass_end[static_cast<size_t>(k)] - u.pass_begin[static_cast<size_t>(k)];
       out.stats.samples += static_cast<uint64_t>(u.pass_end[static_cast<size_t>(k)] - u.pass_begin[static_cast<size_t>(k)]) *
@@ -396,12 +520,6 @@ int run_render_distributed(const RenderFlags& f) {
     if (mpi.rank == 0)
       std::cerr << "tuile: error: --heuristic optimal solves each pixel's weights from its earlier passes, which the "
                    "ranks of mpirun render at the same time; render it in one process\n";
-    return 1;
-  }
-  if (f.guide) {
-    if (mpi.rank == 0)
-      std::cerr << "tuile: error: --guide learns from every tile of each pass before the next one, which the ranks "
-                   "of mpirun render at the same time; render it in one process\n";
     return 1;
   }
   std::unique_ptr<RenderJob> job;

@@ -5,6 +5,8 @@
 #include <atomic>
 #include <cmath>
 #include <bit>
+#include <stdexcept>
+#include <string>
 
 namespace tuile {
 
@@ -86,6 +88,20 @@ void Guide::record(float x, float y, float z, int cls, float dx, float dy, float
     if (const auto q = static_cast<uint64_t>(v * w[k] + 0.5))
       std::atomic_ref<uint64_t>(acc_[slot * guide_cells + static_cast<size_t>(cell[k])]).fetch_add(q, std::memory_order_relaxed);
   std::atomic_ref<uint64_t>(count_[slot]).fetch_add(1, std::memory_order_relaxed);
+}
+
+std::vector<uint64_t> Guide::records() const {
+  std::vector<uint64_t> r(acc_);
+  r.insert(r.end(), count_.begin(), count_.end());
+  return r;
+}
+
+void Guide::set_records(const std::vector<uint64_t>& r) {
+  if (r.size() != acc_.size() + count_.size())
+    throw std::invalid_argument("the guide's records: " + std::to_string(r.size()) + " values where its tree holds " +
+                                std::to_string(acc_.size() + count_.size()));
+  std::copy(r.begin(), r.begin() + static_cast<std::ptrdiff_t>(acc_.size()), acc_.begin());
+  std::copy(r.begin() + static_cast<std::ptrdiff_t>(acc_.size()), r.end(), count_.begin());
 }
 
 void Guide::drop_records() {

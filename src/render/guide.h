@@ -50,6 +50,12 @@ class Guide {
   void rebuild(uint32_t until);
   // Drops the records of an iteration that did not finish.
   void drop_records();
+  // The records since the last rebuild: every slot's cell sums, then every slot's count
+  // (a slot is a node and class). set_records puts back such an array, e.g. the sums of
+  // every process's records (a distributed render: the sums are integers, so they do not
+  // depend on which process recorded what). Its size must be records().size().
+  std::vector<uint64_t> records() const;
+  void set_records(const std::vector<uint64_t>& r);
 
   const GuideView& view() const noexcept { return view_; }
   int leaves() const noexcept;

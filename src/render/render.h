@@ -68,6 +68,20 @@ class Renderer {
                      const std::vector<int>* only = nullptr, const Film* prior = nullptr);
   // --guide: the guide (null without)
   const Guide* guide() const { return guide_.get(); }
+  // --guide in a distributed render (dist/mpi_render.cpp), where every process steps its
+  // guide through the learning iterations together with the others:
+  // - render_guided_part adds samples [begin, end) of the tiles `only` with the guide as it
+  //   stands, recording into it where begin < learn; the range lies within one learning
+  //   iteration (Guide::iteration_end), or after learning;
+  // - guide_records gives what this process recorded since the last iteration ended;
+  // - guide_end_iteration makes the guide of samples [0, until) (until an iteration's end)
+  //   from the sums of every process's records;
+  // - guide_restart forgets what the guide learned (a new render from sample 0).
+  // Fed the same sums, every process makes the guide a single process makes.
+  RenderStats render_guided_part(Film& film, uint32_t begin, uint32_t end, const std::vector<int>& only);
+  std::vector<uint64_t> guide_records() const;
+  void guide_end_iteration(uint32_t until, const std::vector<uint64_t>& sums);
+  void guide_restart();
   int tile_count() const;
   TileRect tile_rect(int tile) const;
   // The pipeline this scene and estimator select, and why.

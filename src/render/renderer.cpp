@@ -133,6 +133,37 @@ bool Renderer::guide_catch_up(uint32_t begin) {
   return true;
 }
 
+RenderStats Renderer::render_guided_part(Film& film, uint32_t begin, uint32_t end, const std::vector<int>& only) {
+  if (!guide_) throw std::logic_error("render_guided_part without --guide");
+  const bool learning = begin < guide_->learn();
+  if (learning && (end > guide_->iteration_end(begin) || guide_->learned() > begin ||
+                   guide_->iteration_end(guide_->learned()) < guide_->iteration_end(begin)))
+    throw std::logic_error("render_guided_part: samples [" + std::to_string(begin) + ", " + std::to_string(end) +
+                           ") are not in the learning iteration after the guide's " + std::to_string(guide_->learned()));
+  if (!learning && guide_->learned() != guide_->learn())
+    throw std::logic_error("render_guided_part: the guide has not finished learning");
+  return render_range(film, begin, end, nullptr, &only, nullptr, learning);
+}
+
+std::vector<uint64_t> Renderer::guide_records() const {
+  if (!guide_) throw std::logic_error("guide_records without --guide");
+  return guide_->records();
+}
+
+void Renderer::guide_end_iteration(uint32_t until, const std::vector<uint64_t>& sums) {
+  if (!guide_) throw std::logic_error("guide_end_iteration without --guide");
+  guide_->set_records(sums);
+  guide_rebuild(until);
+  guide_recorded_ = until;
+}
+
+void Renderer::guide_restart() {
+  if (!guide_) return;
+  guide_->reset();
+  views_->geom.guide = nullptr;
+  guide_recorded_ = 0;
+}
+
 RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* profile, const std::vector<int>* only,
                              const Film* prior) {
   if (!guide_) return render_range(film, begin, end, profile, only, prior, false);
