@@ -28,6 +28,7 @@
 #include "bsdf/dielectric.h"
 #include "wave/generate.h"
 #include "wave/sample_lights.h"
+#include "scene/huge_pages.h"
 #include "scene/sky_map.h"
 #include "scene/pbrt.h"
 #include "media_util.h"
@@ -2103,7 +2104,7 @@ TEST(StressSky, LargeMap) {
   const int res = static_cast<int>(scaled(8192u, 1024u));
   RgbImage img;
   img.width = img.height = res;
-  img.rgb.resize(static_cast<size_t>(res) * res * 3);
+  assign_huge(img.rgb, static_cast<size_t>(res) * res * 3, 0.f);  // 800 MB (scene/huge_pages.h)
   for (int y = 0; y < res; ++y)
     for (int x = 0; x < res; ++x) {
       float* p = &img.rgb[(static_cast<size_t>(y) * res + x) * 3];

@@ -19,6 +19,7 @@
 
 #include "light/sky_map.h"
 #include "scene/atomic_file.h"
+#include "scene/huge_pages.h"
 #include "scene/pbrt/image.h"
 
 namespace tuile {
@@ -58,7 +59,8 @@ bool read_pfm(const std::string& path, RgbImage& out, std::string& reason) {
   }
   f.get();  // the one whitespace character after the scale
   const size_t count = static_cast<size_t>(w) * static_cast<size_t>(h) * 3;
-  std::vector<float> data(count);
+  std::vector<float> data;
+  assign_huge(data, count, 0.f);
   f.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(count * sizeof(float)));
   if (static_cast<size_t>(f.gcount()) != count * sizeof(float)) {
     reason = "PFM file is truncated (" + std::to_string(f.gcount()) + " of " + std::to_string(count * sizeof(float)) +
@@ -78,7 +80,7 @@ bool read_pfm(const std::string& path, RgbImage& out, std::string& reason) {
     }
   out.width = static_cast<int>(w);
   out.height = static_cast<int>(h);
-  out.rgb.resize(count);
+  assign_huge(out.rgb, count, 0.f);
   const size_t row = static_cast<size_t>(w) * 3;
   for (long y = 0; y < h; ++y)  // the file's first row is the image's bottom row
     std::memcpy(&out.rgb[static_cast<size_t>(y) * row], &data[static_cast<size_t>(h - 1 - y) * row], row * sizeof(float));
@@ -162,7 +164,7 @@ bool make_sky_map(const std::string& name, const RgbImage& img, SkyMap& out, std
     }
   out.file = name;
   out.res = img.width;
-  out.texels.assign(4 * n, 0.f);
+  assign_huge(out.texels, 4 * n, 0.f);
   for (size_t i = 0; i < n; ++i)
     for (size_t c = 0; c < 3; ++c) out.texels[4 * i + c] = img.rgb[3 * i + c];
   build_sky_distributions(out);
@@ -191,7 +193,7 @@ void build_dist(std::vector<float> func, int res, SkyMap::Dist& d) {
     std::fill(func.begin(), func.end(), 1.f);
     total = static_cast<double>(func.size());
   }
-  d.cond_cdf.assign(n * (n + 1), 0.f);
+  assign_huge(d.cond_cdf, n * (n + 1), 0.f);
   d.marg_cdf.assign(n + 1, 0.f);
   std::vector<double> row_sum(n, 0);
   for (size_t y = 0; y < n; ++y) {
@@ -218,7 +220,7 @@ void build_dist(std::vector<float> func, int res, SkyMap::Dist& d) {
   const int32_t ni = static_cast<int32_t>(n);
   d.cuts = static_cast<int32_t>(std::bit_ceil(static_cast<uint32_t>(std::max(ni / 4, 1))));
   const size_t stride = static_cast<size_t>(d.cuts) + 1;
-  d.cond_cut.assign(n * stride, 0);
+  assign_huge(d.cond_cut, n * stride, 0);
   d.marg_cut.assign(stride, 0);
   for (size_t y = 0; y < n; ++y) build_cuts(&d.cond_cdf[y * (n + 1)], ni, d.cuts, &d.cond_cut[y * stride]);
   build_cuts(d.marg_cdf.data(), ni, d.cuts, d.marg_cut.data());
@@ -230,7 +232,8 @@ void build_dist(std::vector<float> func, int res, SkyMap::Dist& d) {
 
 void build_sky_distributions(SkyMap& m) {
   const size_t n = m.texels.size() / 4;
-  std::vector<float> func(n);
+  std::vector<float> func;
+  assign_huge(func, n, 0.f);
   double sum[3] = {0, 0, 0}, mean_f = 0;
   for (size_t i = 0; i < n; ++i) {
     const Rgb t = m.texel(i);
@@ -243,7 +246,8 @@ void build_sky_distributions(SkyMap& m) {
   for (int c = 0; c < 3; ++c) m.mean[c] = n ? sum[c] / static_cast<double>(n) : 0;
   mean_f = n ? mean_f / static_cast<double>(n) : 0;
   // compensated: max(value - mean, 0); nothing left (a constant map): uniform
-  std::vector<float> comp(n);
+  std::vector<float> comp;
+  assign_huge(comp, n, 0.f);
   m.constant = true;
   double comp_sum = 0;
   for (size_t i = 0; i < n; ++i) {

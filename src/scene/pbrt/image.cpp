@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "scene/huge_pages.h"
 #include "util.h"
 
 namespace tuile::pbrt {
@@ -41,7 +42,7 @@ static bool load_exr(const std::string& path, Texture& out, std::string& reason)
     file.readPixels(dw.min.y, dw.max.y);
     out.width = int(w);
     out.height = int(h);
-    out.rgb.resize(size_t(3 * w * h));
+    assign_huge(out.rgb, size_t(3 * w * h), 0.f);
     for (long y = 0; y < h; ++y)
       for (long x = 0; x < w; ++x) {
         float* d = &out.rgb[size_t(3 * (y * w + x))];
@@ -92,7 +93,7 @@ bool load_image(const std::string& path, const std::string& encoding, Texture& o
   out.width = w;
   out.height = h;
   const size_t count = size_t(w) * h * 3;
-  out.rgb.resize(count);
+  assign_huge(out.rgb, count, 0.f);
   if (is16) {
     const uint16_t* s = static_cast<const uint16_t*>(data);
     for (size_t i = 0; i < count; ++i) out.rgb[i] = decode(s[i] / 65535.f);
