@@ -6,6 +6,8 @@
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
 #include <stb/stb_image.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <bit>
@@ -196,19 +198,22 @@ void build_dist(std::vector<float> func, int res, SkyMap::Dist& d) {
   assign_huge(d.cond_cdf, n * (n + 1), 0.f);
   d.marg_cdf.assign(n + 1, 0.f);
   std::vector<double> row_sum(n, 0);
-  for (size_t y = 0; y < n; ++y) {
-    const float* f = &func[y * n];
-    float* c = &d.cond_cdf[y * (n + 1)];
-    double s = 0;
-    for (size_t x = 0; x < n; ++x) s += f[x];
-    row_sum[y] = s;
-    double acc = 0;
-    for (size_t x = 0; x < n; ++x) {
-      c[x] = static_cast<float>(s > 0 ? acc / s : static_cast<double>(x) / static_cast<double>(n));
-      acc += f[x];
+  // rows in parallel: each row's values depend on that row alone
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t y = r.begin(); y < r.end(); ++y) {
+      const float* f = &func[y * n];
+      float* c = &d.cond_cdf[y * (n + 1)];
+      double s = 0;
+      for (size_t x = 0; x < n; ++x) s += f[x];
+      row_sum[y] = s;
+      double acc = 0;
+      for (size_t x = 0; x < n; ++x) {
+        c[x] = static_cast<float>(s > 0 ? acc / s : static_cast<double>(x) / static_cast<double>(n));
+        acc += f[x];
+      }
+      c[n] = 1.f;
     }
-    c[n] = 1.f;
-  }
+  });
   double acc = 0;
   for (size_t y = 0; y < n; ++y) {
     d.marg_cdf[y] = static_cast<float>(acc / total);
@@ -222,7 +227,9 @@ void build_dist(std::vector<float> func, int res, SkyMap::Dist& d) {
   const size_t stride = static_cast<size_t>(d.cuts) + 1;
   assign_huge(d.cond_cut, n * stride, 0);
   d.marg_cut.assign(stride, 0);
-  for (size_t y = 0; y < n; ++y) build_cuts(&d.cond_cdf[y * (n + 1)], ni, d.cuts, &d.cond_cut[y * stride]);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t y = r.begin(); y < r.end(); ++y) build_cuts(&d.cond_cdf[y * (n + 1)], ni, d.cuts, &d.cond_cut[y * stride]);
+  });
   build_cuts(d.marg_cdf.data(), ni, d.cuts, d.marg_cut.data());
   d.inv_mean = static_cast<float>(static_cast<double>(func.size()) / total);
   d.func = std::move(func);
