@@ -54,6 +54,11 @@ struct Estimator {
   bool guide = false;
   uint32_t guide_learn = 64;
   float guide_alpha = 0.5f;
+  // --light-paths (src/render/light_paths.h): the caustic paths, whose vertex next to an
+  // area light scatters by a delta lobe and whose first vertex from the camera does not,
+  // are traced from the lights and joined to the camera; the path tracer leaves them out
+  // (drop_light_traced_hits). Unbiased: the two estimators split path space.
+  bool light_paths = false;
 
   // probability of choosing the light technique in one-sample MIS
   float one_sample_light_prob() const {

@@ -21,6 +21,7 @@ inline void start_paths(TileBuffers& tb) {
   std::fill_n(tb.path.throughput_b, padded, 1.f);
   std::fill_n(tb.path.eta_scale, padded, 1.f);
   std::fill_n(tb.path.rough, padded, 0.f);
+  std::fill_n(tb.path.first_rough, padded, 0.f);
 }
 
 // The radiance the vertex's techniques found (TileBuffers::radiance), times the path's
@@ -118,6 +119,8 @@ inline void continue_paths(const GeomView& G, const Estimator& est, uint32_t sam
   if (roulette) point_pairs(est, tb, sample, rr_pair, padded, tb.tech.u3, nullptr);
   const float inv_t = 1.f / est.rr_threshold;
   for (int k = 0; k < padded; k += lane_traits<T>::width) continue_path_lanes<T, Materials>(G, tb, k, roulette, inv_t);
+  if (vertex == 1 && est.light_paths)  // (the first vertex's lobe: drop_light_traced_hits)
+    for (int k = 0; k < padded; ++k) tb.path.first_rough[k] = tb.tech.delta[k] ? 0.f : 1.f;
 }
 
 }  // namespace tuile

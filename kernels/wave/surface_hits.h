@@ -270,7 +270,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
   const i32_t<T> pixel_id = load_i32<T>(reinterpret_cast<const int32_t*>((Bounce ? tb.points.pixel : tb.lanes.pixel) + i));
   const i32_t<T> geom = load_i32<T>(reinterpret_cast<const int32_t*>(p.geomID + l));
   auto hit = f_mask_from_i(geom >= i32_t<T>(0) && index < i32_t<T>(lanes));  // invalid_id reads as -1
-  T beta_r(1.f), beta_g(1.f), beta_b(1.f), eta_scale(1.f), rough(0.f);
+  T beta_r(1.f), beta_g(1.f), beta_b(1.f), eta_scale(1.f), rough(0.f), first_rough(0.f);
   if constexpr (Bounce) {
     hit = hit && f_mask_from_i(load_i32<T>(tb.tech.valid + i) != i32_t<T>(0));
     beta_r = load<T>(tb.path.throughput_r + i);
@@ -278,6 +278,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     beta_b = load<T>(tb.path.throughput_b + i);
     eta_scale = load<T>(tb.path.eta_scale + i);
     rough = load<T>(tb.path.rough + i);
+    first_rough = load<T>(tb.path.first_rough + i);
   }
   const i32_t<T> gi = max(geom, i32_t<T>(0));
   const T t = load<T>(p.ray.tfar + l);
@@ -377,6 +378,7 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     compress_store(tb.path.throughput_b + n, beta_b, keep);
     compress_store(tb.path.eta_scale + n, eta_scale, keep);
     compress_store(tb.path.rough + n, rough, keep);
+    compress_store(tb.path.first_rough + n, first_rough, keep);
     n += std::popcount(keep);
     return;
   }
@@ -445,6 +447,7 @@ inline void finish_points(const GeomView& G, const Estimator& est, uint32_t samp
     tb.path.throughput_r[k] = tb.path.throughput_g[k] = tb.path.throughput_b[k] = 0.f;
     tb.path.eta_scale[k] = 1.f;
     tb.path.rough[k] = 0.f;
+    tb.path.first_rough[k] = 0.f;
     if (!tb.keys.points_are_lanes)  // (padded > n means n > 0; as lanes, the padding pixels are pixel 0 already)
       for (uint32_t bits = tb.keys.keyed & ~1u; bits; bits &= bits - 1)
         for (int f = 0; f < 3; ++f) tb.keys.point_key[std::countr_zero(bits)][f][k] = tb.keys.point_key[std::countr_zero(bits)][f][0];

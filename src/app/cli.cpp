@@ -58,6 +58,10 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                "from the first --guide-learn samples' paths, drawn from at diffuse points and in media with "
                "probability --guide-alpha and mixed with BSDF sampling (MIS sees the mixture's density); over MPI the "
                "ranks learn together (the single process's image)");
+  app.add_flag("--light-paths", f.light_paths,
+               "light tracing for the caustics (unbiased): the paths whose vertex next to an area light scatters by a "
+               "delta lobe (a mirror, smooth glass) and whose first vertex from the camera does not are traced from the "
+               "lights and joined to the camera, and the path tracer leaves them out (it finds them only by chance)");
   app.add_option("--guide-learn", f.guide_learn, "--guide: the samples per pixel it learns from (iterations of 1, 1, 2, 4, ...)")
       ->capture_default_str();
   app.add_option("--guide-alpha", f.guide_alpha, "--guide: the share of directions drawn from the guide")->capture_default_str();
@@ -151,6 +155,7 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   else if (f.regularize == "off") e.regularize = false;
   else throw std::invalid_argument("--regularize: '" + f.regularize + "' is not on or off");
   e.guide = f.guide;
+  e.light_paths = f.light_paths;
   e.guide_learn = f.guide_learn;
   e.guide_alpha = f.guide_alpha;
   if (f.spp_given && f.spp < 1) throw std::invalid_argument("--spp must be >= 1");

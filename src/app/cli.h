@@ -23,6 +23,7 @@ struct RenderFlags {
   std::string filter;  // pixel filter; "": the scene file's PixelFilter, else box
   std::string regularize;  // --regularize on|off; "": the scene file's Integrator
   bool guide = false;      // --guide
+  bool light_paths = false;  // --light-paths
   uint32_t guide_learn = 64;
   float guide_alpha = 0.5f;
   float beta = 2.f, alpha = 0.1f;

@@ -54,6 +54,9 @@ RenderJob start_render_job(const RenderFlags& f, std::shared_ptr<Prepared> loade
   check_nonnegative(f.checkpoint_seconds, "--checkpoint");
   check_nonnegative(f.time_budget, "--time-budget");
   check_nonnegative(f.target_error, "--target-error");
+  if (f.light_paths && f.target_error > 0)
+    throw std::invalid_argument("--target-error estimates the error from the camera's samples alone, which the light "
+                                "paths' contributions (--light-paths) are not");
   // the output first, before any work (with -o; a scene's own Film name is checked after load)
   if (!f.output.empty()) check_output_path(f.output, {".exr"});
   RenderJob job;
@@ -171,7 +174,8 @@ int finish_render_job(const RenderFlags& f, RenderJob& job, StopReason reason, c
                 static_cast<unsigned long long>(st.rejected_camera), static_cast<unsigned long long>(st.rejected_light),
                 static_cast<unsigned long long>(st.rejected_bsdf));
     std::printf("worst_accident %.6g (largest single-sample luminance / its pixel's mean)\n", st.worst_ratio);
-    std::printf("mean_variance_of_mean %.6g\n", mv);
+    if (opt.est.light_paths) std::printf("mean_variance_of_mean unavailable (the camera's samples alone: --light-paths)\n");
+    else std::printf("mean_variance_of_mean %.6g\n", mv);
   }
   return 0;
 }

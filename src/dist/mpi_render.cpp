@@ -522,6 +522,12 @@ int run_render_distributed(const RenderFlags& f) {
                    "ranks of mpirun render at the same time; render it in one process\n";
     return 1;
   }
+  if (f.light_paths) {  // (the renderer refuses a part of the tiles too)
+    if (mpi.rank == 0)
+      std::cerr << "tuile: error: --light-paths: a light path lands anywhere in the image, so the ranks of mpirun cannot "
+                   "render parts of it yet; render it in one process\n";
+    return 1;
+  }
   std::unique_ptr<RenderJob> job;
   std::unique_ptr<Prepared> prepared;
   if (!load_everywhere(mpi, f, job, prepared)) return 1;

@@ -45,6 +45,14 @@ void validate(const RenderOptions& o) {
     if (e.guide_learn < 1 || e.guide_learn > 1u << 20) throw std::invalid_argument("--guide-learn must be in 1..1048576");
     if (!(e.guide_alpha > 0.f && e.guide_alpha < 1.f)) throw std::invalid_argument("--guide-alpha must be in (0, 1)");
   }
+  if (e.light_paths) {
+    if (e.max_depth < 2)
+      throw std::invalid_argument("--light-paths joins paths of two vertices or more to the camera: it needs --max-depth 2 "
+                                  "or more");
+    if (o.aov_variance)
+      throw std::invalid_argument("--light-paths: the variance layer is estimated from the camera's samples alone, "
+                                  "which the light paths' contributions are not; leave out --aov variance");
+  }
   if (e.rr_depth < 0 || e.rr_depth > 100000) throw std::invalid_argument("--rr-depth must be in 0..100000");
   if (!(e.rr_threshold > 0.f && e.rr_threshold <= 1000.f))
     throw std::invalid_argument("--rr-threshold must be in (0, 1000]");
@@ -125,7 +133,8 @@ std::string describe(const Estimator& e) {
     std::snprintf(t, sizeof t, "%g", static_cast<double>(e.rr_threshold));
     s += " max-depth=" + std::to_string(e.max_depth) + " rr-depth=" + std::to_string(e.rr_depth) + " rr-threshold=" + t;
   }
-  if (e.regularize) s += " regularize=on";  // (off: the description, and checkpoints' fingerprint, of earlier releases)
+  if (e.regularize) s += " regularize=on";
+  if (e.light_paths) s += " light-paths=on";  // (off: the description, and checkpoints' fingerprint, of earlier releases)
   if (e.guide) {  // (likewise)
     char a[32];
     std::snprintf(a, sizeof a, "%g", static_cast<double>(e.guide_alpha));

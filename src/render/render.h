@@ -48,6 +48,7 @@ struct TileRect {
 };
 
 class Guide;  // render/guide.h
+class LightPaths;  // render/light_paths.h
 
 class Renderer {
  public:
@@ -115,6 +116,7 @@ class Renderer {
   const std::atomic<bool>* cancel_ = nullptr;
   std::unique_ptr<Guide> guide_;
   uint32_t guide_recorded_ = 0;  // the samples [0, n) whose records the guide holds or learned from
+  std::unique_ptr<LightPaths> light_paths_;  // --light-paths, where there is something to trace
 };
 
 }  // namespace tuile

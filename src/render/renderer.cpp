@@ -14,6 +14,7 @@
 
 #include "render/filter_table.h"
 #include "render/guide.h"
+#include "render/light_paths.h"
 #include "render/tile_pipeline.h"
 #include "wave/accumulate.h"
 #include "wave/optimal_mis.h"
@@ -76,6 +77,10 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
     float lo[3], hi[3];
     accel_.bounds(lo, hi);
     guide_ = std::make_unique<Guide>(lo, hi, opt_.est.guide_learn, opt_.est.guide_alpha);
+  }
+  if (opt_.est.light_paths) {  // (inactive without an area light or a delta lobe: the path tracer has every path)
+    light_paths_ = std::make_unique<LightPaths>(*views_, opt_.est, scene.camera.width, scene.camera.height);
+    if (!light_paths_->active()) light_paths_.reset();
   }
 }
 
@@ -265,6 +270,46 @@ RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Pro
                       },
                       tbb::simple_partitioner());
   });
+  // --light-paths: the light tracer's paths of every tile's pixels, in batches of samples of
+  // about 2^20 paths; each batch's splats added to the film in tile order (the same bits for
+  // any thread count and tile order)
+  if (light_paths_ && !skipped.load()) {
+    if (only)
+      throw std::invalid_argument("--light-paths: a light path lands anywhere in the image, so the light tracer does not "
+                                  "render a part of the tiles (a distributed render) yet");
+    const uint64_t all_pixels = static_cast<uint64_t>(cam.width) * static_cast<uint64_t>(cam.height);
+    const uint32_t batch = static_cast<uint32_t>(std::max<uint64_t>(1, (uint64_t(1) << 20) / std::max<uint64_t>(1, all_pixels)));
+    const uint32_t first_pair = c.layout.depth_base(static_cast<uint32_t>(est.max_depth));
+    std::vector<std::vector<LightPathSplat>> splats(static_cast<size_t>(tiles));
+    for (uint32_t s0 = begin; s0 < end && !skipped.load(); s0 += std::min(batch, end - s0)) {
+      const uint32_t s1 = s0 + std::min(batch, end - s0);
+      arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
+                          [&](const tbb::blocked_range<int>& r) {
+                            TileBuffers& tb = *buffers.local();
+                            for (int t = r.begin(); t < r.end(); ++t) {
+                              if (cancel_ && cancel_->load(std::memory_order_relaxed)) {
+                                skipped.store(true, std::memory_order_relaxed);
+                                return;
+                              }
+                              light_paths_->trace_tile(accel_, tb, t, ts, c.tiles_x, s0, s1, first_pair,
+                                                       splats[static_cast<size_t>(t)], tb.stats.rejected_bsdf);
+                            }
+                          },
+                          tbb::simple_partitioner());
+      });
+      if (skipped.load()) break;
+      for (std::vector<LightPathSplat>& list : splats) {
+        for (const LightPathSplat& sp : list) {
+          double* px = film.sum.data() + 3 * static_cast<size_t>(sp.pixel);
+          px[0] += sp.r;
+          px[1] += sp.g;
+          px[2] += sp.b;
+        }
+        list.clear();
+      }
+    }
+  }
   RenderStats st;
   st.seconds = std::chrono::duration<double>(clock_type::now() - t0).count();
   const double sec_per_tick = st.seconds / static_cast<double>(std::max<uint64_t>(1, __rdtsc() - ticks0));

@@ -1,0 +1,450 @@
+// Light paths (--light-paths): the light tracer of render/light_paths.h.
+#include "render/light_paths.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "light/kinds.h"
+#include "light/table.h"
+#include "sample/rng.h"
+#include "sample/sampling.h"
+#include "wave/accumulate.h"
+#include "wave/media.h"
+#include "wave/surface_bsdf.h"
+#include "wave/surface_hits.h"
+
+namespace tuile {
+
+namespace {
+
+bool is_area(int32_t type) {
+  return type == static_cast<int32_t>(LightKind::triangle) || type == static_cast<int32_t>(LightKind::parallelogram) ||
+         type == static_cast<int32_t>(LightKind::sphere);
+}
+
+// The integral of one axis of a tabulated filter (midpoint rule, fine enough for the
+// smooth filters it is used for).
+double axis_integral(const FilterView& f, const FilterAxis& a) {
+  const int n = 1 << 14;
+  const double h = 2.0 * a.r / n;
+  double s = 0;
+  for (int i = 0; i < n; ++i) s += filter_value_1d<float>(f, a, static_cast<float>(-a.r + (i + 0.5) * h));
+  return s * h;
+}
+
+}  // namespace
+
+LightPaths::LightPaths(const SceneViews& v, const Estimator& est, int width, int height)
+    : v_(v), est_(est), width_(width), height_(height) {
+  const LightView& L = v.lights;
+  const GeomView& G = v.geom;
+  if (L.alpha_shape)
+    throw std::invalid_argument("--light-paths: the scene has an emitter with an alpha cut-out, which the light tracer "
+                                "does not sample yet");
+  double total = 0;
+  for (int32_t i = 0; i < L.count; ++i) {
+    if (!is_area(L.type[i])) continue;
+    const int32_t s = L.one_radiance ? 0 : i;
+    const double power = static_cast<double>(luminance(L.Lr[s], L.Lg[s], L.Lb[s])) * L.area[i] * (L.two_sided[i] > 0.5f ? 2 : 1);
+    if (!(power > 0) || !std::isfinite(power)) continue;
+    lights_.push_back(i);
+    pmf_.push_back(static_cast<float>(power));
+    total += power;
+  }
+  if (lights_.empty()) {
+    why_ = "the scene has no area light";
+    return;
+  }
+  if ((v.bsdf_kinds & bsdf_delta_capable) == 0 && !G.has_mix) {
+    why_ = "no surface of the scene scatters by a delta lobe";
+    return;
+  }
+  double run = 0;
+  for (float& p : pmf_) {
+    run += p;
+    p = static_cast<float>(p / total);
+    cdf_.push_back(static_cast<float>(run / total));
+  }
+  cdf_.back() = 1.f;
+  // the medium each source emits into: the side of its shape its normal is on
+  medium_out_.assign(static_cast<size_t>(L.count), -1);
+  medium_in_.assign(static_cast<size_t>(L.count), -1);
+  if (G.has_media) {
+    std::vector<int32_t> light_geom(static_cast<size_t>(L.count), -1);
+    const size_t tris = v.tri_light.size() - 1;
+    for (int32_t g = 0; g < G.geom_count; ++g) {
+      if (G.geom_kind[g] == static_cast<int32_t>(GeomKind::triangles)) {
+        const size_t first = static_cast<size_t>(G.geom_first[g]);
+        const size_t last = g + 1 < G.geom_count && G.geom_kind[g + 1] == static_cast<int32_t>(GeomKind::triangles)
+                                ? static_cast<size_t>(G.geom_first[g + 1])
+                                : tris;
+        for (size_t t = first; t < last; ++t)
+          if (G.tri_light[t] >= 0) light_geom[static_cast<size_t>(G.tri_light[t])] = g;
+      } else if (G.geom_light[g] >= 0) {
+        light_geom[static_cast<size_t>(G.geom_light[g])] = g;
+      }
+    }
+    for (int32_t i : lights_) {
+      const int32_t g = light_geom[static_cast<size_t>(i)];
+      if (g < 0) continue;
+      const int32_t in = G.media.geom_in[g], out = G.media.geom_out[g];
+      if (in == out) {
+        if (in < 0 && G.media.count > 0)
+          throw std::invalid_argument(
+              "--light-paths: area light " + std::to_string(i) +
+              " is in a scene with participating media, but its shape has no MediumInterface, so the medium it emits "
+              "into is unknown to the light tracer; give the shape a MediumInterface");
+        medium_out_[static_cast<size_t>(i)] = medium_in_[static_cast<size_t>(i)] = in;
+        continue;
+      }
+      // pbrt's outside: Embree's Ng (cross(e1, e2) for a triangle; outwards for a sphere)
+      // times the shape's side; the source's normal says which side it emits on
+      bool normal_out = true;
+      if (L.type[i] == static_cast<int32_t>(LightKind::sphere)) {
+        normal_out = G.geom_side[g] > 0.f;
+      } else {
+        const Vec3<float> e1{L.e1x[i], L.e1y[i], L.e1z[i]}, e2{L.e2x[i], L.e2y[i], L.e2z[i]};
+        const Vec3<float> n{L.nx[i], L.ny[i], L.nz[i]};
+        normal_out = dot(cross(e1, e2), n) * G.geom_side[g] > 0.f;
+      }
+      medium_out_[static_cast<size_t>(i)] = normal_out ? out : in;
+      medium_in_[static_cast<size_t>(i)] = normal_out ? in : out;
+    }
+  }
+  // the camera: world_from_camera M, its inverse, |det M|, the screen window at distance 1
+  const CameraView& c = v.camera;
+  for (int r = 0; r < 3; ++r) {
+    o_[r] = c.m[r][3];
+    for (int k = 0; k < 3; ++k) m_[r][k] = c.m[r][k];
+  }
+  const double(&a)[3][3] = m_;
+  const double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+                     a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+  if (!(std::abs(det) > 0) || !std::isfinite(det))
+    throw std::invalid_argument("--light-paths: the camera's transform is singular");
+  det_ = std::abs(det);
+  inv_[0][0] = (a[1][1] * a[2][2] - a[1][2] * a[2][1]) / det;
+  inv_[0][1] = (a[0][2] * a[2][1] - a[0][1] * a[2][2]) / det;
+  inv_[0][2] = (a[0][1] * a[1][2] - a[0][2] * a[1][1]) / det;
+  inv_[1][0] = (a[1][2] * a[2][0] - a[1][0] * a[2][2]) / det;
+  inv_[1][1] = (a[0][0] * a[2][2] - a[0][2] * a[2][0]) / det;
+  inv_[1][2] = (a[0][2] * a[1][0] - a[0][0] * a[1][2]) / det;
+  inv_[2][0] = (a[1][0] * a[2][1] - a[1][1] * a[2][0]) / det;
+  inv_[2][1] = (a[0][1] * a[2][0] - a[0][0] * a[2][1]) / det;
+  inv_[2][2] = (a[0][0] * a[1][1] - a[0][1] * a[1][0]) / det;
+  const double t = c.tan_half;
+  area_ = std::abs((static_cast<double>(c.sx1) - c.sx0) * (static_cast<double>(c.sy1) - c.sy0)) * t * t;
+  // the pixel filter, normalised
+  const FilterView& f = c.filter;
+  if (f.kind == FilterKind::box) {
+    rx_ = 0.5 * f.box_b[0];
+    ry_ = 0.5 * f.box_b[1];
+    inv_norm_ = 1.0 / (4.0 * rx_ * ry_);
+  } else if (f.kind == FilterKind::triangle) {
+    rx_ = f.axis[0].r;
+    ry_ = f.axis[1].r;
+    inv_norm_ = 1.0 / (rx_ * rx_ * ry_ * ry_);
+  } else {
+    rx_ = f.axis[0].r;
+    ry_ = f.axis[1].r;
+    inv_norm_ = 1.0 / (axis_integral(f, f.axis[0]) * axis_integral(f, f.axis[1]));
+  }
+  active_ = true;
+}
+
+// A contribution at raster position (rx, ry) into the pixels whose filter covers it.
+void LightPaths::splat(double rx, double ry, const float c[3], std::vector<LightPathSplat>& out) const {
+  const FilterView& f = v_.camera.filter;
+  if (f.kind == FilterKind::box && rx_ == 0.5 && ry_ == 0.5) {  // the pixel it falls in (as the camera's samples)
+    const double px = std::floor(rx), py = std::floor(ry);
+    if (px < 0 || py < 0 || px >= width_ || py >= height_) return;
+    const float w = static_cast<float>(inv_norm_);
+    out.push_back({static_cast<uint32_t>(py) * static_cast<uint32_t>(width_) + static_cast<uint32_t>(px), c[0] * w, c[1] * w,
+                   c[2] * w});
+    return;
+  }
+  const int x0 = std::max(0, static_cast<int>(std::ceil(rx - 0.5 - rx_)));
+  const int x1 = std::min(width_ - 1, static_cast<int>(std::floor(rx - 0.5 + rx_)));
+  const int y0 = std::max(0, static_cast<int>(std::ceil(ry - 0.5 - ry_)));
+  const int y1 = std::min(height_ - 1, static_cast<int>(std::floor(ry - 0.5 + ry_)));
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) {
+      const float w = static_cast<float>(filter_value(f, rx - (x + 0.5), ry - (y + 0.5)) * inv_norm_);
+      if (w == 0.f) continue;
+      out.push_back({static_cast<uint32_t>(y) * static_cast<uint32_t>(width_) + static_cast<uint32_t>(x), c[0] * w, c[1] * w,
+                     c[2] * w});
+    }
+}
+
+void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_size, int tiles_x, uint32_t begin,
+                            uint32_t end, uint32_t first_pair, std::vector<LightPathSplat>& out, uint64_t& rejected) const {
+  if (!active_) return;
+  const GeomView& G = v_.geom;
+  const LightView& L = v_.lights;
+  const Estimator& est = est_;
+  Estimator hits = est;  // the hit stages' estimator: no one-sample choice, no regularization
+  hits.mode = MisMode::multi;
+  hits.regularize = false;
+  const int x0 = (tile % tiles_x) * tile_size, y0 = (tile / tiles_x) * tile_size;
+  const int tw = std::min(tile_size, width_ - x0), th = std::min(tile_size, height_ - y0);
+  const int lanes = tw * th;
+  const int padded = packet_padded(lanes);
+  for (int i = 0; i < padded; ++i) {
+    const int j = i < lanes ? i : 0;
+    tb.lanes.pixel[i] = static_cast<uint32_t>(y0 + j / tw) * static_cast<uint32_t>(width_) + static_cast<uint32_t>(x0 + j % tw);
+  }
+  // the sampler's pairs: three for the emission, three per vertex (BSDF direction; lobe
+  // and Russian roulette; the free flight of the ray that leaves it)
+  const uint32_t pick_pair = first_pair, point_pair = first_pair + 1, dir_pair = first_pair + 2, flight0 = first_pair + 3;
+  auto vertex_pair = [&](int j, int what) { return first_pair + 4 + 3 * static_cast<uint32_t>(j - 1) + static_cast<uint32_t>(what); };
+  auto pairs = [&](const uint32_t* pixel, uint32_t s, uint32_t pair, int count, float* u, float* w) {
+    sample_pairs(est.sampler, est.seed, pixel, s, est.spp, pair, count, u, w);
+  };
+  const bool media = G.has_media;
+  const float inv_t = 1.f / est.rr_threshold;
+  auto trace = [&](const int32_t* valid, RayHit16& p) { accel.intersect16(valid, p, false, Bvh::scene); };
+  float* rx = tb.queue.x;  // per shading point: its raster position (the queue is free here)
+  float* ry = tb.queue.y;
+
+  for (uint32_t s = begin; s < end; ++s) {
+    // the emission: a source by power, a point on it, a cosine-weighted direction
+    pairs(tb.lanes.pixel, s, pick_pair, padded, tb.tech.u0, tb.tech.u1);
+    pairs(tb.lanes.pixel, s, point_pair, padded, tb.tech.u2, tb.tech.u3);
+    pairs(tb.lanes.pixel, s, dir_pair, padded, tb.ris.cr, tb.ris.cg);
+    for (int i = 0; i < padded; ++i) {
+      tb.points.lane[i] = i;
+      tb.points.pixel[i] = tb.lanes.pixel[i];
+      tb.tech.valid[i] = 0;
+      tb.path.throughput_r[i] = tb.path.throughput_g[i] = tb.path.throughput_b[i] = 0.f;
+      tb.path.eta_scale[i] = 1.f;
+      tb.path.rough[i] = tb.path.first_rough[i] = 0.f;
+      tb.media.med[i] = -1;
+      if (i >= lanes) continue;
+      const size_t pick = std::min(static_cast<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), tb.tech.u0[i]) - cdf_.begin()),
+                                   cdf_.size() - 1);
+      const int32_t l = lights_[pick];
+      const LightGeom<float> g = broadcast_light<float>(L, l);
+      Vec3<float> y, n;
+      if (L.type[l] == static_cast<int32_t>(LightKind::sphere)) {
+        y = LightKindOps<LightKind::sphere>::area_point(g, tb.tech.u2[i], tb.tech.u3[i]);
+        n = normalize(y - g.p0);
+      } else if (L.type[l] == static_cast<int32_t>(LightKind::triangle)) {
+        y = LightKindOps<LightKind::triangle>::area_point(g, tb.tech.u2[i], tb.tech.u3[i]);
+        n = g.n;
+      } else {
+        y = LightKindOps<LightKind::parallelogram>::area_point(g, tb.tech.u2[i], tb.tech.u3[i]);
+        n = g.n;
+      }
+      const bool two = g.two_sided > 0.5f;
+      const bool back = two && tb.tech.u1[i] >= 0.5f;
+      if (back) n = Vec3<float>(0.f, 0.f, 0.f) - n;
+      Vec3<float> t, b;
+      make_basis(n, t, b);
+      const Vec3<float> dl = sample_cosine_hemisphere<float>(tb.ris.cr[i], tb.ris.cg[i]);
+      const Vec3<float> d = normalize(t * dl.x + b * dl.y + n * dl.z);
+      const int32_t sl = L.one_radiance ? 0 : l;
+      const float scale = g.area * pi_f * (two ? 2.f : 1.f) / pmf_[pick];
+      const float br = L.Lr[sl] * scale, bg = L.Lg[sl] * scale, bb = L.Lb[sl] * scale;
+      const float m0 = std::max(std::max(br, bg), bb);
+      if (!(m0 > 0.f) || !std::isfinite(m0) || !(dl.z > 0.f)) continue;
+      const float eps = (std::max(std::max(std::abs(y.x), std::abs(y.y)), std::abs(y.z)) + 1.f) * 0x1p-16f;
+      const Vec3<float> org = y + n * eps;
+      RayHit16& r = tb.bounce[i / packet_width];
+      const int ln = i % packet_width;
+      r.ray.org_x[ln] = org.x;
+      r.ray.org_y[ln] = org.y;
+      r.ray.org_z[ln] = org.z;
+      r.ray.dir_x[ln] = d.x;
+      r.ray.dir_y[ln] = d.y;
+      r.ray.dir_z[ln] = d.z;
+      r.ray.tfar[ln] = 3.0e38f;
+      tb.tech.valid[i] = -1;
+      tb.path.throughput_r[i] = br;
+      tb.path.throughput_g[i] = bg;
+      tb.path.throughput_b[i] = bb;
+      tb.path.eta_scale[i] = 1.f / m0;  // (the light tracer's: 1 / the first throughput, for Russian roulette)
+      tb.media.med[i] = back ? medium_in_[static_cast<size_t>(l)] : medium_out_[static_cast<size_t>(l)];
+    }
+    tb.points.count = lanes;
+    for (int j = 1;; ++j) {
+      // the rays that leave vertex j - 1 (the source at j = 1): their hits become vertex j
+      const int count = tb.points.count;
+      const int cp = packet_padded(count);
+      for (int p = 0; p < cp / packet_width; ++p) {
+        reset_hit(tb.bounce[p]);
+        trace(tb.tech.valid + p * packet_width, tb.bounce[p]);
+      }
+      if (media) {
+        pairs(tb.points.pixel, s, j == 1 ? flight0 : vertex_pair(j - 1, 2), cp, tb.media.u0, tb.media.u1);
+        medium_flights(G, tb.bounce, tb.tech.valid, count, tb.media, tb.stats.rejected_bsdf, trace);
+        for (int k = 0; k < count; ++k) {
+          tb.path.throughput_r[k] *= tb.media.wr[k];
+          tb.path.throughput_g[k] *= tb.media.wg[k];
+          tb.path.throughput_b[k] *= tb.media.wb[k];
+        }
+      }
+      bounce_hits<vfloat, true>(G, L, hits, s, 0, tb);
+      const int n = tb.points.count;
+      if (n == 0) break;
+      const int np = packet_padded(n);
+      const ShadingPoints& P = tb.points;
+      // vertex 2 on (the first took a delta lobe): joined to the camera
+      if (j >= 2) {
+        bool any = false;
+        for (int k = 0; k < np; ++k) {
+          tb.tech.valid[k] = 0;
+          if (k >= n) continue;
+          const Vec3<float> x{P.px[k], P.py[k], P.pz[k]};
+          const double vx = o_[0] - x.x, vy = o_[1] - x.y, vz = o_[2] - x.z;
+          const double cz = inv_[2][0] * -vx + inv_[2][1] * -vy + inv_[2][2] * -vz;
+          if (!(cz > 0)) continue;  // behind the camera
+          const double cx = inv_[0][0] * -vx + inv_[0][1] * -vy + inv_[0][2] * -vz;
+          const double cy = inv_[1][0] * -vx + inv_[1][1] * -vy + inv_[1][2] * -vz;
+          const CameraView& c = v_.camera;
+          const double qx = cx / cz, qy = cy / cz;
+          const double sx = qx / c.tan_half, sy = qy / c.tan_half;
+          const double rxk = (sx - c.sx0) / (static_cast<double>(c.sx1) - c.sx0) * width_;
+          const double ryk = (static_cast<double>(c.sy1) - sy) / (static_cast<double>(c.sy1) - c.sy0) * height_;
+          if (rxk < -rx_ || ryk < -ry_ || rxk > width_ + rx_ || ryk > height_ + ry_) continue;
+          const double d2 = vx * vx + vy * vy + vz * vz;
+          const double dist = std::sqrt(d2);
+          const Vec3<float> w{static_cast<float>(vx / dist), static_cast<float>(vy / dist), static_cast<float>(vz / dist)};
+          // the camera's importance per unit solid angle, per pixel: |M q|^3 / (A |det M|)
+          const double mq0 = m_[0][0] * qx + m_[0][1] * qy + m_[0][2], mq1 = m_[1][0] * qx + m_[1][1] * qy + m_[1][2],
+                       mq2 = m_[2][0] * qx + m_[2][1] * qy + m_[2][2];
+          const double mq = std::sqrt(mq0 * mq0 + mq1 * mq1 + mq2 * mq2);
+          const double importance = mq * mq * mq / (area_ * det_) / d2;
+          const Vec3<float> ng{P.nx[k], P.ny[k], P.nz[k]};
+          const Vec3<float> ns = G.shading_normals ? Vec3<float>(P.snx[k], P.sny[k], P.snz[k]) : ng;
+          const Vec3<float> wo{P.wox[k], P.woy[k], P.woz[k]};  // towards the vertex before
+          SurfaceBsdf<float, bsdf_all> bsdf = load_surface_bsdf<float, bsdf_all>(G, P, k, ns);
+          const bool in_medium = bsdf.kind == static_cast<int32_t>(MaterialKind::phase);
+          const float cg = dot(ng, w);
+          double geo = 1;
+          if (!in_medium) {
+            if (cg < 0.f) {  // the camera on the other side: the BSDF seen from there
+              bsdf.n = Vec3<float>(0.f, 0.f, 0.f) - bsdf.n;
+              bsdf.side = -bsdf.side;
+            }
+            const float ngo = std::abs(dot(ng, wo));
+            if (!(ngo > 0.f)) continue;
+            geo = static_cast<double>(std::abs(dot(ns, wo))) / ngo * std::abs(cg);
+          }
+          bsdf.wo = w;
+          const BsdfEval<float> e = bsdf.eval(wo);
+          const double k0 = geo * importance;
+          float cc[3] = {static_cast<float>(tb.path.throughput_r[k] * e.f.r * k0),
+                         static_cast<float>(tb.path.throughput_g[k] * e.f.g * k0),
+                         static_cast<float>(tb.path.throughput_b[k] * e.f.b * k0)};
+          if (!(cc[0] > 0.f || cc[1] > 0.f || cc[2] > 0.f)) continue;
+          if (!(std::isfinite(cc[0]) && std::isfinite(cc[1]) && std::isfinite(cc[2]))) {
+            ++rejected;
+            continue;
+          }
+          const float side = in_medium ? 0.f : (cg < 0.f ? -1.f : 1.f);
+          const Vec3<float> org = x + ng * (P.eps[k] * side);
+          Ray16& sh = tb.shadow[k / packet_width];
+          const int ln = k % packet_width;
+          sh.org_x[ln] = org.x;
+          sh.org_y[ln] = org.y;
+          sh.org_z[ln] = org.z;
+          sh.dir_x[ln] = w.x;
+          sh.dir_y[ln] = w.y;
+          sh.dir_z[ln] = w.z;
+          sh.tfar[ln] = static_cast<float>(dist) * (1.f - 1.f / 4096.f);
+          tb.tech.valid[k] = -1;
+          tb.tech.cr[k] = cc[0];
+          tb.tech.cg[k] = cc[1];
+          tb.tech.cb[k] = cc[2];
+          rx[k] = static_cast<float>(rxk);
+          ry[k] = static_cast<float>(ryk);
+          any = true;
+        }
+        if (any) {
+          if (media && G.media.has_interfaces) {
+            shadow_media(
+                G, tb, n,
+                [&](const int32_t* valid, Ray16& sh, int32_t* crossed) { accel.occluded16(valid, sh, false, crossed); },
+                [&](const int32_t* valid, RayHit16& q) { accel.intersect16(valid, q, false, Bvh::scene); });
+          } else {
+            for (int p = 0; p < np / packet_width; ++p) accel.occluded16(tb.tech.valid + p * packet_width, tb.shadow[p], false);
+            if (media) shadow_transmittance(G, tb, n);
+          }
+          for (int k = 0; k < n; ++k) {
+            if (!tb.tech.valid[k] || tb.shadow[k / packet_width].tfar[k % packet_width] == -INFINITY) continue;
+            const float cc[3] = {tb.tech.cr[k], tb.tech.cg[k], tb.tech.cb[k]};
+            splat(rx[k], ry[k], cc, out);
+          }
+        }
+      }
+      if (j >= est.max_depth) break;
+      // the path goes on along a BSDF sample (the vertex before as the viewer), with the
+      // adjoint's weight; at vertex 1 only a delta lobe's
+      pairs(tb.points.pixel, s, vertex_pair(j, 0), np, tb.tech.u0, tb.tech.u1);
+      pairs(tb.points.pixel, s, vertex_pair(j, 1), np, tb.tech.u2, tb.tech.u3);
+      const bool roulette = j > est.rr_depth;
+      for (int k = 0; k < np; ++k) {
+        tb.tech.valid[k] = 0;
+        if (k >= n) continue;
+        const Vec3<float> x{P.px[k], P.py[k], P.pz[k]};
+        const Vec3<float> ng{P.nx[k], P.ny[k], P.nz[k]};
+        const Vec3<float> ns = G.shading_normals ? Vec3<float>(P.snx[k], P.sny[k], P.snz[k]) : ng;
+        const Vec3<float> wo{P.wox[k], P.woy[k], P.woz[k]};
+        const SurfaceBsdf<float, bsdf_all> bsdf = load_surface_bsdf<float, bsdf_all>(G, P, k, ns);
+        const BsdfSample<float> bs = bsdf.sample(tb.tech.u2[k], tb.tech.u0[k], tb.tech.u1[k]);
+        if (!bs.valid || (j == 1 && !bs.delta)) continue;
+        const bool in_medium = bsdf.kind == static_cast<int32_t>(MaterialKind::phase);
+        float adj = 1.f;
+        const float cgi = dot(ng, bs.wi);
+        if (!in_medium) {
+          if (G.shading_normals) {
+            const float den = std::abs(dot(ng, wo)) * std::abs(dot(ns, bs.wi));
+            adj = den > 0.f ? std::abs(dot(ns, wo)) * std::abs(cgi) / den : 0.f;
+          }
+          if (bsdf.kind == static_cast<int32_t>(MaterialKind::dielectric) && cgi < 0.f) {
+            const float eta = G.mat_param[mp_eta][P.mat[k]];
+            const float etap = P.side[k] > 0.f ? eta : 1.f / eta;
+            adj *= etap * etap;
+          }
+        }
+        float br = tb.path.throughput_r[k] * bs.weight.r * adj;
+        float bg = tb.path.throughput_g[k] * bs.weight.g * adj;
+        float bb = tb.path.throughput_b[k] * bs.weight.b * adj;
+        const float m = std::max(std::max(br, bg), bb);
+        if (!std::isfinite(m)) {
+          ++rejected;
+          continue;
+        }
+        if (!(m > 0.f)) continue;
+        if (roulette) {
+          const float rr = m * tb.path.eta_scale[k] * inv_t;
+          if (rr < 1.f) {
+            if (tb.tech.u3[k] >= rr) continue;  // q = 1 - rr
+            br /= rr;
+            bg /= rr;
+            bb /= rr;
+          }
+        }
+        const float side = in_medium ? 0.f : (cgi < 0.f ? -1.f : 1.f);
+        const Vec3<float> org = x + ng * (P.eps[k] * side);
+        RayHit16& r = tb.bounce[k / packet_width];
+        const int ln = k % packet_width;
+        r.ray.org_x[ln] = org.x;
+        r.ray.org_y[ln] = org.y;
+        r.ray.org_z[ln] = org.z;
+        r.ray.dir_x[ln] = bs.wi.x;
+        r.ray.dir_y[ln] = bs.wi.y;
+        r.ray.dir_z[ln] = bs.wi.z;
+        r.ray.tfar[ln] = 3.0e38f;
+        tb.tech.valid[k] = -1;
+        tb.path.throughput_r[k] = br;
+        tb.path.throughput_g[k] = bg;
+        tb.path.throughput_b[k] = bb;
+        if (media) tb.media.med[k] = cgi >= 0.f ? P.medf[k] : P.medb[k];
+      }
+    }
+  }
+}
+
+}  // namespace tuile

@@ -1,0 +1,86 @@
+// Light paths (--light-paths, Estimator::light_paths): a light tracer for the caustic paths
+// a path tracer finds only by chance, splitting path space with it.
+//
+// The split. A path from the camera to an area light, x1 (the camera's hit) ... xk (next to
+// the light), belongs to the light tracer when xk scattered by a delta lobe (a mirror, smooth
+// glass) and x1 by no delta lobe (a diffuse or glossy surface, a point in a medium): the
+// caustics seen directly, on surfaces and in media, whatever lies between x1 and xk. The
+// path tracer counts them only through a BSDF sample of a delta lobe that meets the light
+// (no light sample has a value there), so it drops exactly those emitter hits
+// (drop_light_traced_hits) and counts everything else as before; the light tracer counts
+// exactly these paths. Each estimator is unbiased for its part, so the sum is. Delta
+// sources, the sky and emitting media are the path tracer's alone (it reaches them by light
+// samples).
+//
+// The light tracer. Per sample, one path per pixel of the image (a tile's pixels key the
+// sampler; the path may land anywhere): a source picked by power, a point uniform on it, a
+// cosine-weighted direction, the throughput Le A pi / p(source). Its first vertex must take a
+// delta lobe's sample (else the path is the path tracer's and ends). From its second vertex
+// on, every vertex is joined to the camera (a pinhole: its point projects to a raster
+// position, whose pixels get the contribution through the pixel filter, normalised): the
+// BSDF with the camera as the viewer, the cosine at the vertex, the camera's importance
+// |M q|^3 / (A |det M|) per unit solid angle and pixel (A the screen window's area at
+// camera distance 1, q the direction in camera space, M world_from_camera), 1 / d^2, and the
+// transmittance to the camera through media and interfaces (the shadow stages). Then the
+// path goes on along a BSDF sample with the adjoint's weight: the radiance transport's
+// f cos / p times etap^2 for a transmission through a dielectric (importance carries no
+// 1 / eta^2) and Veach's shading-normal factor |ns.wo| |ng.wi| / (|ng.wo| |ns.wi|); Russian
+// roulette on its throughput over its first one. The hit, medium, texture and BSDF stages
+// are the path tracer's (bounce_hits, medium_flights, SurfaceBsdf), run on the tile's
+// buffers after its camera samples.
+//
+// Determinism. A tile's splats (pixel, value) are kept in the order its paths made them and
+// added to the film in tile order once every tile of a batch of samples is done (the
+// renderer, render_range), so the image does not depend on threads or tile order. The
+// sampler's pairs are the ones after the path tracer's deepest (first_pair).
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "accel/embree.h"
+#include "render/views.h"
+#include "wave/estimator.h"
+#include "wave/tile.h"
+
+namespace tuile {
+
+struct LightPathSplat {
+  uint32_t pixel;
+  float r, g, b;
+};
+
+class LightPaths {
+ public:
+  // Throws std::invalid_argument where the scene has what the light tracer cannot trace
+  // yet (emitters with an alpha cut-out).
+  LightPaths(const SceneViews& v, const Estimator& est, int width, int height);
+  // Something to trace: an area light and a surface that can scatter by a delta lobe.
+  bool active() const { return active_; }
+  const std::string& why_inactive() const { return why_; }
+  // The light paths of the pixels of tile `tile` for samples [begin, end), their splats
+  // appended to out; rejected counts contributions that were not finite.
+  void trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_size, int tiles_x, uint32_t begin, uint32_t end,
+                  uint32_t first_pair, std::vector<LightPathSplat>& out, uint64_t& rejected) const;
+
+ private:
+  const SceneViews& v_;
+  Estimator est_;
+  int width_, height_;
+  bool active_ = false;
+  std::string why_;
+  std::vector<int32_t> lights_;      // the area sources
+  std::vector<float> cdf_;           // their power, cumulated (last 1)
+  std::vector<float> pmf_;
+  std::vector<int32_t> medium_out_;  // per area source: the medium on its normal's side, and behind it
+  std::vector<int32_t> medium_in_;
+  // the camera
+  double o_[3] = {}, inv_[3][3] = {}, m_[3][3] = {};
+  double det_ = 1, area_ = 1;  // |det M|, the screen window's area at distance 1
+  // the pixel filter: radii and 1 / its integral
+  double rx_ = 0.5, ry_ = 0.5, inv_norm_ = 1;
+
+  void splat(double rx, double ry, const float c[3], std::vector<LightPathSplat>& out) const;
+};
+
+}  // namespace tuile

@@ -1,0 +1,242 @@
+// --light-paths (src/render/light_paths.h): the light tracer takes the caustic paths (the
+// vertex next to an area light scatters by a delta lobe, the first vertex from the camera
+// does not) and the path tracer leaves them out. The split is unbiased: images with and
+// without it have the same mean, in a room with a glass sphere and a mirror (caustics on
+// the floor and the walls, seen directly and through the mirror; a light seen through the
+// glass), with shading normals on the sphere's stand-in mesh, with the triangle filter, and
+// in a medium whose caustic the glass throws (the light tracer's vertices in the medium,
+// joined to a camera outside it through an interface). The means are compared over
+// independent seeds (the light paths' splats are not in the per-pixel variance), quarter by
+// quarter and channel by channel. Also: the same bits on any thread count, and an image that
+// differs from the path tracer's alone (the light paths were traced).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "media_util.h"
+#include "render/light_paths.h"
+#include "render/options.h"
+#include "render_util.h"
+
+using namespace tuile;
+using namespace tuile::test;
+
+namespace {
+
+// A closed room (diffuse walls, one of them coloured), a smooth glass sphere on a diffuse
+// stand, a mirror on the right wall, and a light on the ceiling facing down, a fifth of the
+// ceiling wide (large enough that the path tracer finds its caustics often: its image is a
+// reference the test can trust).
+Scene caustic_room(int res, bool shading_normals_ball = false, bool finalize = true) {
+  Scene s;
+  s.source = "test:caustic-room";
+  s.materials.push_back(diffuse_material(Rgb{0.7f, 0.7f, 0.7f}));  // 0
+  s.materials.push_back(diffuse_material(Rgb{0.6f, 0.2f, 0.1f}));  // 1
+  Material glass;
+  glass.kind = MaterialKind::dielectric;
+  glass.eta = 1.5f;
+  s.materials.push_back(glass);  // 2
+  Material mirror;
+  mirror.kind = MaterialKind::conductor;
+  mirror.eta_rgb = {0.2f, 0.9f, 1.1f};
+  mirror.k_rgb = {3.9f, 2.4f, 2.1f};
+  s.materials.push_back(mirror);  // 3
+  auto quad = [&](const char* name, int mat, vec3f p0, vec3f e1, vec3f e2, float L = 0) {
+    Mesh m;
+    m.name = name;
+    m.material = mat;
+    if (L > 0) m.emission = {L, L, L};
+    add_quad(m, p0, e1, e2);
+    s.meshes.push_back(m);
+  };
+  quad("floor", 0, {-1.5f, 0, -1.5f}, {0, 0, 4.5f}, {3, 0, 0});
+  quad("ceiling", 0, {-1.5f, 2, -1.5f}, {3, 0, 0}, {0, 0, 4.5f});
+  quad("back", 0, {-1.5f, 0, -1.5f}, {3, 0, 0}, {0, 2, 0});
+  quad("left", 1, {-1.5f, 0, -1.5f}, {0, 2, 0}, {0, 0, 4.5f});
+  quad("right", 0, {1.5f, 0, -1.5f}, {0, 0, 4.5f}, {0, 2, 0});
+  quad("front", 0, {-1.5f, 0, 3}, {0, 2, 0}, {3, 0, 0});
+  quad("mirror", 3, {1.49f, 0.2f, -1.2f}, {0, 0, 1.4f}, {0, 1.2f, 0});
+  quad("light", 0, {-0.6f, 1.99f, -0.9f}, {1.2f, 0, 0}, {0, 0, 1.0f}, 6);  // facing down
+  if (shading_normals_ball) {  // a coarse sphere with vertex normals: shading normals
+    Mesh ball;
+    ball.name = "ball";
+    ball.material = 2;
+    const int nu = 16, nv = 10;
+    const vec3f c{-0.2f, 0.55f, -0.2f};
+    const float r = 0.45f;
+    for (int j = 0; j <= nv; ++j)
+      for (int i = 0; i <= nu; ++i) {
+        const float th = 3.14159265f * static_cast<float>(j) / nv, ph = 6.2831853f * static_cast<float>(i) / nu;
+        const vec3f n{std::sin(th) * std::cos(ph), std::cos(th), std::sin(th) * std::sin(ph)};
+        ball.positions.insert(ball.positions.end(), {c.x + r * n.x, c.y + r * n.y, c.z + r * n.z});
+        ball.normals.insert(ball.normals.end(), {n.x, n.y, n.z});
+      }
+    for (int j = 0; j < nv; ++j)
+      for (int i = 0; i < nu; ++i) {
+        const uint32_t a = static_cast<uint32_t>(j * (nu + 1) + i), b = a + 1, d = a + nu + 1, e = d + 1;
+        for (uint32_t k : {a, d, b, b, d, e}) ball.indices.push_back(k);
+      }
+    s.meshes.push_back(ball);
+  } else {
+    Sphere ball;
+    ball.center = {-0.2f, 0.55f, -0.2f};
+    ball.radius = 0.45f;
+    ball.material = 2;
+    s.spheres.push_back(ball);
+  }
+  s.camera.width = s.camera.height = res;
+  s.camera.fov_deg = 60;
+  camera_look_at(s.camera, {0, 1.2f, 2.8f}, {0, 0.5f, 0}, {0, 1, 0});
+  if (finalize) finalize_scene(s);
+  return s;
+}
+
+RenderOptions options(bool light_paths, uint32_t spp, uint32_t seed) {
+  RenderOptions o = independent_options(Strategy::mis, LightPick::power, MisMode::multi, 6, spp, seed);
+  o.est.light_paths = light_paths;
+  return o;
+}
+
+// Per seed, the mean of each quarter of the image and channel (12 numbers).
+std::vector<double> quarter_means(const Scene& s, const std::vector<float>& m) {
+  const int w = s.camera.width, h = s.camera.height;
+  std::vector<double> q(12, 0.0);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c)
+        q[static_cast<size_t>(3 * ((y * 2 / h) * 2 + x * 2 / w) + c)] +=
+            m[3 * (static_cast<size_t>(y) * static_cast<size_t>(w) + static_cast<size_t>(x)) + static_cast<size_t>(c)];
+  for (double& v : q) v /= w * h / 4.0;
+  return q;
+}
+
+// The two estimators' images over `seeds` independent seeds each: for every quarter and
+// channel, the difference of their means over its standard error (from the spread over the
+// seeds) is below 5.5 (12 tests of a t statistic with about 2 (seeds - 1) degrees of
+// freedom: with 24 seeds, a false alarm once in some 50,000 runs).
+void expect_same_mean(const Scene& s, RenderOptions with, RenderOptions without, int seeds, const char* what) {
+  Accel accel(s);
+  std::vector<std::vector<double>> a, b;
+  for (int k = 0; k < seeds; ++k) {
+    with.est.seed = static_cast<uint32_t>(2 * k + 1);
+    without.est.seed = static_cast<uint32_t>(2 * k + 2);
+    for (auto [o, out] : {std::pair{&with, &a}, std::pair{&without, &b}}) {
+      Film f;
+      f.reset(s.camera.width, s.camera.height);
+      Renderer(s, accel, *o).render(f, 0, o->est.spp);
+      out->push_back(quarter_means(s, f.mean()));
+    }
+  }
+  const double n = seeds;
+  for (size_t i = 0; i < 12; ++i) {
+    double ma = 0, mb = 0, va = 0, vb = 0;
+    for (int k = 0; k < seeds; ++k) {
+      ma += a[static_cast<size_t>(k)][i] / n;
+      mb += b[static_cast<size_t>(k)][i] / n;
+    }
+    for (int k = 0; k < seeds; ++k) {
+      va += (a[static_cast<size_t>(k)][i] - ma) * (a[static_cast<size_t>(k)][i] - ma) / (n - 1);
+      vb += (b[static_cast<size_t>(k)][i] - mb) * (b[static_cast<size_t>(k)][i] - mb) / (n - 1);
+    }
+    ASSERT_GT(mb, 0);
+    const double z = (ma - mb) / std::sqrt(va / n + vb / n);
+    std::printf("[ %s ] quarter %zu channel %zu: %.5f with light paths, %.5f without (z %.2f; std. errors %.2g, %.2g)\n", what,
+                i / 3, i % 3, ma, mb, z, std::sqrt(va / n), std::sqrt(vb / n));
+    EXPECT_LT(std::abs(z), 5.5) << what << ": quarter " << i / 3 << " channel " << i % 3;
+  }
+}
+
+}  // namespace
+
+TEST(LightPaths, RendersThePathTracersMean) {
+  const Scene s = caustic_room(24);
+  const uint32_t spp = static_cast<uint32_t>(scaled(96));
+  expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "caustic room");
+}
+
+TEST(LightPaths, RendersThePathTracersMeanWithShadingNormalsAndATriangleFilter) {
+  const Scene s = caustic_room(24, true);
+  const uint32_t spp = static_cast<uint32_t>(scaled(96));
+  RenderOptions with = options(true, spp, 0), without = options(false, spp, 0);
+  with.filter = without.filter = default_filter(FilterKind::triangle);
+  expect_same_mean(s, with, without, 24, "shading normals, triangle filter");
+}
+
+// The room filled with a fog (inside an interface box that also holds the light and the
+// glass), the camera outside it: the glass throws a caustic into the fog, which the light
+// tracer's vertices in the medium join to the camera through the interface.
+TEST(LightPaths, RendersThePathTracersMeanInAMedium) {
+  Scene s = caustic_room(20, false, false);
+  s.media.push_back(homogeneous({0.05f, 0.05f, 0.08f}, {0.4f, 0.35f, 0.3f}, 0.3f));
+  const int fog = 0;
+  const int iface = static_cast<int>(s.materials.size());
+  s.materials.push_back(interface_material());
+  Mesh box = media_box({-1.45f, 0.01f, -1.45f}, {1.45f, 1.98f, 2.5f});
+  box.material = iface;
+  box.medium_inside = fog;
+  s.meshes.push_back(box);
+  for (Sphere& sp : s.spheres) sp.medium_outside = fog;  // the glass: vacuum inside, fog outside
+  // the light just under the ceiling, inside the fog: a MediumInterface says so
+  for (Mesh& m : s.meshes)
+    if (m.name == "light") {
+      for (size_t k = 1; k < m.positions.size(); k += 3) m.positions[k] = 1.95f;
+      m.medium_inside = fog;
+      m.medium_outside = fog;
+    }
+  finalize_scene(s);
+  const uint32_t spp = static_cast<uint32_t>(scaled(64));
+  expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "fog");
+}
+
+TEST(LightPaths, SameBitsOnAnyThreadCount) {
+  const Scene s = caustic_room(20);
+  Accel accel(s);
+  auto render = [&](bool lp, int threads) {
+    RenderOptions o = options(lp, 12, 5);
+    o.est.sampler = SamplerKind::sobol;
+    o.threads = threads;
+    Film f;
+    f.reset(20, 20);
+    Renderer(s, accel, o).render(f, 0, 12);
+    return f.mean();
+  };
+  const std::vector<float> two = render(true, 2), one = render(true, 1), plain = render(false, 2);
+  size_t differ = 0, differ_plain = 0;
+  for (size_t i = 0; i < two.size(); ++i) {
+    differ += two[i] != one[i];
+    differ_plain += two[i] != plain[i];
+  }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_GT(differ_plain, two.size() / 4);  // the light paths were traced
+}
+
+TEST(LightPaths, RefusesWhatItCannotDo) {
+  RenderOptions o = options(true, 4, 0);
+  o.est.max_depth = 1;
+  EXPECT_THROW(validate(o), std::invalid_argument);
+  o = options(true, 4, 0);
+  o.aov_variance = true;
+  EXPECT_THROW(validate(o), std::invalid_argument);
+  // a part of the tiles (a distributed render)
+  const Scene s = caustic_room(16);
+  Accel accel(s);
+  Renderer r(s, accel, options(true, 4, 0));
+  Film f;
+  f.reset(16, 16);
+  const std::vector<int> tiles{0};
+  EXPECT_THROW(r.render(f, 0, 4, nullptr, &tiles), std::invalid_argument);
+  // nothing to trace without a delta lobe: the path tracer renders alone, the same bits
+  Scene plain = caustic_room(16, false, false);
+  for (Material& m : plain.materials) m = diffuse_material(Rgb{0.5f, 0.5f, 0.5f});
+  finalize_scene(plain);
+  Accel pa(plain);
+  Film f1, f2;
+  f1.reset(16, 16);
+  f2.reset(16, 16);
+  Renderer(plain, pa, options(true, 4, 0)).render(f1, 0, 4);
+  Renderer(plain, pa, options(false, 4, 0)).render(f2, 0, 4);
+  EXPECT_EQ(f1.mean(), f2.mean());
+}
