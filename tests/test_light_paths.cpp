@@ -3,7 +3,8 @@
 // does not) and the path tracer leaves them out. The split is unbiased: images with and
 // without it have the same mean, in a room with a glass sphere and a mirror (caustics on
 // the floor and the walls, seen directly and through the mirror; a light seen through the
-// glass), with shading normals on the sphere's stand-in mesh, with the triangle filter, and
+// glass; a coat with a delta and a diffuse lobe), with shading normals on the glass ball's
+// mesh, a sphere source and the triangle filter, and
 // in a medium whose caustic the glass throws (the light tracer's vertices in the medium,
 // joined to a camera outside it through an interface). The means are compared over
 // independent seeds (the light paths' splats are not in the per-pixel variance), quarter by
@@ -26,11 +27,12 @@ using namespace tuile::test;
 
 namespace {
 
-// A closed room (diffuse walls, one of them coloured), a smooth glass sphere on a diffuse
-// stand, a mirror on the right wall, and a light on the ceiling facing down, a fifth of the
-// ceiling wide (large enough that the path tracer finds its caustics often: its image is a
-// reference the test can trust).
-Scene caustic_room(int res, bool shading_normals_ball = false, bool finalize = true) {
+// A closed room (diffuse walls, one of them coloured, the back one a smooth coat over a
+// diffuse base: a delta lobe and a diffuse one), a smooth glass sphere, a mirror on the
+// right wall, and a light on the ceiling facing down, a fifth of the ceiling wide (large
+// enough that the path tracer finds its caustics often: its image is a reference the test
+// can trust), or a sphere source under the ceiling.
+Scene caustic_room(int res, bool shading_normals_ball = false, bool finalize = true, bool sphere_light = false) {
   Scene s;
   s.source = "test:caustic-room";
   s.materials.push_back(diffuse_material(Rgb{0.7f, 0.7f, 0.7f}));  // 0
@@ -44,6 +46,13 @@ Scene caustic_room(int res, bool shading_normals_ball = false, bool finalize = t
   mirror.eta_rgb = {0.2f, 0.9f, 1.1f};
   mirror.k_rgb = {3.9f, 2.4f, 2.1f};
   s.materials.push_back(mirror);  // 3
+  Material coat;
+  coat.kind = MaterialKind::coated_diffuse;
+  coat.reflectance = {0.3f, 0.5f, 0.6f};
+  s.materials.push_back(coat);  // 4: alpha 0, a smooth coat
+  Material rough_glass = glass;
+  rough_glass.alpha_u.value = rough_glass.alpha_v.value = 0.25f;
+  s.materials.push_back(rough_glass);  // 5
   auto quad = [&](const char* name, int mat, vec3f p0, vec3f e1, vec3f e2, float L = 0) {
     Mesh m;
     m.name = name;
@@ -54,12 +63,44 @@ Scene caustic_room(int res, bool shading_normals_ball = false, bool finalize = t
   };
   quad("floor", 0, {-1.5f, 0, -1.5f}, {0, 0, 4.5f}, {3, 0, 0});
   quad("ceiling", 0, {-1.5f, 2, -1.5f}, {3, 0, 0}, {0, 0, 4.5f});
-  quad("back", 0, {-1.5f, 0, -1.5f}, {3, 0, 0}, {0, 2, 0});
+  quad("back", 4, {-1.5f, 0, -1.5f}, {3, 0, 0}, {0, 2, 0});
   quad("left", 1, {-1.5f, 0, -1.5f}, {0, 2, 0}, {0, 0, 4.5f});
   quad("right", 0, {1.5f, 0, -1.5f}, {0, 0, 4.5f}, {0, 2, 0});
   quad("front", 0, {-1.5f, 0, 3}, {0, 2, 0}, {3, 0, 0});
+  // a glass slab whose top is smooth and its other faces rough: light that enters by the
+  // top (a delta lobe) leaves by a rough face, where the light tracer's vertex inside the
+  // glass joins the camera (its throughput carries the entry's etap^2)
+  {
+    Mesh box = media_box({0.4f, 0.9f, -1.2f}, {1.2f, 1.05f, -0.4f});
+    Mesh top, rest;
+    top.name = "slab top";
+    top.material = 2;
+    rest.name = "slab";
+    rest.material = 5;
+    for (size_t t = 0; t < box.indices.size(); t += 3) {
+      bool up = true;
+      for (size_t k = 0; k < 3; ++k) up = up && box.positions[3 * box.indices[t + k] + 1] > 1.04f;
+      Mesh& m = up ? top : rest;
+      for (size_t k = 0; k < 3; ++k) {
+        const uint32_t i = box.indices[t + k];
+        m.indices.push_back(static_cast<uint32_t>(m.positions.size() / 3));
+        m.positions.insert(m.positions.end(), {box.positions[3 * i], box.positions[3 * i + 1], box.positions[3 * i + 2]});
+      }
+    }
+    s.meshes.push_back(top);
+    s.meshes.push_back(rest);
+  }
   quad("mirror", 3, {1.49f, 0.2f, -1.2f}, {0, 0, 1.4f}, {0, 1.2f, 0});
-  quad("light", 0, {-0.6f, 1.99f, -0.9f}, {1.2f, 0, 0}, {0, 0, 1.0f}, 6);  // facing down
+  if (sphere_light) {
+    Sphere light;
+    light.center = {0.1f, 1.65f, -0.3f};
+    light.radius = 0.15f;
+    light.material = 0;
+    light.emission = {25, 25, 25};
+    s.spheres.push_back(light);
+  } else {
+    quad("light", 0, {-0.6f, 1.99f, -0.9f}, {1.2f, 0, 0}, {0, 0, 1.0f}, 6);  // facing down
+  }
   if (shading_normals_ball) {  // a coarse sphere with vertex normals: shading normals
     Mesh ball;
     ball.name = "ball";
@@ -157,8 +198,8 @@ TEST(LightPaths, RendersThePathTracersMean) {
   expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "caustic room");
 }
 
-TEST(LightPaths, RendersThePathTracersMeanWithShadingNormalsAndATriangleFilter) {
-  const Scene s = caustic_room(24, true);
+TEST(LightPaths, RendersThePathTracersMeanWithShadingNormalsASphereSourceAndATriangleFilter) {
+  const Scene s = caustic_room(24, true, true, true);
   const uint32_t spp = static_cast<uint32_t>(scaled(96));
   RenderOptions with = options(true, spp, 0), without = options(false, spp, 0);
   with.filter = without.filter = default_filter(FilterKind::triangle);
@@ -189,6 +230,51 @@ TEST(LightPaths, RendersThePathTracersMeanInAMedium) {
   finalize_scene(s);
   const uint32_t spp = static_cast<uint32_t>(scaled(64));
   expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "fog");
+}
+
+// A glass slab seen from below, lit from above: its top is smooth, its other faces rough,
+// so light that entered by the top (a delta lobe) leaves by the rough bottom, where the
+// light tracer's vertex inside the glass joins the camera. Its throughput must carry the
+// entry's etap^2 (importance is not scaled by 1 / eta^2 as radiance is): without it this
+// image is 2.25 times too dark.
+TEST(LightPaths, RendersThePathTracersMeanThroughAGlassSlab) {
+  Scene s;
+  s.source = "test:glass-slab";
+  s.materials.push_back(diffuse_material(Rgb{0.5f, 0.5f, 0.5f}));
+  Material top;
+  top.kind = MaterialKind::dielectric;
+  top.eta = 1.5f;
+  s.materials.push_back(top);
+  Material rough = top;
+  rough.alpha_u.value = rough.alpha_v.value = 0.3f;
+  s.materials.push_back(rough);
+  Mesh box = media_box({-0.6f, 0.f, -0.6f}, {0.6f, 0.15f, 0.6f});
+  Mesh upper, rest;
+  upper.material = 1;
+  rest.material = 2;
+  for (size_t t = 0; t < box.indices.size(); t += 3) {
+    bool up = true;
+    for (size_t k = 0; k < 3; ++k) up = up && box.positions[3 * box.indices[t + k] + 1] > 0.14f;
+    Mesh& m = up ? upper : rest;
+    for (size_t k = 0; k < 3; ++k) {
+      const uint32_t i = box.indices[t + k];
+      m.indices.push_back(static_cast<uint32_t>(m.positions.size() / 3));
+      m.positions.insert(m.positions.end(), {box.positions[3 * i], box.positions[3 * i + 1], box.positions[3 * i + 2]});
+    }
+  }
+  s.meshes.push_back(upper);
+  s.meshes.push_back(rest);
+  Mesh light;
+  light.material = 0;
+  light.emission = {4, 4, 4};
+  add_quad(light, {-0.5f, 1.f, -0.5f}, {1.f, 0, 0}, {0, 0, 1.f});  // facing down
+  s.meshes.push_back(light);
+  s.camera.width = s.camera.height = 16;
+  s.camera.fov_deg = 50;
+  camera_look_at(s.camera, {0.2f, -1.2f, 0.1f}, {0, 0, 0}, {0, 0, 1});
+  finalize_scene(s);
+  const uint32_t spp = static_cast<uint32_t>(scaled(64));
+  expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "glass slab");
 }
 
 TEST(LightPaths, SameBitsOnAnyThreadCount) {

@@ -35,7 +35,7 @@ double axis_integral(const FilterView& f, const FilterAxis& a) {
 
 }  // namespace
 
-LightPaths::LightPaths(const SceneViews& v, const Estimator& est, int width, int height)
+LightPaths::LightPaths(const Scene& scene, const SceneViews& v, const Estimator& est, int width, int height)
     : v_(v), est_(est), width_(width), height_(height) {
   const LightView& L = v.lights;
   const GeomView& G = v.geom;
@@ -85,19 +85,15 @@ LightPaths::LightPaths(const SceneViews& v, const Estimator& est, int width, int
         light_geom[static_cast<size_t>(G.geom_light[g])] = g;
       }
     }
+    // (the geometry rows: the meshes, then the spheres, in scene order)
+    const size_t meshes = scene.meshes.size();
     for (int32_t i : lights_) {
       const int32_t g = light_geom[static_cast<size_t>(i)];
       if (g < 0) continue;
-      const int32_t in = G.media.geom_in[g], out = G.media.geom_out[g];
-      if (in == out) {
-        if (in < 0 && G.media.count > 0)
-          throw std::invalid_argument(
-              "--light-paths: area light " + std::to_string(i) +
-              " is in a scene with participating media, but its shape has no MediumInterface, so the medium it emits "
-              "into is unknown to the light tracer; give the shape a MediumInterface");
-        medium_out_[static_cast<size_t>(i)] = medium_in_[static_cast<size_t>(i)] = in;
-        continue;
-      }
+      const size_t gi = static_cast<size_t>(g);
+      const int in0 = gi < meshes ? scene.meshes[gi].medium_inside : scene.spheres[gi - meshes].medium_inside;
+      const int out0 = gi < meshes ? scene.meshes[gi].medium_outside : scene.spheres[gi - meshes].medium_outside;
+      const int32_t in = rendered_medium(scene, in0), out = rendered_medium(scene, out0);
       // pbrt's outside: Embree's Ng (cross(e1, e2) for a triangle; outwards for a sphere)
       // times the shape's side; the source's normal says which side it emits on
       bool normal_out = true;

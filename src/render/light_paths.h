@@ -32,7 +32,9 @@
 // Determinism. A tile's splats (pixel, value) are kept in the order its paths made them and
 // added to the film in tile order once every tile of a batch of samples is done (the
 // renderer, render_range), so the image does not depend on threads or tile order. The
-// sampler's pairs are the ones after the path tracer's deepest (first_pair).
+// sampler's pairs are the ones after the path tracer's deepest (first_pair). A source emits
+// into the medium its shape's MediumInterface names on the side it emits to (vacuum without
+// one), as pbrt-v4's light paths do.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -54,7 +56,7 @@ class LightPaths {
  public:
   // Throws std::invalid_argument where the scene has what the light tracer cannot trace
   // yet (emitters with an alpha cut-out).
-  LightPaths(const SceneViews& v, const Estimator& est, int width, int height);
+  LightPaths(const Scene& scene, const SceneViews& v, const Estimator& est, int width, int height);
   // Something to trace: an area light and a surface that can scatter by a delta lobe.
   bool active() const { return active_; }
   const std::string& why_inactive() const { return why_; }
