@@ -1,6 +1,6 @@
 // --light-paths (src/render/light_paths.h): the light tracer takes the caustic paths (the
 // vertex next to an area light scatters by a delta lobe, the first vertex from the camera
-// does not) and the path tracer leaves them out. The split is unbiased: images with and
+// is diffuse or in a medium) and the path tracer leaves them out. The split is unbiased: images with and
 // without it have the same mean, in a room with a glass sphere and a mirror (caustics on
 // the floor and the walls, seen directly and through the mirror; a light seen through the
 // glass; a coat with a delta and a diffuse lobe), with shading normals on the glass ball's
@@ -232,9 +232,9 @@ TEST(LightPaths, RendersThePathTracersMeanInAMedium) {
   expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "fog");
 }
 
-// A glass slab seen from below, lit from above: its top is smooth, its other faces rough,
-// so light that entered by the top (a delta lobe) leaves by the rough bottom, where the
-// light tracer's vertex inside the glass joins the camera. Its throughput must carry the
+// A glass slab seen from below, lit from above: its top is smooth, its other faces diffuse
+// transmitters, so light that entered by the top (a delta lobe) leaves by the bottom, where
+// the light tracer's vertex inside the glass joins the camera. Its throughput must carry the
 // entry's etap^2 (importance is not scaled by 1 / eta^2 as radiance is): without it this
 // image is 2.25 times too dark.
 TEST(LightPaths, RendersThePathTracersMeanThroughAGlassSlab) {
@@ -245,8 +245,10 @@ TEST(LightPaths, RendersThePathTracersMeanThroughAGlassSlab) {
   top.kind = MaterialKind::dielectric;
   top.eta = 1.5f;
   s.materials.push_back(top);
-  Material rough = top;
-  rough.alpha_u.value = rough.alpha_v.value = 0.3f;
+  Material rough;
+  rough.kind = MaterialKind::diffuse_transmission;
+  rough.reflectance = {0.3f, 0.3f, 0.3f};
+  rough.transmittance = {0.6f, 0.6f, 0.6f};
   s.materials.push_back(rough);
   Mesh box = media_box({-0.6f, 0.f, -0.6f}, {0.6f, 0.15f, 0.6f});
   Mesh upper, rest;

@@ -38,6 +38,17 @@ inline constexpr const char* material_kind_names[material_kind_count] = {
     "diffuse", "conductor", "dielectric", "thindielectric", "diffusetransmission", "coateddiffuse", "coatedconductor", "hair",
     "phase"};
 
+// --light-paths (src/render/light_paths.h): the kinds at which the light tracer joins its
+// paths to the camera, and which the path tracer therefore leaves it as a path's first
+// vertex: the rough ones, whose value is bounded whatever the directions (Lambert, diffuse
+// transmission, a medium's phase function). A glossy or coated surface's value is large
+// near its mirror direction, which a light path would hit by chance: the path tracer,
+// which samples that lobe, keeps them.
+inline bool light_traced_kind(int32_t kind) noexcept {
+  return kind == static_cast<int32_t>(MaterialKind::diffuse) || kind == static_cast<int32_t>(MaterialKind::diffuse_transmission) ||
+         kind == static_cast<int32_t>(MaterialKind::phase);
+}
+
 // One bit per MaterialKind, in its order.
 enum BsdfBits : unsigned {
   bsdf_diffuse = 1u << 0,

@@ -189,11 +189,12 @@ inline void read_bounce_visibility(TileBuffers& tb) {
 }
 
 // --light-paths (Estimator::light_paths), at a path's vertex 2 or later: the queued hits of
-// samples of a delta lobe on paths whose first vertex took a sample of no delta lobe are
-// the light tracer's (src/render/light_paths.h: paths whose vertex next to the light is
-// specular and whose vertex next to the camera is not): they count as not visible. A
-// light sample never makes such a path (a delta lobe has no value for it), so no MIS
-// weight changes. Needs the queue's delta flags (pipelines with delta-capable surfaces).
+// samples of a delta lobe on paths whose first vertex is of a kind the light tracer joins
+// to the camera (light_traced_kind: diffuse, a medium) are the light tracer's
+// (src/render/light_paths.h: paths whose vertex next to the light is specular and whose
+// vertex next to the camera is rough): they count as not visible. A light sample never
+// makes such a path (a delta lobe has no value for it), so no MIS weight changes. Needs the
+// queue's delta flags (pipelines with delta-capable surfaces).
 inline void drop_light_traced_hits(TileBuffers& tb) {
   for (int j = 0; j < tb.queue.count; ++j)
     if (tb.queue.delta[j] && tb.path.first_rough[tb.queue.point[j]] > 0.f) tb.queue.vis[j] = 0.f;

@@ -55,8 +55,9 @@ struct Estimator {
   uint32_t guide_learn = 64;
   float guide_alpha = 0.5f;
   // --light-paths (src/render/light_paths.h): the caustic paths, whose vertex next to an
-  // area light scatters by a delta lobe and whose first vertex from the camera does not,
-  // are traced from the lights and joined to the camera; the path tracer leaves them out
+  // area light scatters by a delta lobe and whose first vertex from the camera is rough
+  // (light_traced_kind: diffuse, a medium), are traced from the lights and joined to the
+  // camera; the path tracer leaves them out
   // (drop_light_traced_hits). Unbiased: the two estimators split path space.
   bool light_paths = false;
 

@@ -119,8 +119,10 @@ inline void continue_paths(const GeomView& G, const Estimator& est, uint32_t sam
   if (roulette) point_pairs(est, tb, sample, rr_pair, padded, tb.tech.u3, nullptr);
   const float inv_t = 1.f / est.rr_threshold;
   for (int k = 0; k < padded; k += lane_traits<T>::width) continue_path_lanes<T, Materials>(G, tb, k, roulette, inv_t);
-  if (vertex == 1 && est.light_paths)  // (the first vertex's lobe: drop_light_traced_hits)
-    for (int k = 0; k < padded; ++k) tb.path.first_rough[k] = tb.tech.delta[k] ? 0.f : 1.f;
+  if (vertex == 1 && est.light_paths) {  // (the first vertex's kind: drop_light_traced_hits)
+    for (int k = 0; k < padded; ++k)
+      tb.path.first_rough[k] = !Materials || light_traced_kind(G.mat_kind[tb.points.mat[k]]) ? 1.f : 0.f;
+  }
 }
 
 }  // namespace tuile

@@ -102,8 +102,8 @@ struct PathStates {
   // 1 once the path has taken a non-specular BSDF sample (pbrt-v4's anyNonSpecularBounces),
   // else 0: where Estimator::regularize turns the next vertices' BSDFs rough
   alignas(64) float rough[lane_array];
-  // --light-paths: 1 once the path's first vertex (the camera's hit) took a sample that is
-  // not a delta lobe's, else 0 (set by continue_paths at vertex 1)
+  // --light-paths: 1 where the path's first vertex (the camera's hit) is of a kind the light
+  // tracer joins to the camera (light_traced_kind), else 0 (set by continue_paths at vertex 1)
   alignas(64) float first_rough[lane_array];
 };
 

@@ -60,7 +60,8 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                "ranks learn together (the single process's image)");
   app.add_flag("--light-paths", f.light_paths,
                "light tracing for the caustics (unbiased): the paths whose vertex next to an area light scatters by a "
-               "delta lobe (a mirror, smooth glass) and whose first vertex from the camera does not are traced from the "
+               "delta lobe (a mirror, smooth glass) and whose first vertex from the camera is diffuse or in a medium are "
+               "traced from the "
                "lights and joined to the camera, and the path tracer leaves them out (it finds them only by chance)");
   app.add_option("--guide-learn", f.guide_learn, "--guide: the samples per pixel it learns from (iterations of 1, 1, 2, 4, ...)")
       ->capture_default_str();

@@ -315,6 +315,7 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           const Vec3<float> ns = G.shading_normals ? Vec3<float>(P.snx[k], P.sny[k], P.snz[k]) : ng;
           const Vec3<float> wo{P.wox[k], P.woy[k], P.woz[k]};  // towards the vertex before
           SurfaceBsdf<float, bsdf_all> bsdf = load_surface_bsdf<float, bsdf_all>(G, P, k, ns);
+          if (!light_traced_kind(bsdf.kind)) continue;  // (a glossy or coated vertex: the path tracer's)
           const bool in_medium = bsdf.kind == static_cast<int32_t>(MaterialKind::phase);
           const float cg = dot(ng, w);
           double geo = 1;

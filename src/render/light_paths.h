@@ -3,8 +3,11 @@
 //
 // The split. A path from the camera to an area light, x1 (the camera's hit) ... xk (next to
 // the light), belongs to the light tracer when xk scattered by a delta lobe (a mirror, smooth
-// glass) and x1 by no delta lobe (a diffuse or glossy surface, a point in a medium): the
-// caustics seen directly, on surfaces and in media, whatever lies between x1 and xk. The
+// glass) and x1 is rough (light_traced_kind: a diffuse surface, diffuse transmission, a point
+// in a medium): the caustics seen directly on diffuse surfaces and in media, whatever lies
+// between x1 and xk. (A glossy or coated x1 stays the path tracer's: joined to the camera,
+// its value near the mirror direction, met by chance, made fireflies far worse than the
+// path tracer's, which samples that lobe; measured on staircase2's coated floor.) The
 // path tracer counts them only through a BSDF sample of a delta lobe that meets the light
 // (no light sample has a value there), so it drops exactly those emitter hits
 // (drop_light_traced_hits) and counts everything else as before; the light tracer counts
@@ -16,7 +19,7 @@
 // sampler; the path may land anywhere): a source picked by power, a point uniform on it, a
 // cosine-weighted direction, the throughput Le A pi / p(source). Its first vertex must take a
 // delta lobe's sample (else the path is the path tracer's and ends). From its second vertex
-// on, every vertex is joined to the camera (a pinhole: its point projects to a raster
+// on, every rough vertex (light_traced_kind) is joined to the camera (a pinhole: its point projects to a raster
 // position, whose pixels get the contribution through the pixel filter, normalised): the
 // BSDF with the camera as the viewer, the cosine at the vertex, the camera's importance
 // |M q|^3 / (A |det M|) per unit solid angle and pixel (A the screen window's area at
