@@ -63,9 +63,16 @@ bool read_pfm(const std::string& path, RgbImage& out, std::string& reason) {
   const size_t count = static_cast<size_t>(w) * static_cast<size_t>(h) * 3;
   std::vector<float> data;
   assign_huge(data, count, 0.f);
-  f.read(reinterpret_cast<char*>(data.data()), static_cast<std::streamsize>(count * sizeof(float)));
-  if (static_cast<size_t>(f.gcount()) != count * sizeof(float)) {
-    reason = "PFM file is truncated (" + std::to_string(f.gcount()) + " of " + std::to_string(count * sizeof(float)) +
+  // the file's first row is the image's bottom row: each row read straight into its place
+  // (no second copy of the texels)
+  const size_t row = static_cast<size_t>(w) * 3;
+  size_t got = 0;
+  for (long y = h - 1; y >= 0 && f; --y) {
+    f.read(reinterpret_cast<char*>(&data[static_cast<size_t>(y) * row]), static_cast<std::streamsize>(row * sizeof(float)));
+    got += static_cast<size_t>(f.gcount());
+  }
+  if (got != count * sizeof(float)) {
+    reason = "PFM file is truncated (" + std::to_string(got) + " of " + std::to_string(count * sizeof(float)) +
              " bytes of texels)";
     return false;
   }
@@ -82,10 +89,7 @@ bool read_pfm(const std::string& path, RgbImage& out, std::string& reason) {
     }
   out.width = static_cast<int>(w);
   out.height = static_cast<int>(h);
-  assign_huge(out.rgb, count, 0.f);
-  const size_t row = static_cast<size_t>(w) * 3;
-  for (long y = 0; y < h; ++y)  // the file's first row is the image's bottom row
-    std::memcpy(&out.rgb[static_cast<size_t>(y) * row], &data[static_cast<size_t>(h - 1 - y) * row], row * sizeof(float));
+  out.rgb = std::move(data);
   return true;
 }
 
@@ -198,7 +202,15 @@ void build_dist(std::vector<float> func, int res, SkyMap::Dist& d) {
   assign_huge(d.cond_cdf, n * (n + 1), 0.f);
   d.marg_cdf.assign(n + 1, 0.f);
   std::vector<double> row_sum(n, 0);
-  // rows in parallel: each row's values depend on that row alone
+  // a quarter as many cuts as texels in a row (at least one): a search from a cut spans a
+  // few values of one cache line where the row is smooth
+  const int32_t ni = static_cast<int32_t>(n);
+  d.cuts = static_cast<int32_t>(std::bit_ceil(static_cast<uint32_t>(std::max(ni / 4, 1))));
+  const size_t stride = static_cast<size_t>(d.cuts) + 1;
+  assign_huge(d.cond_cut, n * stride, 0);
+  d.marg_cut.assign(stride, 0);
+  // rows in parallel, each row's CDF then its cut points (while the row is in the cache):
+  // each row's values depend on that row alone
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t y = r.begin(); y < r.end(); ++y) {
       const float* f = &func[y * n];
@@ -212,6 +224,7 @@ void build_dist(std::vector<float> func, int res, SkyMap::Dist& d) {
         acc += f[x];
       }
       c[n] = 1.f;
+      build_cuts(c, ni, d.cuts, &d.cond_cut[y * stride]);
     }
   });
   double acc = 0;
@@ -220,16 +233,6 @@ void build_dist(std::vector<float> func, int res, SkyMap::Dist& d) {
     acc += row_sum[y];
   }
   d.marg_cdf[n] = 1.f;
-  // a quarter as many cuts as texels in a row (at least one): a search from a cut spans a
-  // few values of one cache line where the row is smooth
-  const int32_t ni = static_cast<int32_t>(n);
-  d.cuts = static_cast<int32_t>(std::bit_ceil(static_cast<uint32_t>(std::max(ni / 4, 1))));
-  const size_t stride = static_cast<size_t>(d.cuts) + 1;
-  assign_huge(d.cond_cut, n * stride, 0);
-  d.marg_cut.assign(stride, 0);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 16), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t y = r.begin(); y < r.end(); ++y) build_cuts(&d.cond_cdf[y * (n + 1)], ni, d.cuts, &d.cond_cut[y * stride]);
-  });
   build_cuts(d.marg_cdf.data(), ni, d.cuts, d.marg_cut.data());
   d.inv_mean = static_cast<float>(static_cast<double>(func.size()) / total);
   d.func = std::move(func);
