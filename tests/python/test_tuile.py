@@ -34,6 +34,7 @@ CASES = [
     dict(spp=4, res="40x30", strategy="ris", ris_light=4, max_depth=3, beta=1.5),
     dict(spp=4, res="40x30", strategy="mis", max_depth=4, regularize="on"),
     dict(spp=6, res="40x30", strategy="mis", max_depth=4, guide=True, guide_learn=2, guide_alpha=0.25),
+    dict(spp=4, res="40x30", strategy="mis", max_depth=4, light_paths=True),
 ]
 
 
@@ -92,6 +93,7 @@ def test_arrays_share_memory_with_the_film(cornell):
     (dict(regularize="maybe"), "regularize"),
     (dict(guide=True, max_depth=1), "guide"),
     (dict(guide=True, max_depth=3, guide_alpha=2), "guide_alpha"),
+    (dict(light_paths=True, max_depth=1), "light_paths"),
 ])
 def test_bad_arguments_raise_value_error_naming_the_argument(cornell, kw, name):
     with pytest.raises(ValueError, match=name):
