@@ -280,6 +280,19 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           tb.path.throughput_b[k] *= tb.media.wb[k];
         }
       }
+      if (j == 1) {
+        // the first vertex must take a delta lobe's sample: a hit whose material has none (a
+        // diffuse surface, a point in a medium) ends its path before the hit stage
+        for (int k = 0; k < count; ++k) {
+          if (!tb.tech.valid[k]) continue;
+          const RayHit16& r = tb.bounce[k / packet_width];
+          const uint32_t g = r.geomID[k % packet_width];
+          if (g == invalid_id) continue;
+          const int32_t m = G.geom_material[g];
+          const bool mix = G.has_mix && G.mat_mix0[m] >= 0;
+          if (!mix && ((1u << G.mat_kind[m]) & bsdf_delta_capable) == 0) tb.tech.valid[k] = 0;
+        }
+      }
       bounce_hits<vfloat, true>(G, L, hits, s, 0, tb);
       const int n = tb.points.count;
       if (n == 0) break;
