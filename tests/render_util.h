@@ -35,6 +35,16 @@ inline Curves straight_curve(CurveType type, float a, float y, float r, float z 
   return c;
 }
 
+// A mesh of one parallelogram p0 + u e1 + v e2 (material mat, emitting L where L > 0) added to s.
+inline void add_named_quad(Scene& s, const char* name, int mat, vec3f p0, vec3f e1, vec3f e2, float L = 0) {
+  Mesh m;
+  m.name = name;
+  m.material = mat;
+  if (L > 0) m.emission = {L, L, L};
+  add_quad(m, p0, e1, e2);
+  s.meshes.push_back(m);
+}
+
 inline void add_triangle(Mesh& m, vec3f a, vec3f b, vec3f c) {
   const uint32_t base = static_cast<uint32_t>(m.positions.size() / 3);
   for (vec3f p : {a, b, c}) m.positions.insert(m.positions.end(), {p.x, p.y, p.z});

@@ -202,12 +202,7 @@ Scene spot_room(int res, bool finalize = true) {
   coat.alpha_u.value = coat.alpha_v.value = 0.2f;
   s.materials.push_back(coat);
   auto quad = [&](const char* name, int mat, vec3f p0, vec3f e1, vec3f e2, float L = 0) {
-    Mesh m;
-    m.name = name;
-    m.material = mat;
-    if (L > 0) m.emission = {L, L, L};
-    add_quad(m, p0, e1, e2);
-    s.meshes.push_back(m);
+    add_named_quad(s, name, mat, p0, e1, e2, L);
   };
   quad("floor", 0, {-1.5f, 0, -1.5f}, {0, 0, 5}, {3, 0, 0});
   quad("ceiling", 0, {-1.5f, 2, -1.5f}, {3, 0, 0}, {0, 0, 5});

@@ -27,6 +27,30 @@ using namespace tuile::test;
 
 namespace {
 
+// A box [lo, hi] as two meshes: its top face (material top) and its other faces (material
+// rest), each triangle's Embree normal pointing out.
+void add_slab(Scene& s, vec3f lo, vec3f hi, int top, int rest) {
+  const Mesh box = media_box(lo, hi);
+  Mesh upper, other;
+  upper.name = "slab top";
+  upper.material = top;
+  other.name = "slab";
+  other.material = rest;
+  for (size_t t = 0; t < box.indices.size(); t += 3) {
+    bool up = true;
+    for (size_t k = 0; k < 3; ++k) up = up && box.positions[3 * box.indices[t + k] + 1] == hi.y;
+    Mesh& m = up ? upper : other;
+    for (size_t k = 0; k < 3; ++k) {
+      const uint32_t i = box.indices[t + k];
+      m.indices.push_back(static_cast<uint32_t>(m.positions.size() / 3));
+      m.positions.insert(m.positions.end(), {box.positions[3 * i], box.positions[3 * i + 1], box.positions[3 * i + 2]});
+    }
+  }
+  EXPECT_EQ(upper.indices.size(), 6u);  // the top face's two triangles
+  s.meshes.push_back(upper);
+  s.meshes.push_back(other);
+}
+
 // A closed room (diffuse walls, one of them coloured, the back one a smooth coat over a
 // diffuse base: a delta lobe and a diffuse one), a smooth glass sphere, a mirror on the
 // right wall, and a light on the ceiling facing down, a fifth of the ceiling wide (large
@@ -54,12 +78,7 @@ Scene caustic_room(int res, bool shading_normals_ball = false, bool finalize = t
   rough_glass.alpha_u.value = rough_glass.alpha_v.value = 0.25f;
   s.materials.push_back(rough_glass);  // 5
   auto quad = [&](const char* name, int mat, vec3f p0, vec3f e1, vec3f e2, float L = 0) {
-    Mesh m;
-    m.name = name;
-    m.material = mat;
-    if (L > 0) m.emission = {L, L, L};
-    add_quad(m, p0, e1, e2);
-    s.meshes.push_back(m);
+    add_named_quad(s, name, mat, p0, e1, e2, L);
   };
   quad("floor", 0, {-1.5f, 0, -1.5f}, {0, 0, 4.5f}, {3, 0, 0});
   quad("ceiling", 0, {-1.5f, 2, -1.5f}, {3, 0, 0}, {0, 0, 4.5f});
@@ -71,24 +90,7 @@ Scene caustic_room(int res, bool shading_normals_ball = false, bool finalize = t
   // top (a delta lobe) leaves by a rough face, where the light tracer's vertex inside the
   // glass joins the camera (its throughput carries the entry's etap^2)
   {
-    Mesh box = media_box({0.4f, 0.9f, -1.2f}, {1.2f, 1.05f, -0.4f});
-    Mesh top, rest;
-    top.name = "slab top";
-    top.material = 2;
-    rest.name = "slab";
-    rest.material = 5;
-    for (size_t t = 0; t < box.indices.size(); t += 3) {
-      bool up = true;
-      for (size_t k = 0; k < 3; ++k) up = up && box.positions[3 * box.indices[t + k] + 1] > 1.04f;
-      Mesh& m = up ? top : rest;
-      for (size_t k = 0; k < 3; ++k) {
-        const uint32_t i = box.indices[t + k];
-        m.indices.push_back(static_cast<uint32_t>(m.positions.size() / 3));
-        m.positions.insert(m.positions.end(), {box.positions[3 * i], box.positions[3 * i + 1], box.positions[3 * i + 2]});
-      }
-    }
-    s.meshes.push_back(top);
-    s.meshes.push_back(rest);
+    add_slab(s, {0.4f, 0.9f, -1.2f}, {1.2f, 1.05f, -0.4f}, 2, 5);
   }
   quad("mirror", 3, {1.49f, 0.2f, -1.2f}, {0, 0, 1.4f}, {0, 1.2f, 0});
   if (sphere_light) {
@@ -250,22 +252,7 @@ TEST(LightPaths, RendersThePathTracersMeanThroughAGlassSlab) {
   rough.reflectance = {0.3f, 0.3f, 0.3f};
   rough.transmittance = {0.6f, 0.6f, 0.6f};
   s.materials.push_back(rough);
-  Mesh box = media_box({-0.6f, 0.f, -0.6f}, {0.6f, 0.15f, 0.6f});
-  Mesh upper, rest;
-  upper.material = 1;
-  rest.material = 2;
-  for (size_t t = 0; t < box.indices.size(); t += 3) {
-    bool up = true;
-    for (size_t k = 0; k < 3; ++k) up = up && box.positions[3 * box.indices[t + k] + 1] > 0.14f;
-    Mesh& m = up ? upper : rest;
-    for (size_t k = 0; k < 3; ++k) {
-      const uint32_t i = box.indices[t + k];
-      m.indices.push_back(static_cast<uint32_t>(m.positions.size() / 3));
-      m.positions.insert(m.positions.end(), {box.positions[3 * i], box.positions[3 * i + 1], box.positions[3 * i + 2]});
-    }
-  }
-  s.meshes.push_back(upper);
-  s.meshes.push_back(rest);
+  add_slab(s, {-0.6f, 0.f, -0.6f}, {0.6f, 0.15f, 0.6f}, 1, 2);
   Mesh light;
   light.material = 0;
   light.emission = {4, 4, 4};
