@@ -472,6 +472,23 @@ inline void shadow_media(const GeomView& G, TileBuffers& tb, int count, Occlude&
   }
 }
 
+// The shadow rays of the shading points [0, count) (tb.shadow, valid lanes tb.tech.valid) in
+// any scene: occlusion queries (occlude(valid, packet, crossed), crossed null where no surface
+// rays pass between media), then the media's transmittance where the scene has media
+// (shadow_media where some surface is an interface, else shadow_transmittance). An occluded
+// ray's tfar is -inf; a contribution (tb.tech.c*) carries its transmittance. trace(valid,
+// packet): nearest hits in the scene. The tile pipelines' shadow stage and the light tracer's
+// rays to the camera (src/render/light_paths.cpp).
+template <class Occlude, class Trace>
+inline void trace_shadow_rays(const GeomView& G, TileBuffers& tb, int count, Occlude&& occlude, Trace&& trace) {
+  if (G.has_media && G.media.has_interfaces) {
+    shadow_media(G, tb, count, occlude, trace);
+    return;
+  }
+  for (int p = 0; p < packets_for(count); ++p) occlude(tb.tech.valid + p * packet_width, tb.shadow[p], nullptr);
+  if (G.has_media) shadow_transmittance(G, tb, count);
+}
+
 // Every valid shadow ray of [0, count) walked through the media (shadow_walk), with no
 // occlusion query first: the reference the tests hold shadow_media to.
 template <class Trace>

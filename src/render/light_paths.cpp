@@ -372,15 +372,9 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           any = true;
         }
         if (any) {
-          if (media && G.media.has_interfaces) {
-            shadow_media(
-                G, tb, n,
-                [&](const int32_t* valid, Ray16& sh, int32_t* crossed) { accel.occluded16(valid, sh, false, crossed); },
-                [&](const int32_t* valid, RayHit16& q) { accel.intersect16(valid, q, false, Bvh::scene); });
-          } else {
-            for (int p = 0; p < np / packet_width; ++p) accel.occluded16(tb.tech.valid + p * packet_width, tb.shadow[p], false);
-            if (media) shadow_transmittance(G, tb, n);
-          }
+          trace_shadow_rays(
+              G, tb, n, [&](const int32_t* valid, Ray16& sh, int32_t* crossed) { accel.occluded16(valid, sh, false, crossed); },
+              trace);
           for (int k = 0; k < n; ++k) {
             if (!tb.tech.valid[k] || tb.shadow[k / packet_width].tfar[k % packet_width] == -INFINITY) continue;
             const float cc[3] = {tb.tech.cr[k], tb.tech.cg[k], tb.tech.cb[k]};

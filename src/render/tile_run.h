@@ -91,32 +91,20 @@ inline int active_lanes(const int32_t* valid) {
   return n;
 }
 
-// The shadow packets' valid lanes (tb.tech.valid): occlusion queries, counted. In a scene
-// with media: with the transmittance of each ray's medium; where some surface is an
-// interface, the rays that meet one are walked through them (wave/media.h shadow_media),
-// else the transmittance of the medium at each ray's origin (shadow_transmittance).
-inline void trace_shadow(const TileContext& c, TileBuffers& tb, StageTimer& timer, int packets, bool rec, ThreadProfile* tp) {
+// The shadow packets' valid lanes (tb.tech.valid) of the shading points: occlusion queries,
+// counted, with the media's transmittance (wave/media.h trace_shadow_rays).
+inline void trace_shadow(const TileContext& c, TileBuffers& tb, StageTimer& timer, bool rec, ThreadProfile* tp) {
   clear_high_vector_registers();
-  if (c.v.geom.has_media && c.v.geom.media.has_interfaces) {
-    shadow_media(
-        c.v.geom, tb, tb.points.count,
-        [&](const int32_t* valid, Ray16& s, int32_t* crossed) {
-          if (rec) timer.untimed([&] { record(tp->rays.shadow, s, valid); });
-          c.accel.occluded16(valid, s, false, crossed);
-          tb.stats.rays_shadow += static_cast<uint64_t>(active_lanes(valid));
-        },
-        [&](const int32_t* valid, RayHit16& q) { c.accel.intersect16(valid, q, false, Bvh::scene); });
-    return;
-  }
-  for (int p = 0; p < packets; ++p) {
-    const int32_t* valid = tb.tech.valid + p * packet_width;
-    const int active = active_lanes(valid);
-    if (!active) continue;
-    if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], valid); });
-    c.accel.occluded16(valid, tb.shadow[p], false);
-    tb.stats.rays_shadow += static_cast<uint64_t>(active);
-  }
-  if (c.v.geom.has_media) shadow_transmittance(c.v.geom, tb, tb.points.count);
+  trace_shadow_rays(
+      c.v.geom, tb, tb.points.count,
+      [&](const int32_t* valid, Ray16& s, int32_t* crossed) {
+        const int active = active_lanes(valid);
+        if (!active) return;
+        if (rec) timer.untimed([&] { record(tp->rays.shadow, s, valid); });
+        c.accel.occluded16(valid, s, false, crossed);
+        tb.stats.rays_shadow += static_cast<uint64_t>(active);
+      },
+      [&](const int32_t* valid, RayHit16& q) { c.accel.intersect16(valid, q, false, Bvh::scene); });
 }
 
 // The bounce packets' valid lanes: nearest hits in the scene or among the emitters, counted.
@@ -244,7 +232,7 @@ void run_ris(const TileContext& c, TileBuffers& tb, StageTimer& timer, const Est
   }
   ris_finish(tb);
   timer.lap(Stage::sample_lights);
-  trace_shadow(c, tb, timer, packets, rec, tp);
+  trace_shadow(c, tb, timer, rec, tp);
   timer.lap(Stage::intersect_shadow);
   accumulate_shadow(tb);
   timer.lap(Stage::accumulate);
@@ -403,7 +391,7 @@ void run_light_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer,
         sample_lights<F.kinds, F.pick, F.bsdfs>(v.geom, v.lights, e, pass, s, pick_pair, point_pair, tb);
       }
       timer.lap(Stage::sample_lights);
-      trace_shadow(c, tb, timer, packets, rec, tp);
+      trace_shadow(c, tb, timer, rec, tp);
       timer.lap(Stage::intersect_shadow);
       accumulate_shadow(tb);
       if (optimal_mis(e)) optimal_light_pass(tb, e, c.rate_light, c.rate_bsdf);
