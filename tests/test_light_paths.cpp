@@ -266,6 +266,100 @@ TEST(LightPaths, RendersThePathTracersMeanThroughAGlassSlab) {
   expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "glass slab");
 }
 
+// A sunlit porch: a distant source in front and a dim constant sky; a diffuse floor, back
+// wall and roof, a dark floor in the sun, so that the shade is lit mostly by the sun's
+// glints off near-specular things
+// in front of it (light_paths.h, "Distant sources"): a metal plate of alpha 0.03 tilted to
+// throw the sun under the roof, a coated ball of alpha 0.02 (a sphere: its disc from the
+// sphere) and a plate whose material is a mix of a coat of alpha 0.01 and a diffuse one.
+// With `more`, a glass ball and an area light under the roof too (the light tracer picks
+// between the two kinds of source), and the metal plate rougher than the flag's bound (its
+// glints stay the path tracer's).
+Scene sun_wall(int res, bool more) {
+  Scene s;
+  s.source = "test:sun-wall";
+  s.materials.push_back(diffuse_material(Rgb{0.7f, 0.7f, 0.7f}));  // 0
+  s.materials.push_back(diffuse_material(Rgb{0.6f, 0.3f, 0.2f}));  // 1
+  Material metal;
+  metal.kind = MaterialKind::conductor;
+  metal.eta_rgb = {0.2f, 0.9f, 1.1f};
+  metal.k_rgb = {3.9f, 2.4f, 2.1f};
+  metal.alpha_u.value = metal.alpha_v.value = more ? 0.2f : 0.1f;
+  s.materials.push_back(metal);  // 2
+  Material coat;
+  coat.kind = MaterialKind::coated_diffuse;
+  coat.reflectance = {0.3f, 0.5f, 0.6f};
+  coat.alpha_u.value = coat.alpha_v.value = 0.08f;
+  s.materials.push_back(coat);  // 3
+  Material glaze = coat;
+  glaze.alpha_u.value = glaze.alpha_v.value = 0.06f;
+  s.materials.push_back(glaze);  // 4
+  Material mix;
+  mix.mix[0] = 4;
+  mix.mix[1] = 0;
+  mix.mix_amount.value = 0.4f;
+  s.materials.push_back(mix);  // 5
+  Material glass;
+  glass.kind = MaterialKind::dielectric;
+  glass.eta = 1.5f;
+  s.materials.push_back(glass);  // 6
+  s.materials.push_back(diffuse_material(Rgb{0.02f, 0.02f, 0.02f}));  // 7
+  add_named_quad(s, "ground", 7, {-3, 0, -2.5f}, {0, 0, 6}, {6, 0, 0});  // dark: the wall's light is the glints'
+  add_named_quad(s, "wall", 0, {-2, 0, -2.5f}, {4, 0, 0}, {0, 1.5f, 0});
+  // facing (0, 0.48, -0.88): they throw the sun from behind the wall back onto its shaded face
+  add_named_quad(s, "plate", 2, {-0.45f, 0.14f, 0.36f}, {0, 0.528f, 0.288f}, {0.9f, 0, 0});
+  add_named_quad(s, "glazed", 5, {-1.7f, 0.1f, 0.2f}, {0, 0.44f, 0.24f}, {0.7f, 0, 0});
+  Sphere ball;
+  ball.center = {1.1f, 0.3f, 0.3f};
+  ball.radius = 0.3f;
+  ball.material = 3;
+  s.spheres.push_back(ball);
+  if (more) {
+    Sphere g = ball;
+    g.center = {-0.8f, 0.3f, -1.6f};
+    g.radius = 0.3f;
+    g.material = 6;
+    s.spheres.push_back(g);
+    add_named_quad(s, "light", 0, {-1.2f, 1.2f, -1.9f}, {0.5f, 0, 0}, {0, 0, 0.5f}, 3);  // facing down
+  }
+  Light sun;
+  sun.type = LightKind::distant;
+  sun.e1 = normalize(vec3f{0.f, 1.f, -1.2f});  // behind the wall
+  sun.radiance = {3, 3, 2.6f};
+  s.lights.push_back(sun);
+  Light sky;
+  sky.type = LightKind::infinite;
+  sky.radiance = {0.03f, 0.04f, 0.06f};
+  s.lights.push_back(sky);
+  s.camera.width = s.camera.height = res;
+  s.camera.fov_deg = 60;
+  camera_look_at(s.camera, {0, 0.8f, 2.5f}, {0, 0.6f, -2.5f}, {0, 1, 0});
+  finalize_scene(s);
+  return s;
+}
+
+// The sun's glints: the path tracer leaves them to the light tracer at near-specular
+// vertices after a rough first one, and the light tracer emits towards those surfaces.
+TEST(LightPaths, RendersThePathTracersMeanUnderASun) {
+  const Scene s = sun_wall(24, false);
+  const uint32_t spp = static_cast<uint32_t>(scaled(384));  // (the path tracer's glints: its error)
+  expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "sun");
+  // the light tracer ran (the scene has no area light): the same seed renders otherwise
+  Accel accel(s);
+  Film a, b;
+  a.reset(24, 24);
+  b.reset(24, 24);
+  Renderer(s, accel, options(true, 4, 3)).render(a, 0, 4);
+  Renderer(s, accel, options(false, 4, 3)).render(b, 0, 4);
+  EXPECT_NE(a.mean(), b.mean());
+}
+
+TEST(LightPaths, RendersThePathTracersMeanUnderASunAndAnAreaLight) {
+  const Scene s = sun_wall(24, true);
+  const uint32_t spp = static_cast<uint32_t>(scaled(96));
+  expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "sun and area light");
+}
+
 TEST(LightPaths, SameBitsOnAnyThreadCount) {
   const Scene s = caustic_room(20);
   Accel accel(s);

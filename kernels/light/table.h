@@ -59,6 +59,9 @@ struct LightView {
   const int32_t* alpha_shape = nullptr;
   const int32_t* alpha_prim = nullptr;
   const AlphaShape* alpha_shapes = nullptr;
+  // --light-paths: per source, 1 for the distant sources the light tracer emits from
+  // towards near-specular surfaces (GeomView::mat_lt_glossy); nullptr: none
+  const int32_t* lt_distant = nullptr;
 };
 
 // How a light table is read per lane: tier_gather (any size), tier_small (tables padded to

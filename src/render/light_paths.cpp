@@ -23,6 +23,15 @@ bool is_area(int32_t type) {
          type == static_cast<int32_t>(LightKind::sphere);
 }
 
+bool is_distant(int32_t type) { return type == static_cast<int32_t>(LightKind::distant); }
+
+// The largest alpha of the glossy lobes whose light from a distant source the light tracer
+// takes (light_paths.h). Measured (bench/results.md, "Light paths"): at 0.03 (a coat of
+// roughness 0.01) dining-room's relMSE fell 1.3-2x, at 0.06 (its chrome too) and 0.1 (its
+// chairs, lamps and windows) more, and classroom's body (its desks' coats of 0.1) 2.3x;
+// 0.2 or 0.5 changed nothing more than the time.
+constexpr float light_traced_alpha = 0.1f;
+
 // The integral of one axis of a tabulated filter (midpoint rule, fine enough for the
 // smooth filters it is used for).
 double axis_integral(const FilterView& f, const FilterAxis& a) {
@@ -35,7 +44,8 @@ double axis_integral(const FilterView& f, const FilterAxis& a) {
 
 }  // namespace
 
-LightPaths::LightPaths(const Scene& scene, const SceneViews& v, const Estimator& est, int width, int height)
+LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, int width, int height, const float lo[3],
+                       const float hi[3])
     : v_(v), est_(est), width_(width), height_(height) {
   const LightView& L = v.lights;
   const GeomView& G = v.geom;
@@ -43,23 +53,47 @@ LightPaths::LightPaths(const Scene& scene, const SceneViews& v, const Estimator&
     throw std::invalid_argument("--light-paths: the scene has an emitter with an alpha cut-out, which the light tracer "
                                 "does not sample yet");
   double total = 0;
-  for (int32_t i = 0; i < L.count; ++i) {
-    if (!is_area(L.type[i])) continue;
-    const int32_t s = L.one_radiance ? 0 : i;
-    const double power = static_cast<double>(luminance(L.Lr[s], L.Lg[s], L.Lb[s])) * L.area[i] * (L.two_sided[i] > 0.5f ? 2 : 1);
-    if (!(power > 0) || !std::isfinite(power)) continue;
+  auto add_source = [&](int32_t i, double power) {
+    if (!(power > 0) || !std::isfinite(power)) return;
     lights_.push_back(i);
     pmf_.push_back(static_cast<float>(power));
     total += power;
+  };
+  // area sources, where some surface can scatter by a delta lobe
+  if ((v.bsdf_kinds & bsdf_delta_capable) != 0 || G.has_mix)
+    for (int32_t i = 0; i < L.count; ++i) {
+      if (!is_area(L.type[i])) continue;
+      const int32_t s = L.one_radiance ? 0 : i;
+      add_source(i, static_cast<double>(luminance(L.Lr[s], L.Lg[s], L.Lb[s])) * L.area[i] * (L.two_sided[i] > 0.5f ? 2 : 1));
+    }
+  // distant sources, towards the near-specular surfaces
+  bool any_distant = false;
+  for (int32_t i = 0; i < L.count; ++i) any_distant |= is_distant(L.type[i]);
+  if (any_distant && !G.has_media && !G.has_instances) flag_glossy(scene, v);
+  if (!discs_.empty()) {
+    v.lt_distant.assign(static_cast<size_t>(L.count), 0);
+    for (int32_t i = 0; i < L.count; ++i) {
+      if (!is_distant(L.type[i])) continue;
+      const int32_t s = L.one_radiance ? 0 : i;
+      const size_t before = lights_.size();
+      add_source(i, static_cast<double>(luminance(L.Lr[s], L.Lg[s], L.Lb[s])) * disc_area_);
+      if (lights_.size() > before) v.lt_distant[static_cast<size_t>(i)] = 1;
+    }
+    if (lights_.empty() || !is_distant(L.type[lights_.back()])) v.lt_distant.clear();
   }
   if (lights_.empty()) {
-    why_ = "the scene has no area light";
+    why_ = "the scene has no area light and a surface that scatters by a delta lobe, nor a distant source and a "
+           "near-specular surface";
     return;
   }
-  if ((v.bsdf_kinds & bsdf_delta_capable) == 0 && !G.has_mix) {
-    why_ = "no surface of the scene scatters by a delta lobe";
-    return;
+  if (!v.lt_distant.empty()) {  // the path tracer's light stages leave these paths to the light tracer
+    v.geom.mat_lt_glossy = v.mat_lt_glossy.data();
+    v.lights.lt_distant = v.lt_distant.data();
   }
+  scene_c_[0] = 0.5f * (lo[0] + hi[0]);
+  scene_c_[1] = 0.5f * (lo[1] + hi[1]);
+  scene_c_[2] = 0.5f * (lo[2] + hi[2]);
+  scene_r_ = 0.5f * std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
   double run = 0;
   for (float& p : pmf_) {
     run += p;
@@ -149,6 +183,153 @@ LightPaths::LightPaths(const Scene& scene, const SceneViews& v, const Estimator&
   active_ = true;
 }
 
+// The near-specular materials (mat_lt_glossy) and the discs a distant source emits through:
+// one per mesh or sphere that carries such a material (through a mix too), its bounding
+// sphere. A material on another kind of geometry (curves) is not flagged: its paths stay
+// the path tracer's.
+void LightPaths::flag_glossy(const Scene& scene, SceneViews& v) {
+  const GeomView& G = v.geom;
+  const size_t nm = v.mat_kind.size();
+  std::vector<int32_t>& flag = v.mat_lt_glossy;
+  flag.assign(nm, 0);
+  for (size_t m = 0; m < nm; ++m) {
+    const auto kind = static_cast<MaterialKind>(v.mat_kind[m]);
+    const bool microfacet = kind == MaterialKind::conductor || kind == MaterialKind::dielectric ||
+                            kind == MaterialKind::coated_diffuse || kind == MaterialKind::coated_conductor;
+    if (!microfacet || v.mat_mix0[m] >= 0) continue;
+    if (2 * m + 1 < v.mat_alpha_tex.size() && (v.mat_alpha_tex[2 * m] >= 0 || v.mat_alpha_tex[2 * m + 1] >= 0)) continue;
+    const float a = std::max(G.mat_param[mp_ax][m], G.mat_param[mp_ay][m]);
+    flag[m] = a >= smooth_alpha && a <= light_traced_alpha ? 1 : 0;
+  }
+  for (size_t m = 0; m < nm && m < v.mat_reg.size(); ++m)  // (--regularize's twins: as their originals)
+    if (v.mat_reg[m] != static_cast<int32_t>(m)) flag[static_cast<size_t>(v.mat_reg[m])] = flag[m];
+  // the flagged materials a geometry's material reaches (itself, a mix's choices)
+  auto reach = [&](int32_t m0, auto&& visit) {
+    int32_t stack[64];
+    int top = 0;
+    stack[top++] = m0;
+    while (top > 0) {
+      const int32_t m = stack[--top];
+      if (m < 0 || static_cast<size_t>(m) >= nm) continue;
+      if (v.mat_mix0[m] >= 0 && top + 2 <= 64) {
+        stack[top++] = v.mat_mix0[m];
+        stack[top++] = v.mat_mix1[m];
+      } else {
+        visit(m);
+      }
+    }
+  };
+  const size_t meshes = scene.meshes.size();
+  auto supported = [&](int32_t g) {
+    const auto k = static_cast<GeomKind>(G.geom_kind[g]);
+    return (k == GeomKind::triangles && static_cast<size_t>(g) < meshes) || k == GeomKind::sphere;
+  };
+  for (int32_t g = 0; g < G.geom_count; ++g)
+    if (!supported(g) && G.geom_kind[g] != static_cast<int32_t>(GeomKind::medium))
+      reach(G.geom_material[g], [&](int32_t m) { flag[static_cast<size_t>(m)] = 0; });
+  for (int32_t g = 0; g < G.geom_count; ++g) {
+    if (!supported(g)) continue;
+    bool flagged = false;
+    reach(G.geom_material[g], [&](int32_t m) { flagged |= flag[static_cast<size_t>(m)] != 0; });
+    if (!flagged) continue;
+    Disc d{};
+    if (G.geom_kind[g] == static_cast<int32_t>(GeomKind::sphere)) {
+      const float* c = G.sphere_center + 4 * static_cast<size_t>(G.geom_first[g]);
+      d = {c[0], c[1], c[2], c[3]};
+    } else {
+      const std::vector<float>& p = scene.meshes[static_cast<size_t>(g)].positions;
+      if (p.empty()) continue;
+      float b0[3] = {p[0], p[1], p[2]}, b1[3] = {p[0], p[1], p[2]};
+      for (size_t i = 0; i + 2 < p.size(); i += 3)
+        for (int a = 0; a < 3; ++a) {
+          b0[a] = std::min(b0[a], p[i + a]);
+          b1[a] = std::max(b1[a], p[i + a]);
+        }
+      d.cx = 0.5f * (b0[0] + b1[0]);
+      d.cy = 0.5f * (b0[1] + b1[1]);
+      d.cz = 0.5f * (b0[2] + b1[2]);
+      double r2 = 0;
+      for (size_t i = 0; i + 2 < p.size(); i += 3) {
+        const double x = p[i] - d.cx, y = p[i + 1] - d.cy, z = p[i + 2] - d.cz;
+        r2 = std::max(r2, x * x + y * y + z * z);
+      }
+      d.r = static_cast<float>(std::sqrt(r2));
+    }
+    d.r = d.r * (1.f + 0x1p-10f) + 1e-6f * (std::abs(d.cx) + std::abs(d.cy) + std::abs(d.cz) + d.r);  // (rounding)
+    if (!(d.r > 0.f) || !std::isfinite(d.r)) continue;
+    discs_.push_back(d);
+  }
+  // many surfaces: one disc round them all (the count per point stays cheap)
+  if (discs_.size() > 64) {
+    float b0[3] = {INFINITY, INFINITY, INFINITY}, b1[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (const Disc& d : discs_) {
+      const float c[3] = {d.cx, d.cy, d.cz};
+      for (int a = 0; a < 3; ++a) {
+        b0[a] = std::min(b0[a], c[a] - d.r);
+        b1[a] = std::max(b1[a], c[a] + d.r);
+      }
+    }
+    const float h[3] = {0.5f * (b1[0] - b0[0]), 0.5f * (b1[1] - b0[1]), 0.5f * (b1[2] - b0[2])};
+    discs_.assign(1, Disc{b0[0] + h[0], b0[1] + h[1], b0[2] + h[2], std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]) * 1.001f});
+  }
+  double run = 0;
+  for (const Disc& d : discs_) run += static_cast<double>(d.r) * d.r * pi_f;
+  disc_area_ = run;
+  run = 0;
+  for (const Disc& d : discs_) {
+    run += static_cast<double>(d.r) * d.r * pi_f;
+    disc_cdf_.push_back(static_cast<float>(run / disc_area_));
+  }
+  if (!disc_cdf_.empty()) disc_cdf_.back() = 1.f;
+  if (discs_.empty()) flag.clear();
+}
+
+// A distant source's emission into lane i: a disc picked by area (u), a point uniform on it
+// (u2, u3), the density the number of discs holding the point over their total area; the
+// ray starts beyond the scene's bounding sphere and goes along the source's light. The lane's
+// first_rough marks it as a distant source's (its first vertex: trace_tile).
+void LightPaths::emit_distant(int32_t l, float pmf, float u, float u2, float u3, TileBuffers& tb, int i) const {
+  const LightView& L = v_.lights;
+  const Vec3<float> w{L.e1x[l], L.e1y[l], L.e1z[l]};  // towards the source
+  const size_t di = std::min(static_cast<size_t>(std::upper_bound(disc_cdf_.begin(), disc_cdf_.end(), u) - disc_cdf_.begin()),
+                             disc_cdf_.size() - 1);
+  const Disc& dc = discs_[di];
+  Vec3<float> t, b;
+  make_basis(w, t, b);
+  const float rr = dc.r * std::sqrt(u2), phi = 2.f * pi_f * u3;
+  const Vec3<float> p = Vec3<float>(dc.cx, dc.cy, dc.cz) + t * (rr * std::cos(phi)) + b * (rr * std::sin(phi));
+  int holding = 0;
+  for (const Disc& o : discs_) {
+    const double dx = static_cast<double>(p.x) - o.cx, dy = static_cast<double>(p.y) - o.cy, dz = static_cast<double>(p.z) - o.cz;
+    const double along = dx * w.x + dy * w.y + dz * w.z;
+    holding += dx * dx + dy * dy + dz * dz - along * along <= static_cast<double>(o.r) * o.r;
+  }
+  const int32_t sl = L.one_radiance ? 0 : l;
+  const float scale = static_cast<float>(disc_area_ / (std::max(holding, 1) * static_cast<double>(pmf)));
+  const float br = L.Lr[sl] * scale, bg = L.Lg[sl] * scale, bb = L.Lb[sl] * scale;
+  const float m0 = std::max(std::max(br, bg), bb);
+  if (!(m0 > 0.f) || !std::isfinite(m0)) return;
+  const Vec3<float> c{scene_c_[0], scene_c_[1], scene_c_[2]};
+  const float back = dot(c - p, w) + scene_r_ * 1.01f + 1e-3f * (scene_r_ + 1.f);
+  const Vec3<float> org = p + w * back;
+  RayHit16& r = tb.bounce[i / packet_width];
+  const int ln = i % packet_width;
+  r.ray.org_x[ln] = org.x;
+  r.ray.org_y[ln] = org.y;
+  r.ray.org_z[ln] = org.z;
+  r.ray.dir_x[ln] = -w.x;
+  r.ray.dir_y[ln] = -w.y;
+  r.ray.dir_z[ln] = -w.z;
+  r.ray.tfar[ln] = 3.0e38f;
+  tb.tech.valid[i] = -1;
+  tb.path.throughput_r[i] = br;
+  tb.path.throughput_g[i] = bg;
+  tb.path.throughput_b[i] = bb;
+  tb.path.eta_scale[i] = 1.f / m0;
+  tb.path.first_rough[i] = 1.f;
+  tb.media.med[i] = -1;
+}
+
 // A contribution at raster position (rx, ry) into the pixels whose filter covers it.
 void LightPaths::splat(double rx, double ry, const float c[3], std::vector<LightPathSplat>& out) const {
   const FilterView& f = v_.camera.filter;
@@ -220,6 +401,10 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
       const size_t pick = std::min(static_cast<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), tb.tech.u0[i]) - cdf_.begin()),
                                    cdf_.size() - 1);
       const int32_t l = lights_[pick];
+      if (is_distant(L.type[l])) {  // a point on a disc, the ray from beyond the scene
+        emit_distant(l, pmf_[pick], tb.tech.u1[i], tb.tech.u2[i], tb.tech.u3[i], tb, i);
+        continue;
+      }
       const LightGeom<float> g = broadcast_light<float>(L, l);
       Vec3<float> y, n;
       if (L.type[l] == static_cast<int32_t>(LightKind::sphere)) {
@@ -281,8 +466,9 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
         }
       }
       if (j == 1) {
-        // the first vertex must take a delta lobe's sample: a hit whose material has none (a
-        // diffuse surface, a point in a medium) ends its path before the hit stage
+        // the first vertex must take a delta lobe's sample (from a distant source: a flagged
+        // material's non-delta one): a hit whose material has none (a diffuse surface, a
+        // point in a medium) ends its path before the hit stage
         for (int k = 0; k < count; ++k) {
           if (!tb.tech.valid[k]) continue;
           const RayHit16& r = tb.bounce[k / packet_width];
@@ -290,7 +476,9 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           if (g == invalid_id) continue;
           const int32_t m = G.geom_material[g];
           const bool mix = G.has_mix && G.mat_mix0[m] >= 0;
-          if (!mix && ((1u << G.mat_kind[m]) & bsdf_delta_capable) == 0) tb.tech.valid[k] = 0;
+          const bool from_distant = tb.path.first_rough[k] > 0.f;  // (near-specular: its own flag)
+          if (!mix && (from_distant ? G.mat_lt_glossy[m] == 0 : ((1u << G.mat_kind[m]) & bsdf_delta_capable) == 0))
+            tb.tech.valid[k] = 0;
         }
       }
       bounce_hits<vfloat, true>(G, L, hits, s, 0, tb);
@@ -397,7 +585,8 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
         const Vec3<float> wo{P.wox[k], P.woy[k], P.woz[k]};
         const SurfaceBsdf<float, bsdf_all> bsdf = load_surface_bsdf<float, bsdf_all>(G, P, k, ns);
         const BsdfSample<float> bs = bsdf.sample(tb.tech.u2[k], tb.tech.u0[k], tb.tech.u1[k]);
-        if (!bs.valid || (j == 1 && !bs.delta)) continue;
+        if (!bs.valid) continue;
+        if (j == 1 && (tb.path.first_rough[k] > 0.f ? bs.delta || G.mat_lt_glossy[P.mat[k]] == 0 : !bs.delta)) continue;
         const bool in_medium = bsdf.kind == static_cast<int32_t>(MaterialKind::phase);
         float adj = 1.f;
         const float cgi = dot(ng, bs.wi);

@@ -15,6 +15,23 @@
 // sources, the sky and emitting media are the path tracer's alone (it reaches them by light
 // samples).
 //
+// Distant sources (a sun). A path whose vertex next to a distant source is near-specular (a
+// microfacet lobe of alphas at most light_traced_alpha, constant: GeomView::mat_lt_glossy;
+// the light of a cup's coat of roughness 0.01, which the path tracer meets only when a BSDF
+// sample from the rough vertex before finds the highlight's direction) and whose first
+// vertex is rough belongs to the light tracer too. The path tracer reaches such a path only
+// by the light sample at xk, so it drops exactly those light samples (sample_lights.h,
+// where LightView::lt_distant and mat_lt_glossy are set). The light tracer emits from a
+// distant source towards those surfaces alone: a point uniform on discs, one per surface
+// whose material is flagged (its bounding sphere seen along the source's direction), the
+// density at a point the number of discs holding it over their total area, the ray coming
+// from beyond the scene's bounds along the source's direction; its first vertex must be a
+// flagged material that scatters by a non-delta lobe (a delta lobe's light from a delta
+// source is no path of the path tracer's). Flagged: conductors, dielectrics and coats with
+// constant alphas in [smooth_alpha, light_traced_alpha], on meshes and spheres; not in
+// scenes with media or instances (the disc bounds and the source's medium: the path
+// tracer keeps those paths).
+//
 // The light tracer. Per sample, one path per pixel of the image (a tile's pixels key the
 // sampler; the path may land anywhere): a source picked by power, a point uniform on it, a
 // cosine-weighted direction, the throughput Le A pi / p(source). Its first vertex must take a
@@ -59,8 +76,12 @@ class LightPaths {
  public:
   // Throws std::invalid_argument where the scene has what the light tracer cannot trace
   // yet (emitters with an alpha cut-out).
-  LightPaths(const Scene& scene, const SceneViews& v, const Estimator& est, int width, int height);
-  // Something to trace: an area light and a surface that can scatter by a delta lobe.
+  // Sets v's mat_lt_glossy and lt_distant where distant sources are traced (the path
+  // tracer's stages read them); lo, hi: the scene's bounds.
+  LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, int width, int height, const float lo[3],
+             const float hi[3]);
+  // Something to trace: an area light and a surface that can scatter by a delta lobe, or a
+  // distant source and a near-specular surface.
   bool active() const { return active_; }
   const std::string& why_inactive() const { return why_; }
   // The light paths of the pixels of tile `tile` for samples [begin, end), their splats
@@ -74,11 +95,20 @@ class LightPaths {
   int width_, height_;
   bool active_ = false;
   std::string why_;
-  std::vector<int32_t> lights_;      // the area sources
+  std::vector<int32_t> lights_;      // the area sources, then the distant ones
   std::vector<float> cdf_;           // their power, cumulated (last 1)
   std::vector<float> pmf_;
   std::vector<int32_t> medium_out_;  // per area source: the medium on its normal's side, and behind it
   std::vector<int32_t> medium_in_;
+  // distant sources: the discs they emit through (centre, radius: the flagged surfaces'
+  // bounding spheres), picked by area (cdf), their total area, the scene's bounding sphere
+  struct Disc {
+    float cx, cy, cz, r;
+  };
+  std::vector<Disc> discs_;
+  std::vector<float> disc_cdf_;
+  double disc_area_ = 0;
+  float scene_c_[3] = {}, scene_r_ = 0;
   // the camera
   double o_[3] = {}, inv_[3][3] = {}, m_[3][3] = {};
   double det_ = 1, area_ = 1;  // |det M|, the screen window's area at distance 1
@@ -86,6 +116,8 @@ class LightPaths {
   double rx_ = 0.5, ry_ = 0.5, inv_norm_ = 1;
 
   void splat(double rx, double ry, const float c[3], std::vector<LightPathSplat>& out) const;
+  void flag_glossy(const Scene& scene, SceneViews& v);
+  void emit_distant(int32_t l, float pmf, float u, float u2, float u3, TileBuffers& tb, int i) const;
 };
 
 }  // namespace tuile

@@ -79,7 +79,9 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
     guide_ = std::make_unique<Guide>(lo, hi, opt_.est.guide_learn, opt_.est.guide_alpha);
   }
   if (opt_.est.light_paths) {  // (inactive without an area light or a delta lobe: the path tracer has every path)
-    light_paths_ = std::make_unique<LightPaths>(scene, *views_, opt_.est, scene.camera.width, scene.camera.height);
+    float lo[3], hi[3];
+    accel_.bounds(lo, hi);
+    light_paths_ = std::make_unique<LightPaths>(scene, *views_, opt_.est, scene.camera.width, scene.camera.height, lo, hi);
     if (!light_paths_->active()) light_paths_.reset();
   }
 }
