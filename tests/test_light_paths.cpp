@@ -8,7 +8,10 @@
 // in a medium whose caustic the glass throws (the light tracer's vertices in the medium,
 // joined to a camera outside it through an interface). The means are compared over
 // independent seeds (the light paths' splats are not in the per-pixel variance), quarter by
-// quarter and channel by channel. Also: the same bits on any thread count, and an image that
+// quarter and channel by channel; and under a sun whose glints off glossy things (a metal
+// plate, a coated ball, a mix with a glazed coat) light a wall in its own shade, with and
+// without an area light and a glass ball beside it (the light tracer's distant source, its
+// discs, and the path tracer's light samples left out). Also: the same bits on any thread count, and an image that
 // differs from the path tracer's alone (the light paths were traced).
 #include <gtest/gtest.h>
 

@@ -54,11 +54,12 @@ struct Estimator {
   bool guide = false;
   uint32_t guide_learn = 64;
   float guide_alpha = 0.5f;
-  // --light-paths (src/render/light_paths.h): the caustic paths, whose vertex next to an
-  // area light scatters by a delta lobe and whose first vertex from the camera is rough
-  // (light_traced_kind: diffuse, a medium), are traced from the lights and joined to the
-  // camera; the path tracer leaves them out
-  // (drop_light_traced_hits). Unbiased: the two estimators split path space.
+  // --light-paths (src/render/light_paths.h): the caustic paths, whose first vertex from the
+  // camera is rough (light_traced_kind: diffuse, a medium) and whose vertex next to an area
+  // light scatters by a delta lobe, or next to a distant source is near-specular
+  // (GeomView::mat_lt_glossy), are traced from the lights and joined to the camera; the path
+  // tracer leaves them out (drop_light_traced_hits; the light stage, sample_lights.h).
+  // Unbiased: the two estimators split path space.
   bool light_paths = false;
 
   // probability of choosing the light technique in one-sample MIS

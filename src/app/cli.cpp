@@ -59,10 +59,10 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                "probability --guide-alpha and mixed with BSDF sampling (MIS sees the mixture's density); over MPI the "
                "ranks learn together (the single process's image)");
   app.add_flag("--light-paths", f.light_paths,
-               "light tracing for the caustics (unbiased): the paths whose vertex next to an area light scatters by a "
-               "delta lobe (a mirror, smooth glass) and whose first vertex from the camera is diffuse or in a medium are "
-               "traced from the "
-               "lights and joined to the camera, and the path tracer leaves them out (it finds them only by chance)");
+               "light tracing for the caustics (unbiased): the paths whose first vertex from the camera is diffuse or in "
+               "a medium and whose vertex next to an area light scatters by a delta lobe (a mirror, smooth glass), or "
+               "next to a distant source (a sun) by a glossy lobe of alpha 0.1 or less, are traced from the lights and "
+               "joined to the camera, and the path tracer leaves them out (it finds them only by chance)");
   app.add_option("--guide-learn", f.guide_learn, "--guide: the samples per pixel it learns from (iterations of 1, 1, 2, 4, ...)")
       ->capture_default_str();
   app.add_option("--guide-alpha", f.guide_alpha, "--guide: the share of directions drawn from the guide")->capture_default_str();

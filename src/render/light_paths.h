@@ -11,9 +11,9 @@
 // path tracer counts them only through a BSDF sample of a delta lobe that meets the light
 // (no light sample has a value there), so it drops exactly those emitter hits
 // (drop_light_traced_hits) and counts everything else as before; the light tracer counts
-// exactly these paths. Each estimator is unbiased for its part, so the sum is. Delta
-// sources, the sky and emitting media are the path tracer's alone (it reaches them by light
-// samples).
+// exactly these paths. Each estimator is unbiased for its part, so the sum is. Point
+// and spot sources, the sky and emitting media are the path tracer's alone (it reaches them
+// by light samples); distant sources below.
 //
 // Distant sources (a sun). A path whose vertex next to a distant source is near-specular (a
 // microfacet lobe of alphas at most light_traced_alpha, constant: GeomView::mat_lt_glossy;
