@@ -59,9 +59,10 @@ struct LightView {
   const int32_t* alpha_shape = nullptr;
   const int32_t* alpha_prim = nullptr;
   const AlphaShape* alpha_shapes = nullptr;
-  // --light-paths: per source, 1 for the distant sources the light tracer emits from
-  // towards near-specular surfaces (GeomView::mat_lt_glossy); nullptr: none
-  const int32_t* lt_distant = nullptr;
+  // --light-paths: per source, 1 where the light tracer takes the source's light at
+  // near-specular vertices (GeomView::mat_lt_glossy): distant sources, and area ones where
+  // that split is on; nullptr: none
+  const int32_t* lt_glossy = nullptr;
 };
 
 // How a light table is read per lane: tier_gather (any size), tier_small (tables padded to

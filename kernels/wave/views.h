@@ -99,7 +99,7 @@ struct GeomView {
   const int32_t* mat_reg = nullptr;
   // --light-paths (src/render/light_paths.h): per material, 1 where its microfacet lobe is
   // near-specular, so that a distant source's light at such a vertex, on a path whose first
-  // vertex is rough, is the light tracer's (LightView::lt_distant); nullptr: no such split
+  // vertex is rough, is the light tracer's (LightView::lt_glossy); nullptr: no such split
   const int32_t* mat_lt_glossy = nullptr;
   // per geomID: +1, or -1 where the surface's outside (pbrt's normal, which decides which
   // side of a dielectric is inside) is opposite Embree's Ng

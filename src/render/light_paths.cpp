@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <cstdlib>
 
 #include "light/kinds.h"
 #include "light/table.h"
@@ -59,36 +60,44 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
     pmf_.push_back(static_cast<float>(power));
     total += power;
   };
-  // area sources, where some surface can scatter by a delta lobe
-  if ((v.bsdf_kinds & bsdf_delta_capable) != 0 || G.has_mix)
+  // the near-specular materials (and the discs round them)
+  bool any_distant = false, any_area = false;
+  for (int32_t i = 0; i < L.count; ++i) {
+    any_distant |= is_distant(L.type[i]);
+    any_area |= is_area(L.type[i]);
+  }
+  area_glossy_ = any_area && est.strategy != Strategy::ris && getenv("TUILE_LT_AREA_GLOSSY") != nullptr;  // EXPERIMENT
+  if ((any_distant || area_glossy_) && !G.has_media && !G.has_instances) flag_glossy(scene, v);
+  area_glossy_ = area_glossy_ && !discs_.empty();
+  v.lt_glossy.assign(static_cast<size_t>(L.count), 0);
+  // area sources, where some surface can scatter by a delta lobe (or is near-specular)
+  if ((v.bsdf_kinds & bsdf_delta_capable) != 0 || G.has_mix || area_glossy_)
     for (int32_t i = 0; i < L.count; ++i) {
       if (!is_area(L.type[i])) continue;
       const int32_t s = L.one_radiance ? 0 : i;
+      const size_t before = lights_.size();
       add_source(i, static_cast<double>(luminance(L.Lr[s], L.Lg[s], L.Lb[s])) * L.area[i] * (L.two_sided[i] > 0.5f ? 2 : 1));
+      if (area_glossy_ && lights_.size() > before) v.lt_glossy[static_cast<size_t>(i)] = 1;
     }
   // distant sources, towards the near-specular surfaces
-  bool any_distant = false;
-  for (int32_t i = 0; i < L.count; ++i) any_distant |= is_distant(L.type[i]);
-  if (any_distant && !G.has_media && !G.has_instances) flag_glossy(scene, v);
   if (!discs_.empty()) {
-    v.lt_distant.assign(static_cast<size_t>(L.count), 0);
     for (int32_t i = 0; i < L.count; ++i) {
       if (!is_distant(L.type[i])) continue;
       const int32_t s = L.one_radiance ? 0 : i;
       const size_t before = lights_.size();
       add_source(i, static_cast<double>(luminance(L.Lr[s], L.Lg[s], L.Lb[s])) * disc_area_);
-      if (lights_.size() > before) v.lt_distant[static_cast<size_t>(i)] = 1;
+      if (lights_.size() > before) v.lt_glossy[static_cast<size_t>(i)] = 1;
     }
-    if (lights_.empty() || !is_distant(L.type[lights_.back()])) v.lt_distant.clear();
   }
+  if (std::find(v.lt_glossy.begin(), v.lt_glossy.end(), 1) == v.lt_glossy.end()) v.lt_glossy.clear();
   if (lights_.empty()) {
     why_ = "the scene has no area light and a surface that scatters by a delta lobe, nor a distant source and a "
            "near-specular surface";
     return;
   }
-  if (!v.lt_distant.empty()) {  // the path tracer's light stages leave these paths to the light tracer
+  if (!v.lt_glossy.empty()) {  // the path tracer's light stages leave these paths to the light tracer
     v.geom.mat_lt_glossy = v.mat_lt_glossy.data();
-    v.lights.lt_distant = v.lt_distant.data();
+    v.lights.lt_glossy = v.lt_glossy.data();
   }
   scene_c_[0] = 0.5f * (lo[0] + hi[0]);
   scene_c_[1] = 0.5f * (lo[1] + hi[1]);
@@ -477,8 +486,9 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           const int32_t m = G.geom_material[g];
           const bool mix = G.has_mix && G.mat_mix0[m] >= 0;
           const bool from_distant = tb.path.first_rough[k] > 0.f;  // (near-specular: its own flag)
-          if (!mix && (from_distant ? G.mat_lt_glossy[m] == 0 : ((1u << G.mat_kind[m]) & bsdf_delta_capable) == 0))
-            tb.tech.valid[k] = 0;
+          const bool glossy = G.mat_lt_glossy != nullptr && G.mat_lt_glossy[m] != 0;
+          const bool delta = ((1u << G.mat_kind[m]) & bsdf_delta_capable) != 0;
+          if (!mix && (from_distant ? !glossy : !(delta || (area_glossy_ && glossy)))) tb.tech.valid[k] = 0;
         }
       }
       bounce_hits<vfloat, true>(G, L, hits, s, 0, tb);
@@ -586,7 +596,10 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
         const SurfaceBsdf<float, bsdf_all> bsdf = load_surface_bsdf<float, bsdf_all>(G, P, k, ns);
         const BsdfSample<float> bs = bsdf.sample(tb.tech.u2[k], tb.tech.u0[k], tb.tech.u1[k]);
         if (!bs.valid) continue;
-        if (j == 1 && (tb.path.first_rough[k] > 0.f ? bs.delta || G.mat_lt_glossy[P.mat[k]] == 0 : !bs.delta)) continue;
+        if (j == 1) {  // (a delta lobe from an area source; a flagged material's other lobes)
+          const bool glossy = G.mat_lt_glossy != nullptr && G.mat_lt_glossy[P.mat[k]] != 0;
+          if (tb.path.first_rough[k] > 0.f ? bs.delta || !glossy : !(bs.delta || (area_glossy_ && glossy))) continue;
+        }
         const bool in_medium = bsdf.kind == static_cast<int32_t>(MaterialKind::phase);
         float adj = 1.f;
         const float cgi = dot(ng, bs.wi);

@@ -21,7 +21,7 @@
 // sample from the rough vertex before finds the highlight's direction) and whose first
 // vertex is rough belongs to the light tracer too. The path tracer reaches such a path only
 // by the light sample at xk, so it drops exactly those light samples (sample_lights.h,
-// where LightView::lt_distant and mat_lt_glossy are set). The light tracer emits from a
+// where LightView::lt_glossy and mat_lt_glossy are set). The light tracer emits from a
 // distant source towards those surfaces alone: a point uniform on discs, one per surface
 // whose material is flagged (its bounding sphere seen along the source's direction), the
 // density at a point the number of discs holding it over their total area, the ray coming
@@ -76,7 +76,7 @@ class LightPaths {
  public:
   // Throws std::invalid_argument where the scene has what the light tracer cannot trace
   // yet (emitters with an alpha cut-out).
-  // Sets v's mat_lt_glossy and lt_distant where distant sources are traced (the path
+  // Sets v's mat_lt_glossy and lt_glossy where distant sources are traced (the path
   // tracer's stages read them); lo, hi: the scene's bounds.
   LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, int width, int height, const float lo[3],
              const float hi[3]);
@@ -108,6 +108,7 @@ class LightPaths {
   std::vector<Disc> discs_;
   std::vector<float> disc_cdf_;
   double disc_area_ = 0;
+  bool area_glossy_ = false;  // area sources' light at near-specular vertices is the light tracer's too
   float scene_c_[3] = {}, scene_r_ = 0;
   // the camera
   double o_[3] = {}, inv_[3][3] = {}, m_[3][3] = {};

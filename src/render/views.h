@@ -56,7 +56,7 @@ struct SceneViews {
   std::vector<float> mat_r, mat_g, mat_b;
   std::vector<int32_t> mat_kind, mat_mix0, mat_mix1, mat_alpha_tex, mat_remap;
   std::vector<int32_t> mat_reg;  // regularization's twin of each material (GeomView::mat_reg)
-  std::vector<int32_t> mat_lt_glossy, lt_distant;  // --light-paths (GeomView::mat_lt_glossy, LightView::lt_distant)
+  std::vector<int32_t> mat_lt_glossy, lt_glossy;  // --light-paths (GeomView::mat_lt_glossy, LightView::lt_glossy)
   std::vector<float> mat_mix_amount;
   std::vector<float> mat_param[mp_count];
   std::vector<float> geom_side;
