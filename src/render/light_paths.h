@@ -108,7 +108,6 @@ class LightPaths {
   std::vector<Disc> discs_;
   std::vector<float> disc_cdf_;
   double disc_area_ = 0;
-  bool area_glossy_ = false;  // area sources' light at near-specular vertices is the light tracer's too
   float scene_c_[3] = {}, scene_r_ = 0;
   // the camera
   double o_[3] = {}, inv_[3][3] = {}, m_[3][3] = {};
