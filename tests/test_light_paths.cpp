@@ -146,6 +146,14 @@ RenderOptions options(bool light_paths, uint32_t spp, uint32_t seed) {
   return o;
 }
 
+// The image of spp samples per pixel (seed and the rest in o).
+std::vector<float> render_mean(const Scene& s, const Accel& accel, const RenderOptions& o, uint32_t spp) {
+  Film f;
+  f.reset(s.camera.width, s.camera.height);
+  Renderer(s, accel, o).render(f, 0, spp);
+  return f.mean();
+}
+
 // Per seed, the mean of each quarter of the image and channel (12 numbers).
 std::vector<double> quarter_means(const Scene& s, const std::vector<float>& m) {
   const int w = s.camera.width, h = s.camera.height;
@@ -169,12 +177,8 @@ void expect_same_mean(const Scene& s, RenderOptions with, RenderOptions without,
   for (int k = 0; k < seeds; ++k) {
     with.est.seed = static_cast<uint32_t>(2 * k + 1);
     without.est.seed = static_cast<uint32_t>(2 * k + 2);
-    for (auto [o, out] : {std::pair{&with, &a}, std::pair{&without, &b}}) {
-      Film f;
-      f.reset(s.camera.width, s.camera.height);
-      Renderer(s, accel, *o).render(f, 0, o->est.spp);
-      out->push_back(quarter_means(s, f.mean()));
-    }
+    for (auto [o, out] : {std::pair{&with, &a}, std::pair{&without, &b}})
+      out->push_back(quarter_means(s, render_mean(s, accel, *o, o->est.spp)));
   }
   const double n = seeds;
   for (size_t i = 0; i < 12; ++i) {
@@ -349,12 +353,7 @@ TEST(LightPaths, RendersThePathTracersMeanUnderASun) {
   expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "sun");
   // the light tracer ran (the scene has no area light): the same seed renders otherwise
   Accel accel(s);
-  Film a, b;
-  a.reset(24, 24);
-  b.reset(24, 24);
-  Renderer(s, accel, options(true, 4, 3)).render(a, 0, 4);
-  Renderer(s, accel, options(false, 4, 3)).render(b, 0, 4);
-  EXPECT_NE(a.mean(), b.mean());
+  EXPECT_NE(render_mean(s, accel, options(true, 4, 3), 4), render_mean(s, accel, options(false, 4, 3), 4));
 }
 
 TEST(LightPaths, RendersThePathTracersMeanUnderASunAndAnAreaLight) {
@@ -370,10 +369,7 @@ TEST(LightPaths, SameBitsOnAnyThreadCount) {
     RenderOptions o = options(lp, 12, 5);
     o.est.sampler = SamplerKind::sobol;
     o.threads = threads;
-    Film f;
-    f.reset(20, 20);
-    Renderer(s, accel, o).render(f, 0, 12);
-    return f.mean();
+    return render_mean(s, accel, o, 12);
   };
   const std::vector<float> two = render(true, 2), one = render(true, 1), plain = render(false, 2);
   size_t differ = 0, differ_plain = 0;
@@ -405,10 +401,5 @@ TEST(LightPaths, RefusesWhatItCannotDo) {
   for (Material& m : plain.materials) m = diffuse_material(Rgb{0.5f, 0.5f, 0.5f});
   finalize_scene(plain);
   Accel pa(plain);
-  Film f1, f2;
-  f1.reset(16, 16);
-  f2.reset(16, 16);
-  Renderer(plain, pa, options(true, 4, 0)).render(f1, 0, 4);
-  Renderer(plain, pa, options(false, 4, 0)).render(f2, 0, 4);
-  EXPECT_EQ(f1.mean(), f2.mean());
+  EXPECT_EQ(render_mean(plain, pa, options(true, 4, 0), 4), render_mean(plain, pa, options(false, 4, 0), 4));
 }

@@ -32,6 +32,33 @@ bool is_distant(int32_t type) { return type == static_cast<int32_t>(LightKind::d
 // 0.2 or 0.5 changed nothing more than the time.
 constexpr float light_traced_alpha = 0.1f;
 
+// Lane i's ray (a light path's next segment) from org along the unit d, traced to the
+// nearest hit.
+void set_ray(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<float>& d) {
+  RayHit16& r = tb.bounce[i / packet_width];
+  const int ln = i % packet_width;
+  r.ray.org_x[ln] = org.x;
+  r.ray.org_y[ln] = org.y;
+  r.ray.org_z[ln] = org.z;
+  r.ray.dir_x[ln] = d.x;
+  r.ray.dir_y[ln] = d.y;
+  r.ray.dir_z[ln] = d.z;
+  r.ray.tfar[ln] = 3.0e38f;
+  tb.tech.valid[i] = -1;
+}
+
+// Lane i's light path leaves its source: its first ray, its throughput (the largest
+// channel m0 > 0), in medium med; eta_scale holds 1 / m0, for Russian roulette.
+void emit(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<float>& d, float br, float bg, float bb, float m0,
+          int32_t med) {
+  set_ray(tb, i, org, d);
+  tb.path.throughput_r[i] = br;
+  tb.path.throughput_g[i] = bg;
+  tb.path.throughput_b[i] = bb;
+  tb.path.eta_scale[i] = 1.f / m0;  // (the light tracer's: 1 / the first throughput)
+  tb.media.med[i] = med;
+}
+
 // The integral of one axis of a tabulated filter (midpoint rule, fine enough for the
 // smooth filters it is used for).
 double axis_integral(const FilterView& f, const FilterAxis& a) {
@@ -312,23 +339,8 @@ void LightPaths::emit_distant(int32_t l, float pmf, float u, float u2, float u3,
   if (!(m0 > 0.f) || !std::isfinite(m0)) return;
   const Vec3<float> c{scene_c_[0], scene_c_[1], scene_c_[2]};
   const float back = dot(c - p, w) + scene_r_ * 1.01f + 1e-3f * (scene_r_ + 1.f);
-  const Vec3<float> org = p + w * back;
-  RayHit16& r = tb.bounce[i / packet_width];
-  const int ln = i % packet_width;
-  r.ray.org_x[ln] = org.x;
-  r.ray.org_y[ln] = org.y;
-  r.ray.org_z[ln] = org.z;
-  r.ray.dir_x[ln] = -w.x;
-  r.ray.dir_y[ln] = -w.y;
-  r.ray.dir_z[ln] = -w.z;
-  r.ray.tfar[ln] = 3.0e38f;
-  tb.tech.valid[i] = -1;
-  tb.path.throughput_r[i] = br;
-  tb.path.throughput_g[i] = bg;
-  tb.path.throughput_b[i] = bb;
-  tb.path.eta_scale[i] = 1.f / m0;
+  emit(tb, i, p + w * back, -w, br, bg, bb, m0, -1);
   tb.path.first_rough[i] = 1.f;
-  tb.media.med[i] = -1;
 }
 
 // A contribution at raster position (rx, ry) into the pixels whose filter covers it.
@@ -431,22 +443,7 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
       const float m0 = std::max(std::max(br, bg), bb);
       if (!(m0 > 0.f) || !std::isfinite(m0) || !(dl.z > 0.f)) continue;
       const float eps = (std::max(std::max(std::abs(y.x), std::abs(y.y)), std::abs(y.z)) + 1.f) * 0x1p-16f;
-      const Vec3<float> org = y + n * eps;
-      RayHit16& r = tb.bounce[i / packet_width];
-      const int ln = i % packet_width;
-      r.ray.org_x[ln] = org.x;
-      r.ray.org_y[ln] = org.y;
-      r.ray.org_z[ln] = org.z;
-      r.ray.dir_x[ln] = d.x;
-      r.ray.dir_y[ln] = d.y;
-      r.ray.dir_z[ln] = d.z;
-      r.ray.tfar[ln] = 3.0e38f;
-      tb.tech.valid[i] = -1;
-      tb.path.throughput_r[i] = br;
-      tb.path.throughput_g[i] = bg;
-      tb.path.throughput_b[i] = bb;
-      tb.path.eta_scale[i] = 1.f / m0;  // (the light tracer's: 1 / the first throughput, for Russian roulette)
-      tb.media.med[i] = back ? medium_in_[static_cast<size_t>(l)] : medium_out_[static_cast<size_t>(l)];
+      emit(tb, i, y + n * eps, d, br, bg, bb, m0, back ? medium_in_[static_cast<size_t>(l)] : medium_out_[static_cast<size_t>(l)]);
     }
     tb.points.count = lanes;
     for (int j = 1;; ++j) {
@@ -625,17 +622,7 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           }
         }
         const float side = in_medium ? 0.f : (cgi < 0.f ? -1.f : 1.f);
-        const Vec3<float> org = x + ng * (P.eps[k] * side);
-        RayHit16& r = tb.bounce[k / packet_width];
-        const int ln = k % packet_width;
-        r.ray.org_x[ln] = org.x;
-        r.ray.org_y[ln] = org.y;
-        r.ray.org_z[ln] = org.z;
-        r.ray.dir_x[ln] = bs.wi.x;
-        r.ray.dir_y[ln] = bs.wi.y;
-        r.ray.dir_z[ln] = bs.wi.z;
-        r.ray.tfar[ln] = 3.0e38f;
-        tb.tech.valid[k] = -1;
+        set_ray(tb, k, x + ng * (P.eps[k] * side), bs.wi);
         tb.path.throughput_r[k] = br;
         tb.path.throughput_g[k] = bg;
         tb.path.throughput_b[k] = bb;
