@@ -49,6 +49,14 @@ inline bool light_traced_kind(int32_t kind) noexcept {
          kind == static_cast<int32_t>(MaterialKind::phase);
 }
 
+// The kinds whose top lobe is a Trowbridge-Reitz microfacet lobe of alphas mp_ax, mp_ay
+// (regularization's twins, --light-paths' near-specular flags).
+inline bool microfacet_kind(int32_t kind) noexcept {
+  return kind == static_cast<int32_t>(MaterialKind::conductor) || kind == static_cast<int32_t>(MaterialKind::dielectric) ||
+         kind == static_cast<int32_t>(MaterialKind::coated_diffuse) ||
+         kind == static_cast<int32_t>(MaterialKind::coated_conductor);
+}
+
 // One bit per MaterialKind, in its order.
 enum BsdfBits : unsigned {
   bsdf_diffuse = 1u << 0,

@@ -221,30 +221,21 @@ void LightPaths::flag_glossy(const Scene& scene, SceneViews& v) {
   std::vector<int32_t>& flag = v.mat_lt_glossy;
   flag.assign(nm, 0);
   for (size_t m = 0; m < nm; ++m) {
-    const auto kind = static_cast<MaterialKind>(v.mat_kind[m]);
-    const bool microfacet = kind == MaterialKind::conductor || kind == MaterialKind::dielectric ||
-                            kind == MaterialKind::coated_diffuse || kind == MaterialKind::coated_conductor;
-    if (!microfacet || v.mat_mix0[m] >= 0) continue;
+    if (!microfacet_kind(v.mat_kind[m]) || v.mat_mix0[m] >= 0) continue;
     if (2 * m + 1 < v.mat_alpha_tex.size() && (v.mat_alpha_tex[2 * m] >= 0 || v.mat_alpha_tex[2 * m + 1] >= 0)) continue;
     const float a = std::max(G.mat_param[mp_ax][m], G.mat_param[mp_ay][m]);
     flag[m] = a >= smooth_alpha && a <= light_traced_alpha ? 1 : 0;
   }
   for (size_t m = 0; m < nm && m < v.mat_reg.size(); ++m)  // (--regularize's twins: as their originals)
     if (v.mat_reg[m] != static_cast<int32_t>(m)) flag[static_cast<size_t>(v.mat_reg[m])] = flag[m];
-  // the flagged materials a geometry's material reaches (itself, a mix's choices)
-  auto reach = [&](int32_t m0, auto&& visit) {
-    int32_t stack[64];
-    int top = 0;
-    stack[top++] = m0;
-    while (top > 0) {
-      const int32_t m = stack[--top];
-      if (m < 0 || static_cast<size_t>(m) >= nm) continue;
-      if (v.mat_mix0[m] >= 0 && top + 2 <= 64) {
-        stack[top++] = v.mat_mix0[m];
-        stack[top++] = v.mat_mix1[m];
-      } else {
-        visit(m);
-      }
+  // the materials a geometry's material stands for: itself, or a mix's two choices (never
+  // mixes themselves)
+  auto reach = [&](int32_t m, auto&& visit) {
+    if (v.mat_mix0[m] >= 0) {
+      visit(v.mat_mix0[m]);
+      visit(v.mat_mix1[m]);
+    } else {
+      visit(m);
     }
   };
   const size_t meshes = scene.meshes.size();

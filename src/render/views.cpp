@@ -617,9 +617,7 @@ void build_regularized_twins(SceneViews& v) {
   for (size_t m = 0; m < n; ++m) {
     v.mat_reg[m] = static_cast<int32_t>(m);
     const auto kind = static_cast<MaterialKind>(v.mat_kind[m]);
-    const bool top = kind == MaterialKind::conductor || kind == MaterialKind::dielectric ||
-                     kind == MaterialKind::coated_diffuse || kind == MaterialKind::coated_conductor;
-    if (!top || v.mat_mix0[m] >= 0) continue;
+    if (!microfacet_kind(v.mat_kind[m]) || v.mat_mix0[m] >= 0) continue;
     float p[mp_count];
     for (int i = 0; i < mp_count; ++i) p[i] = v.mat_param[i][m];
     bool changes = v.mat_alpha_tex[2 * m] >= 0 || v.mat_alpha_tex[2 * m + 1] >= 0;
