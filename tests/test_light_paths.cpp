@@ -273,13 +273,13 @@ TEST(LightPaths, RendersThePathTracersMeanThroughAGlassSlab) {
   expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "glass slab");
 }
 
-// A sunlit porch: a distant source in front and a dim constant sky; a diffuse floor, back
-// wall and roof, a dark floor in the sun, so that the shade is lit mostly by the sun's
-// glints off near-specular things
-// in front of it (light_paths.h, "Distant sources"): a metal plate of alpha 0.03 tilted to
-// throw the sun under the roof, a coated ball of alpha 0.02 (a sphere: its disc from the
-// sphere) and a plate whose material is a mix of a coat of alpha 0.01 and a diffuse one.
-// With `more`, a glass ball and an area light under the roof too (the light tracer picks
+// A wall in its own shade: a distant source behind it and a dim constant sky over dark
+// ground, so that the wall's face is lit mostly by the sun's glints off near-specular things
+// in front of it (light_paths.h, "Distant sources"): a metal plate of alpha 0.1 tilted to
+// throw the sun back onto the wall, a coated ball of alpha 0.08 (a sphere: its disc from the
+// sphere) and a plate whose material is a mix of a coat of alpha 0.06 and a diffuse one
+// (lobes wide enough that the path tracer's image, the reference, is not all noise). With
+// `more`, a glass ball and an area light before the wall too (the light tracer picks
 // between the two kinds of source), and the metal plate rougher than the flag's bound (its
 // glints stay the path tracer's).
 Scene sun_wall(int res, bool more) {
