@@ -441,7 +441,7 @@ TEST(MediaRender, ShadowRaysWalkOnlyWhereTheyMeetAnInterface) {
     const auto trace = [&](const int32_t* v, RayHit16& q) { accel.intersect16(v, q, false, Bvh::scene); };
     std::vector<int> met(static_cast<size_t>(n), 0);
     shadow_media(
-        views.geom, *t, n,
+        views.geom, shadow_lanes(*t), n,
         [&](const int32_t* v, Ray16& r, int32_t* crossed) {
           const int p = static_cast<int>(&r - t->shadow);
           Ray16 plain = r;
@@ -461,7 +461,7 @@ TEST(MediaRender, ShadowRaysWalkOnlyWhereTheyMeetAnInterface) {
     // the route of scenes without interfaces: plain occlusion queries, then the medium at
     // each origin; the walk's bits wherever a ray meets no interface
     for (int p = 0; p < packets_for(n); ++p) accel.occluded16(o->tech.valid + p * packet_width, o->shadow[p], false);
-    shadow_transmittance(views.geom, *o, n);
+    shadow_transmittance(views.geom, shadow_lanes(*o), n);
     for (int k = 0; k < n; ++k) {
       if (!t->tech.valid[k]) continue;
       const int l = k % packet_width;

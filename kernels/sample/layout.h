@@ -14,6 +14,10 @@
 //                               dimension)
 //   medium_flight(d, m)         scenes with media only: the free flight along BSDF sample
 //                               m (m = M at depth 0: the camera ray's)
+//   segment_light(d, j)         --equiangular (wave/equiangular.h): the light sample of the
+//                               path's ray from vertex d through a medium (j = 0: the
+//                               source and the distance, j = 1: the point on the source);
+//                               j = 2, 3 at depth 0: the camera ray's
 // with M = bsdf_samples and light samples j < light_passes (every source times N with
 // --light-pick all). Resampled importance sampling (wave/ris.h) uses light samples j < M'
 // for its light candidates and BSDF samples m < K' for its BSDF candidates, with the
@@ -29,10 +33,11 @@ struct SampleLayout {
   uint32_t bsdf_samples = 1;  // M
   uint32_t light_passes = 1;  // light samples per depth
   bool media = false;         // the scene has media: M + 1 pairs more per depth (medium_flight)
+  bool equiangular = false;   // --equiangular in a scene with media: 4 pairs more per depth (segment_light)
 
   static constexpr uint32_t camera = 0;
   constexpr uint32_t per_depth() const noexcept {
-    return 2 + 2 * bsdf_samples + 2 * light_passes + (media ? bsdf_samples + 1 : 0);
+    return 2 + 2 * bsdf_samples + 2 * light_passes + (media ? bsdf_samples + 1 : 0) + (equiangular ? 4 : 0);
   }
   constexpr uint32_t depth_base(uint32_t depth) const noexcept { return 1 + depth * per_depth(); }
   constexpr uint32_t technique_choice(uint32_t depth = 0) const noexcept { return depth_base(depth); }
@@ -49,6 +54,12 @@ struct SampleLayout {
   // (hero channel, distance); m = M at depth 0 is the camera ray's
   constexpr uint32_t medium_flight(uint32_t m, uint32_t depth = 0) const noexcept {
     return depth_base(depth) + 2 + 2 * bsdf_samples + 2 * light_passes + m;
+  }
+  // --equiangular: the light sample of the ray that leaves vertex d (the path's
+  // continuation) through a medium, j = 0 (source, distance) and 1 (point); j = 2 and 3 at
+  // depth 0 are the camera ray's
+  constexpr uint32_t segment_light(uint32_t j, uint32_t depth = 0) const noexcept {
+    return medium_flight(bsdf_samples + 1, depth) + j;
   }
 };
 

@@ -61,6 +61,11 @@ struct Estimator {
   // tracer leaves them out (drop_light_traced_hits; the light stage, sample_lights.h).
   // Unbiased: the two estimators split path space.
   bool light_paths = false;
+  // --equiangular (wave/equiangular.h): in scenes with media, each path ray's direct light
+  // scattered along its first stretch of a scattering medium, from a point drawn by
+  // equiangular sampling towards a source (Kulla & Fajardo 2012), MIS-weighted against the
+  // light samples at the free flights' collisions; unbiased
+  bool equiangular = false;
 
   // probability of choosing the light technique in one-sample MIS
   float one_sample_light_prob() const {

@@ -43,6 +43,9 @@ namespace tuile {
 // How many interfaces one ray may pass before it is dropped (counted as rejected).
 inline constexpr int max_interface_crossings = 64;
 
+// The far end of a ray's stretch of medium that meets nothing (MediumLanes::eq_b).
+inline constexpr float segment_far = 1e30f;
+
 namespace media_detail {
 
 inline float expn(float x) { return lane_math::exp_nonpositive(x); }  // e^x, x <= 0 (-inf: 0)
@@ -152,6 +155,11 @@ inline void first_flights_simd(const GeomView& G, RayHit16& r, int l0, int k0, i
   store(r.Ng_z + l0, sel(scattered, -load<T>(r.ray.dir_z + l0), load<T>(r.Ng_z + l0)));
   store(r.ray.tfar + l0, sel(scattered, T(0.f) + ts, load<T>(r.ray.tfar + l0)));
   store(ml.pending + k, sel(i_mask_from_f(mine), I(0), load_i32<T>(ml.pending + k)));
+  // the ray's first stretch of scattering medium: from its origin to its hit
+  const auto mine_i = i_mask_from_f(mine);
+  store(ml.eq_med + k, sel(mine_i, m, load_i32<T>(ml.eq_med + k)));
+  store(ml.eq_a + k, sel(mine, T(0.f), load<T>(ml.eq_a + k)));
+  store(ml.eq_b + k, sel(mine, min(t, T(segment_far)), load<T>(ml.eq_b + k)));
 }
 
 }  // namespace media_detail
@@ -190,6 +198,7 @@ inline void medium_flights(const GeomView& G, RayHit16* packets, int32_t* valid,
   for (int k = 0; k < count; ++k) {
     ml.wr[k] = ml.wg[k] = ml.wb[k] = 1.f;
     ml.er[k] = ml.eg[k] = ml.eb[k] = 0.f;
+    ml.eq_med[k] = -1;
     ml.pending[k] = valid[k] != 0;
     if (!ml.pending[k]) continue;
     const RayHit16& r = packets[k / packet_width];
@@ -227,6 +236,12 @@ inline void medium_flights(const GeomView& G, RayHit16* packets, int32_t* valid,
       if (m >= 0) {
         const float st[3] = {M.sigma_t[0][m], M.sigma_t[1][m], M.sigma_t[2][m]};
         if (M.scatters[m]) {
+          // the ray's first stretch of scattering medium, where only vacuum came before
+          if (ml.eq_med[k] < 0 && *ab[0] == 1.f && *ab[1] == 1.f && *ab[2] == 1.f) {
+            ml.eq_med[k] = m;
+            ml.eq_a[k] = ml.tbase[k];
+            ml.eq_b[k] = std::min(ml.tbase[k] + t, segment_far);
+          }
           const float sh = st[ml.hero[k]];
           if (sh > 0.f && ml.tau[k] < sh * t) {  // (sh * inf = inf)
             scattered = true;
@@ -325,6 +340,25 @@ inline void medium_flights(const GeomView& G, RayHit16* packets, int32_t* valid,
   }
 }
 
+// A set of shadow rays for the media's stages: the packets, which lanes were traced, each
+// lane's contribution (times the transmittance when unoccluded) and the media at the
+// rays' origins: medf on the side of the origin's geometric normal n, medb behind it (n
+// null: medf, a point in a medium). The light stage's (shadow_lanes) and the segment light
+// samples' (wave/equiangular.h).
+struct ShadowLanes {
+  Ray16* rays;
+  const int32_t* valid;
+  float *cr, *cg, *cb;
+  const float *nx, *ny, *nz;
+  const int32_t *medf, *medb;
+};
+
+// The light stage's shadow rays: tb.shadow from the shading points.
+inline ShadowLanes shadow_lanes(TileBuffers& tb) {
+  return {tb.shadow, tb.tech.valid, tb.tech.cr, tb.tech.cg, tb.tech.cb, tb.points.nx, tb.points.ny, tb.points.nz,
+          tb.points.medf, tb.points.medb};
+}
+
 namespace media_detail {
 
 // The shadow rays of packet p in lanes [l0, l0 + simd_width) where lanes is set, after an
@@ -333,16 +367,17 @@ namespace media_detail {
 // another ran in the medium at its origin alone (by its point's geometric normal), whose
 // transmittance over its length multiplies its contribution. In SIMD, the operations of
 // shadow_walk's single segment in order: the same bits.
-inline void shadow_one_medium(const MediumView& M, TileBuffers& tb, int p, int l0, const vmask& lanes) {
+inline void shadow_one_medium(const MediumView& M, const ShadowLanes& S, int p, int l0, const vmask& lanes) {
   using T = vfloat;
   using I = vint;
-  Ray16& s = tb.shadow[p];
+  Ray16& s = S.rays[p];
   const int k = p * packet_width + l0;
   const T tfar = load<T>(s.tfar + l0);
   const vmask occluded = lanes && (tfar == T(-INFINITY));
-  const T side = load<T>(tb.points.nx + k) * load<T>(s.dir_x + l0) + load<T>(tb.points.ny + k) * load<T>(s.dir_y + l0) +
-                 load<T>(tb.points.nz + k) * load<T>(s.dir_z + l0);
-  const I m = sel(i_mask_from_f(side >= T(0.f)), load_i32<T>(tb.points.medf + k), load_i32<T>(tb.points.medb + k));
+  const T side = S.nx ? load<T>(S.nx + k) * load<T>(s.dir_x + l0) + load<T>(S.ny + k) * load<T>(s.dir_y + l0) +
+                            load<T>(S.nz + k) * load<T>(s.dir_z + l0)
+                      : T(0.f);
+  const I m = sel(i_mask_from_f(side >= T(0.f)), load_i32<T>(S.medf + k), load_i32<T>(S.medb + k));
   const vmask in = lanes && !occluded && f_mask_from_i(m >= I(0));
   if (none(in) && none(occluded)) return;
   const I ms = sel(i_mask_from_f(in), m, I(0));
@@ -351,7 +386,7 @@ inline void shadow_one_medium(const MediumView& M, TileBuffers& tb, int p, int l
     const T st = gather(M.sigma_t[c], ms);
     tr[c] = sel(st > T(0.f), lane_math::exp_nonpositive(-st * tfar), T(1.f));
   }
-  float* contribution[3] = {tb.tech.cr + k, tb.tech.cg + k, tb.tech.cb + k};
+  float* contribution[3] = {S.cr + k, S.cg + k, S.cb + k};
   for (int c = 0; c < 3; ++c) {
     const T old = load<T>(contribution[c]);
     store(contribution[c], sel(occluded, T(0.f), sel(in, old * tr[c], old)));
@@ -373,14 +408,14 @@ inline vmask flagged_lanes(const int32_t* flags, int p, int l0, int count) {
 // other surface occludes it (tfar = -inf, as Embree marks occlusion). trace(valid,
 // packet): nearest hits in the scene.
 template <class Trace>
-inline void shadow_walk(const GeomView& G, TileBuffers& tb, int p, const int32_t* lanes, Trace&& trace) {
+inline void shadow_walk(const GeomView& G, const ShadowLanes& S, int p, const int32_t* lanes, Trace&& trace) {
   const MediumView& M = G.media;
   alignas(64) RayHit16 q{};
   reset_query_fields(q);
   alignas(64) int32_t v[packet_width];
   int32_t med[packet_width];
   float T[3][packet_width], left[packet_width];
-  Ray16& s = tb.shadow[p];
+  Ray16& s = S.rays[p];
   bool some = false;
   for (int l = 0; l < packet_width; ++l) {
     const int k = p * packet_width + l;
@@ -396,8 +431,8 @@ inline void shadow_walk(const GeomView& G, TileBuffers& tb, int p, const int32_t
     q.ray.tfar[l] = s.tfar[l];
     left[l] = s.tfar[l];
     q.geomID[l] = invalid_id;
-    const float side = tb.points.nx[k] * s.dir_x[l] + tb.points.ny[k] * s.dir_y[l] + tb.points.nz[k] * s.dir_z[l];
-    med[l] = side >= 0.f ? tb.points.medf[k] : tb.points.medb[k];
+    const float side = S.nx ? S.nx[k] * s.dir_x[l] + S.ny[k] * s.dir_y[l] + S.nz[k] * s.dir_z[l] : 0.f;
+    med[l] = side >= 0.f ? S.medf[k] : S.medb[k];
     T[0][l] = T[1][l] = T[2][l] = 1.f;
   }
   for (int round = 0; some; ++round) {
@@ -419,9 +454,9 @@ inline void shadow_walk(const GeomView& G, TileBuffers& tb, int p, const int32_t
       if (hit) T[0][l] = T[1][l] = T[2][l] = 0.f;
       v[l] = 0;
       const int k = p * packet_width + l;
-      tb.tech.cr[k] *= T[0][l];
-      tb.tech.cg[k] *= T[1][l];
-      tb.tech.cb[k] *= T[2][l];
+      S.cr[k] *= T[0][l];
+      S.cg[k] *= T[1][l];
+      S.cb[k] *= T[2][l];
       s.tfar[l] = T[0][l] + T[1][l] + T[2][l] > 0.f ? s.tfar[l] : -INFINITY;
     }
   }
@@ -433,10 +468,10 @@ inline void shadow_walk(const GeomView& G, TileBuffers& tb, int p, const int32_t
 // (MediumView::has_interfaces false), after their occlusion queries: every surface
 // occludes, so an unoccluded ray runs in the medium at its origin alone
 // (media_detail::shadow_one_medium, in SIMD). The numbers of walking the same rays.
-inline void shadow_transmittance(const GeomView& G, TileBuffers& tb, int count) {
+inline void shadow_transmittance(const GeomView& G, const ShadowLanes& S, int count) {
   for (int p = 0; p < packets_for(count); ++p)
     for (int l0 = 0; l0 < packet_width; l0 += simd_width)
-      media_detail::shadow_one_medium(G.media, tb, p, l0, media_detail::flagged_lanes(tb.tech.valid + p * packet_width, p, l0, count));
+      media_detail::shadow_one_medium(G.media, S, p, l0, media_detail::flagged_lanes(S.valid + p * packet_width, p, l0, count));
 }
 
 // The shadow rays of the shading points [0, count) (valid lanes, tb.shadow) of a scene
@@ -449,13 +484,13 @@ inline void shadow_transmittance(const GeomView& G, TileBuffers& tb, int count) 
 // occlusion query for the rays that stay in one medium (most, where the interfaces bound
 // a room or a volume the lights are inside).
 template <class Occlude, class Trace>
-inline void shadow_media(const GeomView& G, TileBuffers& tb, int count, Occlude&& occlude, Trace&& trace) {
+inline void shadow_media(const GeomView& G, const ShadowLanes& S, int count, Occlude&& occlude, Trace&& trace) {
   for (int p = 0; p < packets_for(count); ++p) {
-    const int32_t* valid = tb.tech.valid + p * packet_width;
+    const int32_t* valid = S.valid + p * packet_width;
     bool any = false;
     for (int l = 0; l < packet_width; ++l) any = any || valid[l];
     if (!any) continue;
-    Ray16& s = tb.shadow[p];
+    Ray16& s = S.rays[p];
     alignas(64) int32_t crossed[packet_width] = {}, walk[packet_width] = {};
     for (int l = 0; l < packet_width; ++l) s.id[l] = static_cast<uint32_t>(l);
     occlude(valid, s, crossed);
@@ -467,8 +502,8 @@ inline void shadow_media(const GeomView& G, TileBuffers& tb, int count, Occlude&
       some = some || walk[l];
     }
     for (int l0 = 0; l0 < packet_width; l0 += simd_width)
-      media_detail::shadow_one_medium(G.media, tb, p, l0, media_detail::flagged_lanes(one, p, l0, count));
-    if (some) media_detail::shadow_walk(G, tb, p, walk, trace);
+      media_detail::shadow_one_medium(G.media, S, p, l0, media_detail::flagged_lanes(one, p, l0, count));
+    if (some) media_detail::shadow_walk(G, S, p, walk, trace);
   }
 }
 
@@ -480,13 +515,17 @@ inline void shadow_media(const GeomView& G, TileBuffers& tb, int count, Occlude&
 // packet): nearest hits in the scene. The tile pipelines' shadow stage and the light tracer's
 // rays to the camera (src/render/light_paths.cpp).
 template <class Occlude, class Trace>
-inline void trace_shadow_rays(const GeomView& G, TileBuffers& tb, int count, Occlude&& occlude, Trace&& trace) {
+inline void trace_shadow_lanes(const GeomView& G, const ShadowLanes& S, int count, Occlude&& occlude, Trace&& trace) {
   if (G.has_media && G.media.has_interfaces) {
-    shadow_media(G, tb, count, occlude, trace);
+    shadow_media(G, S, count, occlude, trace);
     return;
   }
-  for (int p = 0; p < packets_for(count); ++p) occlude(tb.tech.valid + p * packet_width, tb.shadow[p], nullptr);
-  if (G.has_media) shadow_transmittance(G, tb, count);
+  for (int p = 0; p < packets_for(count); ++p) occlude(S.valid + p * packet_width, S.rays[p], nullptr);
+  if (G.has_media) shadow_transmittance(G, S, count);
+}
+template <class Occlude, class Trace>
+inline void trace_shadow_rays(const GeomView& G, TileBuffers& tb, int count, Occlude&& occlude, Trace&& trace) {
+  trace_shadow_lanes(G, shadow_lanes(tb), count, occlude, trace);
 }
 
 // Every valid shadow ray of [0, count) walked through the media (shadow_walk), with no
@@ -499,7 +538,7 @@ inline void shadow_media_walked(const GeomView& G, TileBuffers& tb, int count, T
       const int k = p * packet_width + l;
       lanes[l] = k < count && tb.tech.valid[k] ? 1 : 0;
     }
-    media_detail::shadow_walk(G, tb, p, lanes, trace);
+    media_detail::shadow_walk(G, shadow_lanes(tb), p, lanes, trace);
   }
 }
 

@@ -12,6 +12,7 @@
 #include <type_traits>
 
 #include "light/bvh.h"
+#include "medium/equiangular.h"
 #include "wave/alpha.h"
 #include "wave/guide.h"
 #include "wave/optimal_mis.h"
@@ -39,6 +40,7 @@ template <class T> struct LightCandidate {
   T cos_x, scale;       // |cos| at the shading normal (transmitting surfaces) and the sample's scale
   T pick, pdf_sa;       // the pick's probability and the point's density in solid angle
   mask_t<T> is_delta;   // a delta source (no density: pdf_l is the pick's probability)
+  i32_t<T> light;       // the source
   mask_t<T> ok;         // an active lane, a valid point, on the emitting side, cos_x > 0
   Vec3<T> org, dir;     // the shadow ray, stopping at tfar
   T tfar;
@@ -71,6 +73,76 @@ inline void apply_light_alpha(const LightView& L, const i32_t<T>& light, const V
   out.Le_r = out.Le_r * alpha;
   out.Le_g = out.Le_g * alpha;
   out.Le_b = out.Le_b * alpha;
+}
+
+// The shadow ray of a light sample s drawn on source g, from out.org (set) to the point y
+// (x + wi dist; at_infinity: none), itself offset off the source towards the origin (pbrt's
+// "spawn ray to"): at grazing angles the ray along wi from a lifted origin would meet the
+// source's plane early. Embree's packet t is good to ~1e-5 relative (measured), so the ray
+// stops 2^-12 of its length short. Sets out.dir, out.tfar and out.ray_ok.
+template <unsigned Kinds, class T>
+inline void shadow_ray_to_light(const LightGeom<T>& g, const LightPointSample<T>& s, const mask_t<T>& at_infinity,
+                                const Vec3<T>& y, LightCandidate<T>& out) {
+  // error bound of the light point, per axis (it is p0 + u e1 + v e2, or x + t wi), with
+  // |e1| + |e2| bounding every axis's |e1_i| + |e2_i| (a sphere's |e1| is its radius)
+  const T g7 = T(gamma_err(7));
+  const T edges = g.len1 + g.len2;
+  const Vec3<T> err_y{g7 * (abs(g.p0.x) + edges + abs(y.x)), g7 * (abs(g.p0.y) + edges + abs(y.y)),
+                      g7 * (abs(g.p0.z) + edges + abs(y.z))};
+  // the source's normal at y facing x (none for point-like sources)
+  Vec3<T> ny(T(0.f), T(0.f), T(0.f));
+  for_each_light_shape<Kinds>(g, [&](auto ops, const mask_t<T>& m) { ny = sel(m, ops.endpoint_normal(g, y, s.wi), ny); });
+  const T eps_y = abs(ny.x) * err_y.x + abs(ny.y) * err_y.y + abs(ny.z) * err_y.z;
+  const Vec3<T> target = y + ny * eps_y;
+  const Vec3<T> to = target - out.org;
+  const T len2 = dot(to, to);
+  const T ilen = rsqrt_nr(sel(len2 > T(0.f), len2, T(1.f)));
+  const T len = len2 * ilen;
+  out.dir = sel(at_infinity || !(len > T(0.f)), s.wi, to * ilen);
+  out.tfar = sel(at_infinity, T(LightKindOps<LightKind::distant>::infinite_distance), len * T(1.f - 1.f / 4096.f));
+  // one test on the sum: a NaN or infinite term makes it non-finite
+  out.ray_ok = is_finite(((out.dir.x + out.dir.y) + (out.dir.z + out.tfar)) + ((out.org.x + out.org.y) + out.org.z));
+}
+
+// The point --equiangular aims at on a source (wave/equiangular.h): a triangle's or
+// parallelogram's centroid, a sphere's centre, a point or spot source's position. Distant
+// sources and the sky have none (positional false).
+template <class T> inline Vec3<T> light_aim_point(const LightGeom<T>& g, mask_t<T>& positional) {
+  using I = i32_t<T>;
+  positional = f_mask_from_i(g.type <= I(static_cast<int32_t>(LightKind::spot)));
+  const T share = sel(f_mask_from_i(g.type == I(static_cast<int32_t>(LightKind::triangle))), T(1.f / 3.f),
+                      sel(f_mask_from_i(g.type == I(static_cast<int32_t>(LightKind::parallelogram))), T(0.5f), T(0.f)));
+  return g.p0 + (g.e1 + g.e2) * share;
+}
+
+// --equiangular: the light sample at a free flight's collision (a shading point in a
+// medium) shares its paths with the segment light sample of the ray that reached it
+// (wave/equiangular.h) where the collision lies in that sample's stretch
+// (ShadingPoints::eq_lo <= 0): the weight of the collision's technique, the heuristic on
+// q = rate_light P(source | x) p_flight(s) against P_alias(source) p_equiangular(s), both
+// in the stretch's distance (the point's density on the source, the same for both, drops
+// out). 1 elsewhere and for sources without a position.
+template <class T>
+inline T collision_segment_weight(const GeomView& G, const LightView& L, const Estimator& est, float rate_light,
+                                  const TileBuffers& tb, int k, const i32_t<T>& light, const T& pick) {
+  const T lo = load<T>(tb.points.eq_lo + k);
+  const auto in = lo <= T(0.f);
+  if (none(in)) return T(1.f);
+  const i32_t<T> li = max(light, i32_t<T>(0));
+  mask_t<T> positional;
+  const Vec3<T> c = light_aim_point(gather_light(L, li), positional);
+  const Vec3<T> x = load3<T>(tb.points.px + k, tb.points.py + k, tb.points.pz + k);
+  const Vec3<T> d = Vec3<T>(T(0.f), T(0.f), T(0.f)) - load3<T>(tb.points.wox + k, tb.points.woy + k, tb.points.woz + k);
+  const EquiangularFrame<T> f = equiangular_frame(x, d, c, lo, load<T>(tb.points.eq_hi + k));
+  const T q_eq = gather(L.pick_pdf, li) * equiangular_pdf(f, T(0.f));
+  const i32_t<T> m = max(load_i32<T>(tb.points.medf + k), i32_t<T>(0));
+  T pd(0.f);
+  for (int ch = 0; ch < 3; ++ch) {
+    const T st = gather(G.media.sigma_t[ch], m);
+    pd += st * lane_math::exp_nonpositive(st * lo);
+  }
+  const T q_flight = T(rate_light) * pick * (pd * T(1.f / 3.f));
+  return sel(in && positional, mis_weight(est.heuristic, q_flight, q_eq, est.mis), T(1.f));
 }
 
 // Kinds: which kinds of source can occur (kind_area, kind_delta); Pick: whether lanes pick
@@ -146,6 +218,7 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
     if constexpr (Ops::at_infinity) at_infinity = at_infinity || m;
   });
   out.pick = pick;
+  out.light = light_idx;
   out.pdf_sa = s.pdf_sa;
   out.scale = s.scale;
   out.is_delta = s.is_delta;
@@ -161,10 +234,7 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
       out.ok = out.ok && !traced;
     }
 
-  // Shadow ray from the offset origin to the light point, itself offset off the source
-  // towards x (pbrt's "spawn ray to"): at grazing angles the ray along wi from a lifted
-  // origin would meet the source's plane early. Embree's packet t is good to ~1e-5
-  // relative (measured), so the ray stops 2^-12 of its length short.
+  // Shadow ray from the offset origin to the light point (shadow_ray_to_light)
   // (the offset goes to the side wi leaves by: below the surface for transmission, or
   // where a shading normal lets wi dip under the geometric plane, as pbrt-v4 offsets)
   out.org = transmits || G.shading_normals
@@ -172,25 +242,7 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
                 : x + n * eps;
   const Vec3<T> y = x + s.wi * sel(at_infinity, T(0.f), s.dist);
   if (L.alpha_shape) apply_light_alpha(L, light_idx, y, out);
-  // error bound of the light point, per axis (it is p0 + u e1 + v e2, or x + t wi), with
-  // |e1| + |e2| bounding every axis's |e1_i| + |e2_i| (a sphere's |e1| is its radius)
-  const T g7 = T(gamma_err(7));
-  const T edges = g.len1 + g.len2;
-  const Vec3<T> err_y{g7 * (abs(g.p0.x) + edges + abs(y.x)), g7 * (abs(g.p0.y) + edges + abs(y.y)),
-                      g7 * (abs(g.p0.z) + edges + abs(y.z))};
-  // the source's normal at y facing x (none for point-like sources)
-  Vec3<T> ny(T(0.f), T(0.f), T(0.f));
-  for_each_light_shape<Kinds>(g, [&](auto ops, const mask_t<T>& m) { ny = sel(m, ops.endpoint_normal(g, y, s.wi), ny); });
-  const T eps_y = abs(ny.x) * err_y.x + abs(ny.y) * err_y.y + abs(ny.z) * err_y.z;
-  const Vec3<T> target = y + ny * eps_y;
-  const Vec3<T> to = target - out.org;
-  const T len2 = dot(to, to);
-  const T ilen = rsqrt_nr(sel(len2 > T(0.f), len2, T(1.f)));
-  const T len = len2 * ilen;
-  out.dir = sel(at_infinity || !(len > T(0.f)), s.wi, to * ilen);
-  out.tfar = sel(at_infinity, T(LightKindOps<LightKind::distant>::infinite_distance), len * T(1.f - 1.f / 4096.f));
-  // one test on the sum: a NaN or infinite term makes it non-finite
-  out.ray_ok = is_finite(((out.dir.x + out.dir.y) + (out.dir.z + out.tfar)) + ((out.org.x + out.org.y) + out.org.z));
+  shadow_ray_to_light<Kinds>(g, s, at_infinity, y, out);
   return out;
 }
 
@@ -217,6 +269,8 @@ TUILE_FLATTEN inline void sample_lights_lanes(const GeomView& G, const LightView
   } else if (est.strategy == Strategy::bsdf) {
     w = sel(s.is_delta, T(1.f), T(0.f));  // area lights are left to the BSDF technique
   }
+  if constexpr ((Bsdfs & bsdf_phase) != 0)
+    if (est.equiangular && G.has_media) w = w * collision_segment_weight(G, L, est, pass.rate_light, tb, k, s.light, s.pick);
   const T denom = T(pass.rate_light) * sel(s.is_delta, s.pick, pdf_l);
   const auto ok = s.ok && denom > T(0.f) && w > T(0.f);
   const T factor = sel(ok, w * s.cos_x * rcp_nr(sel(ok, denom, T(1.f))) * s.scale, T(0.f));

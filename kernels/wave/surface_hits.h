@@ -357,7 +357,18 @@ TUILE_FLATTEN inline void camera_hit_lanes(const GeomView& G, const LightView& L
     if (G.has_instances) compress_store(tb.points.inst + n, inst.index, keep);
   }
   if (G.has_textures) list_textured_points(G, p, l, keep, n, tb);
-  if (G.has_media) compress_store(tb.points.medf + n, load_i32<T>(tb.media.med + i), keep);  // (wave/media.h point_media)
+  if (G.has_media) {
+    compress_store(tb.points.medf + n, load_i32<T>(tb.media.med + i), keep);  // (wave/media.h point_media)
+    // a collision inside its ray's stretch of medium: where along the ray the stretch lies
+    // (wave/equiangular.h, collision_segment_weight)
+    const MediumView& M = G.media;
+    const T ea = load<T>(tb.media.eq_a + i), eb = load<T>(tb.media.eq_b + i);
+    const auto inside = f_mask_from_i(geom >= i32_t<T>(M.geom0) && geom < i32_t<T>(M.geom0 + M.count) &&
+                                      load_i32<T>(tb.media.eq_med + i) >= i32_t<T>(0)) &&
+                        t >= ea && t <= eb;
+    compress_store(tb.points.eq_lo + n, sel(inside, ea - t, T(1.f)), keep);
+    compress_store(tb.points.eq_hi + n, sel(inside, eb - t, T(0.f)), keep);
+  }
 
   // compaction: n <= i, so a whole batch written at n stays inside the arrays
   compress_store(tb.points.px + n, x.x, keep);
@@ -444,6 +455,8 @@ inline void finish_points(const GeomView& G, const Estimator& est, uint32_t samp
     }
     tb.points.pixel[k] = n > 0 ? tb.points.pixel[0] : 0u;
     tb.points.lane[k] = -1;
+    tb.points.eq_lo[k] = 1.f;
+    tb.points.eq_hi[k] = 0.f;
     tb.path.throughput_r[k] = tb.path.throughput_g[k] = tb.path.throughput_b[k] = 0.f;
     tb.path.eta_scale[k] = 1.f;
     tb.path.rough[k] = 0.f;

@@ -83,6 +83,10 @@ struct ShadingPoints {
   // scenes with media only (GeomView::has_media): the medium on the normal's side of the
   // point and behind it (-1: none; wave/media.h point_media)
   alignas(64) int32_t medf[lane_array], medb[lane_array];
+  // scenes with media: the stretch of scattering medium its ray's segment light sample
+  // covered (wave/equiangular.h), from eq_lo to eq_hi along the ray relative to the point
+  // (eq_lo <= 0 <= eq_hi), eq_lo = 1 where the point is not in one
+  alignas(64) float eq_lo[lane_array], eq_hi[lane_array];
   alignas(64) uint32_t pixel[lane_array];                     // global pixel id
   alignas(64) int32_t lane[lane_array];                       // tile lane
   alignas(64) float choose_light[lane_array];                 // one-sample MIS: 1 = light technique
@@ -219,6 +223,20 @@ struct MediumLanes {
   alignas(64) int32_t hero[lane_array], pending[lane_array];
   // the camera's flights, per tile lane (kept past the bounce rays' flights)
   alignas(64) float cwr[lane_array], cwg[lane_array], cwb[lane_array];
+  // out: the ray's first stretch of a scattering medium that only vacuum precedes (eq_med,
+  // -1 for none), from eq_a to eq_b along it (wave/equiangular.h)
+  alignas(64) int32_t eq_med[lane_array];
+  alignas(64) float eq_a[lane_array], eq_b[lane_array];
+};
+
+// --equiangular (wave/equiangular.h): the segment light samples of a set of rays, their
+// shadow rays, contributions (times the throughput at the ray's origin) and random numbers.
+struct SegmentLights {
+  Ray16 shadow[max_packets];
+  alignas(64) int32_t valid[lane_array];
+  alignas(64) float cr[lane_array], cg[lane_array], cb[lane_array];
+  alignas(64) float u0[lane_array], u1[lane_array], u2[lane_array], u3[lane_array];
+  alignas(64) float br[lane_array], bg[lane_array], bb[lane_array];  // the throughput at the rays' origins
 };
 
 // --guide while it learns (src/render/guide.h): each tile lane's path of this sample,
@@ -256,6 +274,7 @@ struct alignas(64) TileBuffers {
       reset_query_fields(cam[p]);
       reset_query_fields(shadow[p]);
       reset_query_fields(bounce[p]);
+      reset_query_fields(seg.shadow[p]);
       reset_hit(cam[p]);
       reset_hit(bounce[p]);
     }
@@ -271,6 +290,7 @@ struct alignas(64) TileBuffers {
   RisReservoirs ris;
   OptimalState opt;
   MediumLanes media;  // scenes with media only
+  SegmentLights seg;  // --equiangular only
   SamplerKeys keys;
   TileCounters stats;
   GuidePathHolder guide;  // --guide while it learns

@@ -24,6 +24,7 @@ struct RenderFlags {
   std::string regularize;  // --regularize on|off; "": the scene file's Integrator
   bool guide = false;      // --guide
   bool light_paths = false;  // --light-paths
+  std::string equiangular;   // --equiangular on | off (empty: the default)
   uint32_t guide_learn = 64;
   float guide_alpha = 0.5f;
   float beta = 2.f, alpha = 0.1f;

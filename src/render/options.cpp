@@ -45,6 +45,15 @@ void validate(const RenderOptions& o) {
     if (e.guide_learn < 1 || e.guide_learn > 1u << 20) throw std::invalid_argument("--guide-learn must be in 1..1048576");
     if (!(e.guide_alpha > 0.f && e.guide_alpha < 1.f)) throw std::invalid_argument("--guide-alpha must be in (0, 1)");
   }
+  if (e.equiangular) {
+    if (e.strategy != Strategy::mis && e.strategy != Strategy::light)
+      throw std::invalid_argument("--equiangular adds light samples along the rays in media: it needs --strategy mis or light");
+    if (e.one_sample()) throw std::invalid_argument("--equiangular needs --mis-mode multi");
+    if (e.pick == LightPick::all)
+      throw std::invalid_argument("--equiangular picks one source per ray: --light-pick all does not apply");
+    if (e.heuristic == Heuristic::optimal) throw std::invalid_argument("--equiangular does not combine with --heuristic optimal");
+    if (e.guide) throw std::invalid_argument("--equiangular does not combine with --guide");
+  }
   if (e.light_paths) {
     if (e.max_depth < 2)
       throw std::invalid_argument("--light-paths joins paths of two vertices or more to the camera: it needs --max-depth 2 "
@@ -134,7 +143,8 @@ std::string describe(const Estimator& e) {
     s += " max-depth=" + std::to_string(e.max_depth) + " rr-depth=" + std::to_string(e.rr_depth) + " rr-threshold=" + t;
   }
   if (e.regularize) s += " regularize=on";
-  if (e.light_paths) s += " light-paths=on";  // (off: the description, and checkpoints' fingerprint, of earlier releases)
+  if (e.light_paths) s += " light-paths=on";
+  if (e.equiangular) s += " equiangular=on";  // (off: the description, and checkpoints' fingerprint, of earlier releases)
   if (e.guide) {  // (likewise)
     char a[32];
     std::snprintf(a, sizeof a, "%g", static_cast<double>(e.guide_alpha));

@@ -243,7 +243,7 @@ RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Pro
   }
   if (record) c.guide_rec = guide_.get();
   c.layout = SampleLayout{static_cast<uint32_t>(ris ? c.bsdf_passes : est.bsdf_samples), static_cast<uint32_t>(c.light_passes),
-                          v.geom.has_media};
+                          v.geom.has_media, v.geom.has_media && est.equiangular};
   std::string why;
   const PipelineEntry pipe = pick_pipeline(v, est, opt_.general_pipeline, why);
   const int all_tiles = c.tiles_x * (div_up(cam.height, ts));

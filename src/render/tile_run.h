@@ -19,6 +19,7 @@
 
 #include "wave/accumulate.h"
 #include "wave/emitter_hits.h"
+#include "wave/equiangular.h"
 #include "wave/escaped.h"
 #include "wave/generate.h"
 #include "wave/media.h"
@@ -91,12 +92,13 @@ inline int active_lanes(const int32_t* valid) {
   return n;
 }
 
-// The shadow packets' valid lanes (tb.tech.valid) of the shading points: occlusion queries,
-// counted, with the media's transmittance (wave/media.h trace_shadow_rays).
-inline void trace_shadow(const TileContext& c, TileBuffers& tb, StageTimer& timer, bool rec, ThreadProfile* tp) {
+// A set of shadow rays (S.valid lanes of [0, count)): occlusion queries, counted, with the
+// media's transmittance (wave/media.h trace_shadow_lanes).
+inline void trace_shadow_set(const TileContext& c, TileBuffers& tb, const ShadowLanes& S, int count, StageTimer& timer,
+                             bool rec, ThreadProfile* tp) {
   clear_high_vector_registers();
-  trace_shadow_rays(
-      c.v.geom, tb, tb.points.count,
+  trace_shadow_lanes(
+      c.v.geom, S, count,
       [&](const int32_t* valid, Ray16& s, int32_t* crossed) {
         const int active = active_lanes(valid);
         if (!active) return;
@@ -105,6 +107,46 @@ inline void trace_shadow(const TileContext& c, TileBuffers& tb, StageTimer& time
         tb.stats.rays_shadow += static_cast<uint64_t>(active);
       },
       [&](const int32_t* valid, RayHit16& q) { c.accel.intersect16(valid, q, false, Bvh::scene); });
+}
+
+// The shadow packets' valid lanes (tb.tech.valid) of the shading points.
+inline void trace_shadow(const TileContext& c, TileBuffers& tb, StageTimer& timer, bool rec, ThreadProfile* tp) {
+  trace_shadow_set(c, tb, shadow_lanes(tb), tb.points.count, timer, rec, tp);
+}
+
+// --equiangular in a scene with media (wave/equiangular.h): the segment light samples of
+// rays [0, count) of packets (their flights in tb.media), pair0 and pair1 their random
+// numbers (per tile lane or per shading point), beta the throughput at their origins (null:
+// 1), each unoccluded one added to its pixel lane (lane[k], null: k).
+inline void run_segment_lights(const TileContext& c, TileBuffers& tb, const Estimator& e, uint32_t s, uint32_t pair0,
+                               uint32_t pair1, const RayHit16* packets, const int32_t* valid, int count, bool per_lane,
+                               const float* const* beta, const int32_t* lane, StageTimer& timer, bool rec,
+                               ThreadProfile* tp) {
+  SegmentLights& S = tb.seg;
+  const int padded = packet_padded(count);
+  if (per_lane) {
+    lane_pairs(e, tb, s, pair0, padded, S.u0, S.u1);
+    lane_pairs(e, tb, s, pair1, padded, S.u2, S.u3);
+  } else {
+    point_pairs(e, tb, s, pair0, padded, S.u0, S.u1);
+    point_pairs(e, tb, s, pair1, padded, S.u2, S.u3);
+  }
+  const int n = std::min(count, padded);
+  for (int k = 0; k < padded; k += simd_width)
+    segment_light_lanes<vfloat, kind_all>(c.v.geom, c.v.lights, e, c.rate_light, c.rate_bsdf, packets, valid, n, tb.media,
+                                          beta, S, k);
+  timer.lap(Stage::sample_lights);
+  const ShadowLanes sl{S.shadow, S.valid, S.cr, S.cg, S.cb, nullptr, nullptr, nullptr, tb.media.eq_med, tb.media.eq_med};
+  trace_shadow_set(c, tb, sl, n, timer, rec, tp);
+  timer.lap(Stage::intersect_shadow);
+  PixelLanes& La = tb.lanes;
+  for (int k = 0; k < n; ++k) {
+    if (!S.valid[k] || S.shadow[k / packet_width].tfar[k % packet_width] == -INFINITY) continue;
+    const int i = lane ? lane[k] : k;
+    La.Lr[i] += S.cr[k];
+    La.Lg[i] += S.cg[k];
+    La.Lb[i] += S.cb[k];
+  }
 }
 
 // The bounce packets' valid lanes: nearest hits in the scene or among the emitters, counted.
@@ -334,7 +376,7 @@ inline void camera_media_paths(TileBuffers& tb) {
 // path's continuation, whose medium emission counts (pbrt-v4: the segments before the last
 // vertex).
 inline void bounce_media(const TileContext& c, TileBuffers& tb, const Estimator& e, uint32_t s, uint32_t d, uint32_t m,
-                         bool emission) {
+                         bool emission, StageTimer& timer, bool rec, ThreadProfile* tp) {
   const GeomView& G = c.v.geom;
   MediumLanes& ml = tb.media;
   const int n = tb.points.count, padded = packet_padded(n);
@@ -347,6 +389,21 @@ inline void bounce_media(const TileContext& c, TileBuffers& tb, const Estimator&
   point_pairs(e, tb, s, c.layout.medium_flight(m, d), padded, ml.u0, ml.u1);
   medium_flights(G, tb.bounce, tb.tech.valid, n, ml, tb.stats.rejected_bsdf,
                  [&](const int32_t* valid, RayHit16& p) { c.accel.intersect16(valid, p, false, Bvh::scene); });
+  // --equiangular: the continuation's segment light samples, from the throughput at the
+  // point times the BSDF sample's weight (before the flight's)
+  if (emission && e.equiangular) {
+    SegmentLights& S = tb.seg;
+    for (int k = 0; k < packet_padded(n); ++k) {
+      S.br[k] = tb.path.throughput_r[k] * tb.tech.beta_r[k];
+      S.bg[k] = tb.path.throughput_g[k] * tb.tech.beta_g[k];
+      S.bb[k] = tb.path.throughput_b[k] * tb.tech.beta_b[k];
+    }
+    const float* beta[3] = {S.br, S.bg, S.bb};
+    timer.lap(Stage::media);
+    run_segment_lights(c, tb, e, s, c.layout.segment_light(0, d), c.layout.segment_light(1, d), tb.bounce, tb.tech.valid, n,
+                       false, beta, tb.points.lane, timer, rec, tp);
+    timer.lap(Stage::sample_lights);
+  }
   for (int k = 0; k < n; ++k) {
     if (!tb.tech.valid[k]) continue;
     if (emission) {
@@ -430,7 +487,7 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
       timer.lap(Stage::intersect_bounce);
       if (!against_emitters) prefetch_hits(v.geom, tb.bounce, tb.tech.valid, tb.points.count);  // for the emitters' queue and the next hits
       if (v.geom.has_media) {
-        bounce_media(c, tb, e, s, d, static_cast<uint32_t>(m), continuation);
+        bounce_media(c, tb, e, s, d, static_cast<uint32_t>(m), continuation, timer, rec, tp);
         timer.lap(Stage::media);
       }
       constexpr bool delta = (F.bsdfs & bsdf_delta_capable) != 0;
@@ -515,6 +572,12 @@ void run_tile(const TileContext& c, TileBuffers& tb, ThreadProfile* tp, int tile
     if constexpr ((F.kinds & kind_sky) != 0) escaped_camera(v.lights, tb, lanes);  // the sky, seen directly
     if (media) camera_media_seen(tb, lanes);
     timer.lap(Stage::camera_hits);
+    if (media && est.equiangular) {  // the camera rays' segment light samples
+      const float* const none[3] = {nullptr, nullptr, nullptr};
+      run_segment_lights(c, tb, est, s, layout.segment_light(2), layout.segment_light(3), tb.cam, tb.lanes.cam_valid, lanes,
+                         true, none, nullptr, timer, rec, tp);
+      timer.lap(Stage::sample_lights);
+    }
     // Direct lighting is the first vertex; paths (max_depth > 1) go on from the last BSDF
     // sample of each vertex, compacted (bounce_hits), until no path is left or the depth
     // is reached. In a scene with media every sample runs as a path (the camera ray's
