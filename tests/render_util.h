@@ -1,8 +1,12 @@
 // Helpers for tests that render scenes built in code and compare with exact answers.
 #pragma once
 #include <cmath>
+#include <cstdio>
 #include <memory>
+#include <utility>
 #include <vector>
+
+#include <gtest/gtest.h>
 
 #include "accel/embree.h"
 #include "light/polygon_irradiance.h"
@@ -160,6 +164,59 @@ inline double z_of_mean(const RenderResult& r, const std::vector<double>& exact)
     v += var[3 * i];
   }
   return (diff / static_cast<double>(n)) / (std::sqrt(v) / static_cast<double>(n));
+}
+
+// The image of spp samples per pixel (seed and the rest in o).
+inline std::vector<float> render_mean(const Scene& s, const Accel& accel, const RenderOptions& o, uint32_t spp) {
+  Film f;
+  f.reset(s.camera.width, s.camera.height);
+  Renderer(s, accel, o).render(f, 0, spp);
+  return f.mean();
+}
+
+// Per seed, the mean of each quarter of the image and channel (12 numbers).
+inline std::vector<double> quarter_means(const Scene& s, const std::vector<float>& m) {
+  const int w = s.camera.width, h = s.camera.height;
+  std::vector<double> q(12, 0.0);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c)
+        q[static_cast<size_t>(3 * ((y * 2 / h) * 2 + x * 2 / w) + c)] +=
+            m[3 * (static_cast<size_t>(y) * static_cast<size_t>(w) + static_cast<size_t>(x)) + static_cast<size_t>(c)];
+  for (double& v : q) v /= w * h / 4.0;
+  return q;
+}
+
+// Two estimators' images (with, without: the options, whose seeds this sets) over `seeds` independent seeds each: for every quarter and
+// channel, the difference of their means over its standard error (from the spread over the
+// seeds) is below 5.5 (12 tests of a t statistic with about 2 (seeds - 1) degrees of
+// freedom: with 24 seeds, a false alarm once in some 50,000 runs).
+inline void expect_same_mean_over_seeds(const Scene& s, RenderOptions with, RenderOptions without, int seeds, const char* what) {
+  Accel accel(s);
+  std::vector<std::vector<double>> a, b;
+  for (int k = 0; k < seeds; ++k) {
+    with.est.seed = static_cast<uint32_t>(2 * k + 1);
+    without.est.seed = static_cast<uint32_t>(2 * k + 2);
+    for (auto [o, out] : {std::pair{&with, &a}, std::pair{&without, &b}})
+      out->push_back(quarter_means(s, render_mean(s, accel, *o, o->est.spp)));
+  }
+  const double n = seeds;
+  for (size_t i = 0; i < 12; ++i) {
+    double ma = 0, mb = 0, va = 0, vb = 0;
+    for (int k = 0; k < seeds; ++k) {
+      ma += a[static_cast<size_t>(k)][i] / n;
+      mb += b[static_cast<size_t>(k)][i] / n;
+    }
+    for (int k = 0; k < seeds; ++k) {
+      va += (a[static_cast<size_t>(k)][i] - ma) * (a[static_cast<size_t>(k)][i] - ma) / (n - 1);
+      vb += (b[static_cast<size_t>(k)][i] - mb) * (b[static_cast<size_t>(k)][i] - mb) / (n - 1);
+    }
+    ASSERT_GT(mb, 0);
+    const double z = (ma - mb) / std::sqrt(va / n + vb / n);
+    std::printf("[ %s ] quarter %zu channel %zu: %.5f with, %.5f without (z %.2f; std. errors %.2g, %.2g)\n", what,
+                i / 3, i % 3, ma, mb, z, std::sqrt(va / n), std::sqrt(vb / n));
+    EXPECT_LT(std::abs(z), 5.5) << what << ": quarter " << i / 3 << " channel " << i % 3;
+  }
 }
 
 }  // namespace tuile::test

@@ -146,65 +146,12 @@ RenderOptions options(bool light_paths, uint32_t spp, uint32_t seed) {
   return o;
 }
 
-// The image of spp samples per pixel (seed and the rest in o).
-std::vector<float> render_mean(const Scene& s, const Accel& accel, const RenderOptions& o, uint32_t spp) {
-  Film f;
-  f.reset(s.camera.width, s.camera.height);
-  Renderer(s, accel, o).render(f, 0, spp);
-  return f.mean();
-}
-
-// Per seed, the mean of each quarter of the image and channel (12 numbers).
-std::vector<double> quarter_means(const Scene& s, const std::vector<float>& m) {
-  const int w = s.camera.width, h = s.camera.height;
-  std::vector<double> q(12, 0.0);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      for (int c = 0; c < 3; ++c)
-        q[static_cast<size_t>(3 * ((y * 2 / h) * 2 + x * 2 / w) + c)] +=
-            m[3 * (static_cast<size_t>(y) * static_cast<size_t>(w) + static_cast<size_t>(x)) + static_cast<size_t>(c)];
-  for (double& v : q) v /= w * h / 4.0;
-  return q;
-}
-
-// The two estimators' images over `seeds` independent seeds each: for every quarter and
-// channel, the difference of their means over its standard error (from the spread over the
-// seeds) is below 5.5 (12 tests of a t statistic with about 2 (seeds - 1) degrees of
-// freedom: with 24 seeds, a false alarm once in some 50,000 runs).
-void expect_same_mean(const Scene& s, RenderOptions with, RenderOptions without, int seeds, const char* what) {
-  Accel accel(s);
-  std::vector<std::vector<double>> a, b;
-  for (int k = 0; k < seeds; ++k) {
-    with.est.seed = static_cast<uint32_t>(2 * k + 1);
-    without.est.seed = static_cast<uint32_t>(2 * k + 2);
-    for (auto [o, out] : {std::pair{&with, &a}, std::pair{&without, &b}})
-      out->push_back(quarter_means(s, render_mean(s, accel, *o, o->est.spp)));
-  }
-  const double n = seeds;
-  for (size_t i = 0; i < 12; ++i) {
-    double ma = 0, mb = 0, va = 0, vb = 0;
-    for (int k = 0; k < seeds; ++k) {
-      ma += a[static_cast<size_t>(k)][i] / n;
-      mb += b[static_cast<size_t>(k)][i] / n;
-    }
-    for (int k = 0; k < seeds; ++k) {
-      va += (a[static_cast<size_t>(k)][i] - ma) * (a[static_cast<size_t>(k)][i] - ma) / (n - 1);
-      vb += (b[static_cast<size_t>(k)][i] - mb) * (b[static_cast<size_t>(k)][i] - mb) / (n - 1);
-    }
-    ASSERT_GT(mb, 0);
-    const double z = (ma - mb) / std::sqrt(va / n + vb / n);
-    std::printf("[ %s ] quarter %zu channel %zu: %.5f with light paths, %.5f without (z %.2f; std. errors %.2g, %.2g)\n", what,
-                i / 3, i % 3, ma, mb, z, std::sqrt(va / n), std::sqrt(vb / n));
-    EXPECT_LT(std::abs(z), 5.5) << what << ": quarter " << i / 3 << " channel " << i % 3;
-  }
-}
-
 }  // namespace
 
 TEST(LightPaths, RendersThePathTracersMean) {
   const Scene s = caustic_room(24);
   const uint32_t spp = static_cast<uint32_t>(scaled(96));
-  expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "caustic room");
+  expect_same_mean_over_seeds(s, options(true, spp, 0), options(false, spp, 0), 24, "caustic room");
 }
 
 TEST(LightPaths, RendersThePathTracersMeanWithShadingNormalsASphereSourceAndATriangleFilter) {
@@ -212,7 +159,7 @@ TEST(LightPaths, RendersThePathTracersMeanWithShadingNormalsASphereSourceAndATri
   const uint32_t spp = static_cast<uint32_t>(scaled(96));
   RenderOptions with = options(true, spp, 0), without = options(false, spp, 0);
   with.filter = without.filter = default_filter(FilterKind::triangle);
-  expect_same_mean(s, with, without, 24, "shading normals, triangle filter");
+  expect_same_mean_over_seeds(s, with, without, 24, "shading normals, triangle filter");
 }
 
 // The room filled with a fog (inside an interface box that also holds the light and the
@@ -238,7 +185,7 @@ TEST(LightPaths, RendersThePathTracersMeanInAMedium) {
     }
   finalize_scene(s);
   const uint32_t spp = static_cast<uint32_t>(scaled(64));
-  expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "fog");
+  expect_same_mean_over_seeds(s, options(true, spp, 0), options(false, spp, 0), 24, "fog");
 }
 
 // A glass slab seen from below, lit from above: its top is smooth, its other faces diffuse
@@ -270,7 +217,7 @@ TEST(LightPaths, RendersThePathTracersMeanThroughAGlassSlab) {
   camera_look_at(s.camera, {0.2f, -1.2f, 0.1f}, {0, 0, 0}, {0, 0, 1});
   finalize_scene(s);
   const uint32_t spp = static_cast<uint32_t>(scaled(64));
-  expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "glass slab");
+  expect_same_mean_over_seeds(s, options(true, spp, 0), options(false, spp, 0), 24, "glass slab");
 }
 
 // A wall in its own shade: a distant source behind it and a dim constant sky over dark
@@ -350,7 +297,7 @@ Scene sun_wall(int res, bool more) {
 TEST(LightPaths, RendersThePathTracersMeanUnderASun) {
   const Scene s = sun_wall(24, false);
   const uint32_t spp = static_cast<uint32_t>(scaled(384));  // (the path tracer's glints: its error)
-  expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "sun");
+  expect_same_mean_over_seeds(s, options(true, spp, 0), options(false, spp, 0), 24, "sun");
   // the light tracer ran (the scene has no area light): the same seed renders otherwise
   Accel accel(s);
   EXPECT_NE(render_mean(s, accel, options(true, 4, 3), 4), render_mean(s, accel, options(false, 4, 3), 4));
@@ -359,7 +306,7 @@ TEST(LightPaths, RendersThePathTracersMeanUnderASun) {
 TEST(LightPaths, RendersThePathTracersMeanUnderASunAndAnAreaLight) {
   const Scene s = sun_wall(24, true);
   const uint32_t spp = static_cast<uint32_t>(scaled(96));
-  expect_same_mean(s, options(true, spp, 0), options(false, spp, 0), 24, "sun and area light");
+  expect_same_mean_over_seeds(s, options(true, spp, 0), options(false, spp, 0), 24, "sun and area light");
 }
 
 TEST(LightPaths, SameBitsOnAnyThreadCount) {
