@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "app/cli.h"
 #include "media_util.h"
 #include "medium/equiangular.h"
 #include "render/options.h"
@@ -279,4 +280,32 @@ TEST(Equiangular, RunsOnlyInMediaAndRefusesWhatItCannotDo) {
     if (k == 4) o.est.guide = true;
     EXPECT_THROW(validate(o), std::invalid_argument) << k;
   }
+}
+
+// The default, auto: on in a scene with a medium that scatters where the estimator allows
+// it, off in one whose media only absorb, without media, or with --guide; on and off as
+// told, a wrong word refused.
+TEST(Equiangular, AutoIsOnWhereAMediumScatters) {
+  auto resolved = [](Scene s, const std::string& value, bool guide = false) {
+    RenderFlags f;
+    f.equiangular = value;
+    f.guide = guide;
+    f.max_depth = 5;
+    f.max_depth_given = true;
+    return resolve_options(f, s).est.equiangular;
+  };
+  const Scene fog = fog_room(8, true);
+  Scene absorbing = fog;
+  absorbing.media[0].sigma_s = {0, 0, 0};
+  Scene plain = fog;
+  plain.media.clear();
+  EXPECT_TRUE(resolved(fog, ""));
+  EXPECT_TRUE(resolved(fog, "auto"));
+  EXPECT_FALSE(resolved(fog, "off"));
+  EXPECT_FALSE(resolved(fog, "", true));
+  EXPECT_FALSE(resolved(absorbing, ""));
+  EXPECT_FALSE(resolved(plain, ""));
+  EXPECT_TRUE(resolved(plain, "on"));
+  EXPECT_THROW(resolved(fog, "yes"), std::invalid_argument);
+  EXPECT_THROW(resolved(fog, "on", true), std::invalid_argument);
 }

@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -64,10 +65,12 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                "next to a distant source (a sun) by a glossy lobe of alpha 0.1 or less, are traced from the lights and "
                "joined to the camera, and the path tracer leaves them out (it finds them only by chance)");
   app.add_option("--equiangular", f.equiangular,
-                 "on | off: in scenes with media, a light sample more per ray through a medium, at a distance drawn by "
-                 "equiangular sampling towards a source (Kulla & Fajardo 2012) and MIS-weighted against the light "
-                 "samples at the free flights' collisions (unbiased): the light of a small source that the medium "
-                 "around it scatters, without the 1 / r^2 of the collisions next to it; default off");
+                 "auto | on | off: in scenes with media, a light sample more per ray through a medium, at a distance "
+                 "drawn by equiangular sampling towards a source (Kulla & Fajardo 2012) and MIS-weighted against the "
+                 "light samples at the free flights' collisions (unbiased): the light of a small source that the "
+                 "medium around it scatters, without the 1 / r^2 of the collisions next to it; default auto: on in "
+                 "scenes with a medium that scatters, unless --strategy bsdf or ris, --mis-mode one, --light-pick all, "
+                 "--heuristic optimal or --guide");
   app.add_option("--guide-learn", f.guide_learn, "--guide: the samples per pixel it learns from (iterations of 1, 1, 2, 4, ...)")
       ->capture_default_str();
   app.add_option("--guide-alpha", f.guide_alpha, "--guide: the share of directions drawn from the guide")->capture_default_str();
@@ -162,9 +165,6 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   else throw std::invalid_argument("--regularize: '" + f.regularize + "' is not on or off");
   e.guide = f.guide;
   e.light_paths = f.light_paths;
-  if (f.equiangular == "on") e.equiangular = true;
-  else if (!f.equiangular.empty() && f.equiangular != "off")
-    throw std::invalid_argument("--equiangular: '" + f.equiangular + "' is not on or off");
   e.guide_learn = f.guide_learn;
   e.guide_alpha = f.guide_alpha;
   if (f.spp_given && f.spp < 1) throw std::invalid_argument("--spp must be >= 1");
@@ -203,6 +203,15 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
     else if (!a.empty()) throw std::invalid_argument("--aov: unknown layer '" + a + "' (expected variance, mis_weight)");
     start = end + 1;
   }
+  // --equiangular: auto is on in a scene with a medium that scatters, where it combines
+  // with the estimator
+  if (f.equiangular == "on") e.equiangular = true;
+  else if (f.equiangular == "off") e.equiangular = false;
+  else if (f.equiangular.empty() || f.equiangular == "auto")
+    e.equiangular = equiangular_combines(e) && std::any_of(scene.media.begin(), scene.media.end(), [](const Medium& m) {
+                      return m.supported && m.sigma_s.any_positive();
+                    });
+  else throw std::invalid_argument("--equiangular: '" + f.equiangular + "' is not auto, on or off");
   validate(o);
   return o;
 }

@@ -72,6 +72,11 @@ void validate(const RenderOptions& o) {
   if (!filter.empty()) throw std::invalid_argument("--filter " + describe(o.filter) + ": " + param + " must be " + filter);
 }
 
+bool equiangular_combines(const Estimator& e) {
+  return (e.strategy == Strategy::mis || e.strategy == Strategy::light) && !e.one_sample() && e.pick != LightPick::all &&
+         e.heuristic != Heuristic::optimal && !e.guide;
+}
+
 Strategy parse_strategy(const std::string& s) {
   if (s == "light") return Strategy::light;
   if (s == "bsdf") return Strategy::bsdf;

@@ -29,6 +29,9 @@ struct RenderOptions {
 // Throws std::invalid_argument, naming the flag, for settings out of range (every caller
 // of the renderer gets the same checks: the command line, converge, figures, tests).
 void validate(const RenderOptions& o);
+// Whether --equiangular combines with the rest of the estimator (its default, auto, is on
+// where it does, in scenes with a medium that scatters).
+bool equiangular_combines(const Estimator& e);
 
 // Parses the names used on the command line and in scene files; throw std::invalid_argument.
 Strategy parse_strategy(const std::string& s);
