@@ -131,16 +131,15 @@ inline void run_segment_lights(const TileContext& c, TileBuffers& tb, const Esti
     point_pairs(e, tb, s, pair0, padded, S.u0, S.u1);
     point_pairs(e, tb, s, pair1, padded, S.u2, S.u3);
   }
-  const int n = std::min(count, padded);
   for (int k = 0; k < padded; k += simd_width)
-    segment_light_lanes<vfloat, kind_all>(c.v.geom, c.v.lights, e, c.rate_light, c.rate_bsdf, packets, valid, n, tb.media,
-                                          beta, S, k);
+    segment_light_lanes<vfloat, kind_all>(c.v.geom, c.v.lights, e, c.rate_light, c.rate_bsdf, packets, valid, count,
+                                          tb.media, beta, S, k);
   timer.lap(Stage::sample_lights);
   const ShadowLanes sl{S.shadow, S.valid, S.cr, S.cg, S.cb, nullptr, nullptr, nullptr, tb.media.eq_med, tb.media.eq_med};
-  trace_shadow_set(c, tb, sl, n, timer, rec, tp);
+  trace_shadow_set(c, tb, sl, count, timer, rec, tp);
   timer.lap(Stage::intersect_shadow);
   PixelLanes& La = tb.lanes;
-  for (int k = 0; k < n; ++k) {
+  for (int k = 0; k < count; ++k) {
     if (!S.valid[k] || S.shadow[k / packet_width].tfar[k % packet_width] == -INFINITY) continue;
     const int i = lane ? lane[k] : k;
     La.Lr[i] += S.cr[k];
