@@ -106,8 +106,7 @@ std::vector<std::string> to_args(const std::string& where, CLI::App& app, const 
       throw py::value_error(where + ": " + name + ": expected a number or a string, not " +
                             py::cast<std::string>(py::str(py::type::of(v).attr("__name__"))));
     }
-    args.push_back("--" + flag);
-    args.push_back(value);
+    args.push_back("--" + flag + "=" + value);  // (one token: a flag with a value, --light-paths=off, too)
   }
   return args;
 }

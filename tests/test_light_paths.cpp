@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "app/cli.h"
 #include "media_util.h"
 #include "render/light_paths.h"
 #include "render/options.h"
@@ -165,9 +166,9 @@ TEST(LightPaths, RendersThePathTracersMeanWithShadingNormalsASphereSourceAndATri
 // The room filled with a fog (inside an interface box that also holds the light and the
 // glass), the camera outside it: the glass throws a caustic into the fog, which the light
 // tracer's vertices in the medium join to the camera through the interface.
-TEST(LightPaths, RendersThePathTracersMeanInAMedium) {
-  Scene s = caustic_room(20, false, false);
-  s.media.push_back(homogeneous({0.05f, 0.05f, 0.08f}, {0.4f, 0.35f, 0.3f}, 0.3f));
+Scene caustic_fog_room(int res, Rgb sigma_s) {
+  Scene s = caustic_room(res, false, false);
+  s.media.push_back(homogeneous({0.05f, 0.05f, 0.08f}, sigma_s, 0.3f));
   const int fog = 0;
   const int iface = static_cast<int>(s.materials.size());
   s.materials.push_back(interface_material());
@@ -184,6 +185,11 @@ TEST(LightPaths, RendersThePathTracersMeanInAMedium) {
       m.medium_outside = fog;
     }
   finalize_scene(s);
+  return s;
+}
+
+TEST(LightPaths, RendersThePathTracersMeanInAMedium) {
+  const Scene s = caustic_fog_room(20, {0.4f, 0.35f, 0.3f});
   const uint32_t spp = static_cast<uint32_t>(scaled(64));
   expect_same_mean_over_seeds(s, options(true, spp, 0), options(false, spp, 0), 24, "fog");
 }
@@ -349,4 +355,74 @@ TEST(LightPaths, RefusesWhatItCannotDo) {
   finalize_scene(plain);
   Accel pa(plain);
   EXPECT_EQ(render_mean(plain, pa, options(true, 4, 0), 4), render_mean(plain, pa, options(false, 4, 0), 4));
+}
+
+// The default, auto: on where the scene holds paths only the light tracer finds at a steady
+// rate (a sun's glints off near-specular surfaces; an area light's caustics through smooth
+// glass or a mirror into a fog), off where the path tracer has them (glints of a rougher
+// lobe, caustics on surfaces alone or in a fog that only absorbs) and wherever a flag or the
+// scene refuses the light tracer.
+TEST(LightPaths, AutoIsOnWhereOnlyTheLightTracerFindsThePaths) {
+  auto resolved = [](Scene s, const std::string& value, int max_depth = 5, const std::string& aov = "",
+                     double target_error = 0, bool distributed = false) {
+    RenderFlags f;
+    f.light_paths = value;
+    f.max_depth = max_depth;
+    f.max_depth_given = true;
+    f.aov = aov;
+    f.target_error = target_error;
+    f.distributed = distributed;
+    return resolve_options(f, s).est.light_paths;
+  };
+  const Scene sun = sun_wall(16, false);
+  EXPECT_TRUE(resolved(sun, ""));
+  EXPECT_TRUE(resolved(sun, "auto"));
+  EXPECT_TRUE(resolved(sun, "on"));
+  EXPECT_TRUE(resolved(sun, "true"));
+  EXPECT_FALSE(resolved(sun, "off"));
+  EXPECT_FALSE(resolved(sun, "false"));
+  EXPECT_THROW(resolved(sun, "sometimes"), std::invalid_argument);
+  // what refuses the light tracer turns auto off, and makes on an error
+  EXPECT_FALSE(resolved(sun, "", 1));
+  EXPECT_THROW(resolved(sun, "on", 1), std::invalid_argument);
+  EXPECT_FALSE(resolved(sun, "", 5, "variance"));
+  EXPECT_THROW(resolved(sun, "on", 5, "variance"), std::invalid_argument);
+  EXPECT_FALSE(resolved(sun, "", 5, "", 0.01));
+  EXPECT_FALSE(resolved(sun, "", 5, "", 0, true));
+  EXPECT_TRUE(resolved(sun, "", 5, "mis_weight"));
+  // the glossy surfaces rougher than the light tracer's bound, or smooth (a delta lobe: no
+  // glint of a delta source): the path tracer's
+  for (const float alpha : {0.3f, 5e-4f}) {
+    Scene s = sun;
+    for (Material& m : s.materials)
+      if (m.kind != MaterialKind::diffuse) m.alpha_u.value = m.alpha_v.value = alpha;
+    EXPECT_FALSE(resolved(s, "")) << alpha;
+    EXPECT_TRUE(resolved(s, "on")) << alpha;
+  }
+  // a glossy material no surface carries
+  {
+    Scene s = sun;
+    for (Mesh& m : s.meshes)
+      if (m.material != 0 && m.material != 7) m.material = 0;
+    for (Sphere& sp : s.spheres) sp.material = 0;
+    EXPECT_FALSE(resolved(s, ""));
+  }
+  // an area light, glass and a mirror: caustics on surfaces, the path tracer's
+  EXPECT_FALSE(resolved(caustic_room(16), ""));
+  // ... and in a fog that scatters: the light tracer's; in one that only absorbs, not
+  const Scene fog = caustic_fog_room(16, {0.4f, 0.35f, 0.3f});
+  EXPECT_TRUE(resolved(fog, ""));
+  EXPECT_FALSE(resolved(caustic_fog_room(16, {0, 0, 0}), ""));
+  {  // the fog room without a delta lobe (the glass, the mirror and the coat rough)
+    Scene s = fog;
+    for (Material& m : s.materials)
+      if (m.kind != MaterialKind::diffuse) m.alpha_u.value = m.alpha_v.value = 0.2f;
+    EXPECT_FALSE(resolved(s, ""));
+  }
+  {  // an emitter with an alpha cut-out, which the light tracer refuses
+    Scene s = fog;
+    for (Mesh& m : s.meshes)
+      if (m.name == "light") m.alpha.value = 0.5f;
+    EXPECT_FALSE(resolved(s, ""));
+  }
 }

@@ -135,6 +135,34 @@ TEST(Mpi, GuidedRendersGiveTheSingleProcessBytes) {
   EXPECT_TRUE(same_pixels(dir / "resumed-one.exr", dir / "resumed-mpi.exr"));
 }
 
+// --light-paths under mpirun: a light path lands anywhere in the image, so the ranks cannot
+// render parts of it yet. Its default, auto, is off there (a scene where it is on in one
+// process: a sun and a metal ball of alpha 0.05), so the job renders the single process's
+// `--light-paths=off` bytes; asked for by name, it is an error naming the flag.
+TEST(Mpi, LightPathsAutoIsOffAndOnIsRefused) {
+  std::string why;
+  if (!mpi_ready(why)) GTEST_SKIP() << why;
+  TempDir dir;
+  const std::string scene = dir / "sun.pbrt";
+  std::ofstream(scene) << "LookAt 0 1.2 4  0 0.4 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 45 ]\n"
+                          "Integrator \"path\" \"integer maxdepth\" [ 5 ]\nWorldBegin\n"
+                          "LightSource \"distant\" \"point3 from\" [ 0 4 -3 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 3 3 3 ]\n"
+                          "Material \"diffuse\" \"rgb reflectance\" [ 0.6 0.6 0.6 ]\n"
+                          "Shape \"trianglemesh\" \"point3 P\" [ -3 0 -3  3 0 -3  3 0 3  -3 0 3 ] "
+                          "\"integer indices\" [ 0 2 1  0 3 2 ]\n"
+                          "Material \"conductor\" \"float roughness\" [ 0.05 ] \"bool remaproughness\" false\n"
+                          "AttributeBegin\nTranslate 0 0.5 0\nShape \"sphere\" \"float radius\" [ 0.5 ]\nAttributeEnd\n";
+  const std::string args = " render " + scene + " --res 48x32 --spp 8 --quiet -o ";
+  std::string out;
+  ASSERT_EQ(run(std::string(TUILE_BINARY) + args + (dir / "auto.exr"), out), 0) << out;
+  ASSERT_EQ(run(std::string(TUILE_BINARY) + args + (dir / "off.exr") + " --light-paths=off", out), 0) << out;
+  EXPECT_FALSE(same_pixels(dir / "auto.exr", dir / "off.exr"));  // on in one process
+  ASSERT_EQ(run(mpirun(2) + args + (dir / "mpi.exr"), out), 0) << out;
+  EXPECT_TRUE(same_pixels(dir / "off.exr", dir / "mpi.exr"));
+  EXPECT_NE(run(mpirun(2) + args + (dir / "on.exr") + " --light-paths", out), 0);
+  EXPECT_EQ(count(out, "--light-paths"), 1u) << out;
+}
+
 TEST(Mpi, AMissingSceneIsReportedOnce) {
   std::string why;
   if (!mpi_ready(why)) GTEST_SKIP() << why;

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "render/filter_table.h"
+#include "render/light_paths.h"
 
 namespace tuile {
 
@@ -59,11 +60,14 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                "from the first --guide-learn samples' paths, drawn from at diffuse points and in media with "
                "probability --guide-alpha and mixed with BSDF sampling (MIS sees the mixture's density); over MPI the "
                "ranks learn together (the single process's image)");
-  app.add_flag("--light-paths", f.light_paths,
-               "light tracing for the caustics (unbiased): the paths whose first vertex from the camera is diffuse or in "
-               "a medium and whose vertex next to an area light scatters by a delta lobe (a mirror, smooth glass), or "
-               "next to a distant source (a sun) by a glossy lobe of alpha 0.1 or less, are traced from the lights and "
-               "joined to the camera, and the path tracer leaves them out (it finds them only by chance)");
+  app.add_flag("--light-paths{on}", f.light_paths,
+               "[=auto|on|off] light tracing for the caustics (unbiased): the paths whose first vertex from the camera "
+               "is diffuse or in a medium and whose vertex next to an area light scatters by a delta lobe (a mirror, "
+               "smooth glass), or next to a distant source (a sun) by a glossy lobe of alpha 0.1 or less, are traced "
+               "from the lights and joined to the camera, and the path tracer leaves them out (it finds them only by "
+               "chance); the flag alone is on; default auto: on in scenes with a sun and such a glossy surface, or with "
+               "an area light, smooth glass or a mirror and a medium that scatters (volumetric caustics), unless "
+               "--max-depth 1, --aov variance, --target-error, mpirun or an emitter with an alpha cut-out");
   app.add_option("--equiangular", f.equiangular,
                  "auto | on | off: in scenes with media, a light sample more per ray through a medium, at a distance "
                  "drawn by equiangular sampling towards a source (Kulla & Fajardo 2012) and MIS-weighted against the "
@@ -164,7 +168,6 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   else if (f.regularize == "off") e.regularize = false;
   else throw std::invalid_argument("--regularize: '" + f.regularize + "' is not on or off");
   e.guide = f.guide;
-  e.light_paths = f.light_paths;
   e.guide_learn = f.guide_learn;
   e.guide_alpha = f.guide_alpha;
   if (f.spp_given && f.spp < 1) throw std::invalid_argument("--spp must be >= 1");
@@ -212,6 +215,14 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
                       return m.supported && m.sigma_s.any_positive();
                     });
   else throw std::invalid_argument("--equiangular: '" + f.equiangular + "' is not auto, on or off");
+  // --light-paths: auto is on where the scene holds paths only the light tracer finds at a
+  // steady rate (light_paths_pay) and nothing refuses it
+  if (f.light_paths == "on" || f.light_paths == "true") e.light_paths = true;
+  else if (f.light_paths == "off" || f.light_paths == "false") e.light_paths = false;
+  else if (f.light_paths.empty() || f.light_paths == "auto")
+    e.light_paths = e.max_depth >= 2 && !o.aov_variance && !(f.target_error > 0) && !f.distributed &&
+                    !alpha_cut_emitter(scene) && light_paths_pay(scene);
+  else throw std::invalid_argument("--light-paths: '" + f.light_paths + "' is not auto, on or off");
   validate(o);
   return o;
 }

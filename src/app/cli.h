@@ -23,7 +23,8 @@ struct RenderFlags {
   std::string filter;  // pixel filter; "": the scene file's PixelFilter, else box
   std::string regularize;  // --regularize on|off; "": the scene file's Integrator
   bool guide = false;      // --guide
-  bool light_paths = false;  // --light-paths
+  std::string light_paths;   // --light-paths[=auto|on|off] (empty: auto; the flag alone: on)
+  bool distributed = false;  // under mpirun (--light-paths auto is off there)
   std::string equiangular;   // --equiangular on | off (empty: the default)
   uint32_t guide_learn = 64;
   float guide_alpha = 0.5f;
@@ -42,6 +43,9 @@ struct RenderFlags {
   std::string command_line;  // recorded in the EXR header
   double mpi_timeout = 300;  // under mpirun: seconds rank 0 waits for a rank's result before ending the job
 };
+
+// --light-paths asked for by name (on), not resolved by auto.
+inline bool light_paths_asked(const RenderFlags& f) { return f.light_paths == "on" || f.light_paths == "true"; }
 
 void add_render_flags(CLI::App& app, RenderFlags& f);
 // The flags of `tuile render` alone: --checkpoint, --resume, --time-budget, --target-error.

@@ -54,7 +54,7 @@ RenderJob start_render_job(const RenderFlags& f, std::shared_ptr<Prepared> loade
   check_nonnegative(f.checkpoint_seconds, "--checkpoint");
   check_nonnegative(f.time_budget, "--time-budget");
   check_nonnegative(f.target_error, "--target-error");
-  if (f.light_paths && f.target_error > 0)
+  if (light_paths_asked(f) && f.target_error > 0)
     throw std::invalid_argument("--target-error estimates the error from the camera's samples alone, which the light "
                                 "paths' contributions (--light-paths) are not");
   // the output first, before any work (with -o; a scene's own Film name is checked after load)

@@ -507,7 +507,9 @@ bool load_everywhere(const Mpi& mpi, const RenderFlags& f, std::unique_ptr<Rende
 
 }  // namespace
 
-int run_render_distributed(const RenderFlags& f) {
+int run_render_distributed(const RenderFlags& flags) {
+  RenderFlags f = flags;
+  f.distributed = true;  // (--light-paths auto: off)
   Mpi mpi;
   if (f.time_budget > 0 || f.target_error > 0) {
     if (mpi.rank == 0)
@@ -522,7 +524,7 @@ int run_render_distributed(const RenderFlags& f) {
                    "ranks of mpirun render at the same time; render it in one process\n";
     return 1;
   }
-  if (f.light_paths) {  // (the renderer refuses a part of the tiles too)
+  if (light_paths_asked(f)) {  // (the renderer refuses a part of the tiles too)
     if (mpi.rank == 0)
       std::cerr << "tuile: error: --light-paths: a light path lands anywhere in the image, so the ranks of mpirun cannot "
                    "render parts of it yet; render it in one process\n";
@@ -584,6 +586,13 @@ int run_render_distributed(const RenderFlags& f) {
 int run_bench_distributed(const BenchFlags& bf) {
   Mpi mpi;
   RenderFlags f = bf.render;
+  f.distributed = true;  // (--light-paths auto: off)
+  if (light_paths_asked(f)) {
+    if (mpi.rank == 0)
+      std::cerr << "tuile: error: --light-paths: a light path lands anywhere in the image, so the ranks of mpirun cannot "
+                   "render parts of it yet; bench it in one process\n";
+    return 1;
+  }
   std::unique_ptr<RenderJob> job;
   std::unique_ptr<Prepared> prepared;
   f.output.clear();

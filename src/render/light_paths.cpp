@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 
 #include "light/kinds.h"
@@ -31,6 +32,25 @@ bool is_distant(int32_t type) { return type == static_cast<int32_t>(LightKind::d
 // chairs, lamps and windows) more, and classroom's body (its desks' coats of 0.1) 2.3x;
 // 0.2 or 0.5 changed nothing more than the time.
 constexpr float light_traced_alpha = 0.1f;
+
+bool any_used_material(const Scene& scene, const std::function<bool(const Material&)>& pred) {
+  const size_t n = scene.materials.size();
+  auto test = [&](int m) {
+    if (m < 0 || static_cast<size_t>(m) >= n) return false;
+    const Material& x = scene.materials[static_cast<size_t>(m)];
+    if (x.mix[0] >= 0 || x.mix[1] >= 0) {  // a mix's two choices (never mixes themselves)
+      for (const int c : x.mix)
+        if (c >= 0 && static_cast<size_t>(c) < n && pred(scene.materials[static_cast<size_t>(c)])) return true;
+      return false;
+    }
+    return pred(x);
+  };
+  for (const Mesh& m : scene.meshes)
+    if (test(m.material)) return true;
+  for (const Sphere& s : scene.spheres)
+    if (test(s.material)) return true;
+  return false;
+}
 
 // Lane i's ray (a light path's next segment) from org along the unit d, traced to the
 // nearest hit.
@@ -70,6 +90,41 @@ double axis_integral(const FilterView& f, const FilterAxis& a) {
 }
 
 }  // namespace
+
+bool light_paths_pay(const Scene& scene) {
+  bool distant = false, area = false;
+  for (const Light& l : scene.lights) {
+    if (!l.radiance.any_positive()) continue;
+    distant |= l.type == LightKind::distant;
+    area |= is_area(static_cast<int32_t>(l.type));
+  }
+  const bool media = (scene.features & feat_media) != 0;
+  auto constant_alpha = [](const Material& m) { return m.alpha_u.texture < 0 && m.alpha_v.texture < 0; };
+  if (distant && !media && scene.instances.empty() &&
+      any_used_material(scene, [&](const Material& m) {
+        const float a = std::max(m.alpha_u.value, m.alpha_v.value);
+        return microfacet_kind(static_cast<int32_t>(m.kind)) && constant_alpha(m) && a >= smooth_alpha &&
+               a <= light_traced_alpha;
+      }))
+    return true;
+  const bool scattering = std::any_of(scene.media.begin(), scene.media.end(),
+                                      [](const Medium& m) { return m.supported && m.sigma_s.any_positive(); });
+  return area && media && scattering && any_used_material(scene, [&](const Material& m) {
+           if (m.kind == MaterialKind::thin_dielectric) return true;
+           return microfacet_kind(static_cast<int32_t>(m.kind)) && constant_alpha(m) &&
+                  std::max(m.alpha_u.value, m.alpha_v.value) < smooth_alpha;
+         });
+}
+
+bool alpha_cut_emitter(const Scene& scene) {
+  for (const Light& l : scene.lights) {
+    if (l.mesh >= 0 && static_cast<size_t>(l.mesh) < scene.meshes.size() && scene.meshes[static_cast<size_t>(l.mesh)].has_alpha())
+      return true;
+    if (l.sphere >= 0 && static_cast<size_t>(l.sphere) < scene.spheres.size() && scene.spheres[static_cast<size_t>(l.sphere)].alpha < 1)
+      return true;
+  }
+  return false;
+}
 
 LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, int width, int height, const float lo[3],
                        const float hi[3])

@@ -72,6 +72,23 @@ struct LightPathSplat {
   float r, g, b;
 };
 
+// What --light-paths auto (the default) turns on: whether the scene holds paths that the
+// path tracer finds only by chance and the light tracer at a steady rate, where the light
+// tracer's cost per sample is known to pay (bench/results.md, "Light paths by default"):
+// - the sun's glints: a distant source and, on a mesh or sphere, a material of constant
+//   alphas in [smooth_alpha, light_traced_alpha] (through a mix too), in a scene without
+//   media or instances (the paths the light tracer takes from a distant source);
+// - volumetric caustics: an area light, a surface with a delta lobe (constant alphas below
+//   smooth_alpha, or thin glass) and a medium that scatters (a caustic in a fog, which a
+//   light sample never reaches).
+// An area light's caustics through glass onto surfaces alone are not enough: there the
+// path tracer's own samples of them cost less (staircase2: 0.82x the efficiency with
+// light paths). Scene-level facts only (no views), so that the flags can resolve it.
+bool light_paths_pay(const Scene& scene);
+// An emitter with an alpha cut-out (a mesh's alpha or a sphere's below 1), which the light
+// tracer refuses.
+bool alpha_cut_emitter(const Scene& scene);
+
 class LightPaths {
  public:
   // Throws std::invalid_argument where the scene has what the light tracer cannot trace

@@ -35,6 +35,7 @@ CASES = [
     dict(spp=4, res="40x30", strategy="mis", max_depth=4, regularize="on"),
     dict(spp=6, res="40x30", strategy="mis", max_depth=4, guide=True, guide_learn=2, guide_alpha=0.25),
     dict(spp=4, res="40x30", strategy="mis", max_depth=4, light_paths=True),
+    dict(spp=4, res="40x30", strategy="light", max_depth=3, light_paths="off"),
 ]
 
 
@@ -46,7 +47,7 @@ def cli_args(flags):
             continue
         if k == "res" and isinstance(v, tuple):
             v = "%dx%d" % v
-        args += ["--" + k.replace("_", "-"), v]
+        args.append("--%s=%s" % (k.replace("_", "-"), v))  # (one token, as a flag's value must be)
     return args
 
 
@@ -94,6 +95,7 @@ def test_arrays_share_memory_with_the_film(cornell):
     (dict(guide=True, max_depth=1), "guide"),
     (dict(guide=True, max_depth=3, guide_alpha=2), "guide_alpha"),
     (dict(light_paths=True, max_depth=1), "light_paths"),
+    (dict(light_paths="sometimes"), "light_paths"),
 ])
 def test_bad_arguments_raise_value_error_naming_the_argument(cornell, kw, name):
     with pytest.raises(ValueError, match=name):
