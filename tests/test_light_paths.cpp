@@ -235,7 +235,7 @@ TEST(LightPaths, RendersThePathTracersMeanThroughAGlassSlab) {
 // `more`, a glass ball and an area light before the wall too (the light tracer picks
 // between the two kinds of source), and the metal plate rougher than the flag's bound (its
 // glints stay the path tracer's).
-Scene sun_wall(int res, bool more) {
+Scene sun_wall(int res, bool more, bool sphere_sun = false) {
   Scene s;
   s.source = "test:sun-wall";
   s.materials.push_back(diffuse_material(Rgb{0.7f, 0.7f, 0.7f}));  // 0
@@ -282,11 +282,20 @@ Scene sun_wall(int res, bool more) {
     s.spheres.push_back(g);
     add_named_quad(s, "light", 0, {-1.2f, 1.2f, -1.9f}, {0.5f, 0, 0}, {0, 0, 0.5f}, 3);  // facing down
   }
-  Light sun;
-  sun.type = LightKind::distant;
-  sun.e1 = normalize(vec3f{0.f, 1.f, -1.2f});  // behind the wall
-  sun.radiance = {3, 3, 2.6f};
-  s.lights.push_back(sun);
+  if (sphere_sun) {  // an area source where the sun would be: behind the wall, above it
+    Sphere lamp;
+    lamp.center = {0, 6.2f, -5.6f};  // (out of the camera's view)
+    lamp.radius = 0.3f;
+    lamp.material = 0;
+    lamp.emission = {750, 750, 650};
+    s.spheres.push_back(lamp);
+  } else {
+    Light sun;
+    sun.type = LightKind::distant;
+    sun.e1 = normalize(vec3f{0.f, 1.f, -1.2f});  // behind the wall
+    sun.radiance = {3, 3, 2.6f};
+    s.lights.push_back(sun);
+  }
   Light sky;
   sky.type = LightKind::infinite;
   sky.radiance = {0.03f, 0.04f, 0.06f};
@@ -307,6 +316,24 @@ TEST(LightPaths, RendersThePathTracersMeanUnderASun) {
   // the light tracer ran (the scene has no area light): the same seed renders otherwise
   Accel accel(s);
   EXPECT_NE(render_mean(s, accel, options(true, 4, 3), 4), render_mean(s, accel, options(false, 4, 3), 4));
+}
+
+// --light-paths=glossy: the same wall lit by an area source in the sun's place, its light
+// off the near-specular surfaces (the plate, the coated ball, the mix) now the light
+// tracer's, both of the path tracer's techniques at those vertices left out.
+TEST(LightPaths, GlossyRendersThePathTracersMeanUnderASphereSource) {
+  const Scene s = sun_wall(24, false, true);
+  const uint32_t spp = static_cast<uint32_t>(scaled(256));
+  RenderOptions glossy = options(true, spp, 0);
+  glossy.est.light_paths_glossy = true;
+  expect_same_mean_over_seeds(s, glossy, options(false, spp, 0), 24, "sphere source, glossy");
+  // the split ran: the same seed renders otherwise than with --light-paths alone (which has
+  // nothing to trace here: no delta lobe, no distant source)
+  Accel accel(s);
+  glossy.est.spp = 4;
+  glossy.est.seed = 3;
+  EXPECT_NE(render_mean(s, accel, glossy, 4), render_mean(s, accel, options(true, 4, 3), 4));
+  EXPECT_EQ(render_mean(s, accel, options(true, 4, 3), 4), render_mean(s, accel, options(false, 4, 3), 4));
 }
 
 TEST(LightPaths, RendersThePathTracersMeanUnderASunAndAnAreaLight) {
@@ -382,6 +409,20 @@ TEST(LightPaths, AutoIsOnWhereOnlyTheLightTracerFindsThePaths) {
   EXPECT_FALSE(resolved(sun, "off"));
   EXPECT_FALSE(resolved(sun, "false"));
   EXPECT_THROW(resolved(sun, "sometimes"), std::invalid_argument);
+  {
+    RenderFlags f;
+    f.light_paths = "glossy";
+    f.max_depth = 5;
+    f.max_depth_given = true;
+    Scene s = sun;
+    const RenderOptions o = resolve_options(f, s);
+    EXPECT_TRUE(o.est.light_paths && o.est.light_paths_glossy);
+    EXPECT_NE(describe(o.est).find("light-paths=glossy"), std::string::npos);
+    f.strategy = "ris";
+    EXPECT_THROW(resolve_options(f, s), std::invalid_argument);
+    f.light_paths = "on";
+    EXPECT_FALSE(resolve_options(f, s).est.light_paths_glossy);
+  }
   // what refuses the light tracer turns auto off, and makes on an error
   EXPECT_FALSE(resolved(sun, "", 1));
   EXPECT_THROW(resolved(sun, "on", 1), std::invalid_argument);

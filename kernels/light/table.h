@@ -60,8 +60,8 @@ struct LightView {
   const int32_t* alpha_prim = nullptr;
   const AlphaShape* alpha_shapes = nullptr;
   // --light-paths: per source, 1 where the light tracer takes the source's light at
-  // near-specular vertices (GeomView::mat_lt_glossy): the distant sources it emits from;
-  // nullptr: none
+  // near-specular vertices (GeomView::mat_lt_glossy): distant sources, and area ones where
+  // that split is on; nullptr: none
   const int32_t* lt_glossy = nullptr;
 };
 

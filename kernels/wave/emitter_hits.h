@@ -194,10 +194,19 @@ inline void read_bounce_visibility(TileBuffers& tb) {
 // (src/render/light_paths.h: paths whose vertex next to the light is specular and whose
 // vertex next to the camera is rough): they count as not visible. A light sample never
 // makes such a path (a delta lobe has no value for it), so no MIS weight changes. Needs the
-// queue's delta flags (pipelines with delta-capable surfaces).
-inline void drop_light_traced_hits(TileBuffers& tb) {
-  for (int j = 0; j < tb.queue.count; ++j)
-    if (tb.queue.delta[j] && tb.path.first_rough[tb.queue.point[j]] > 0.f) tb.queue.vis[j] = 0.f;
+// queue's delta flags (pipelines with delta-capable surfaces). Where the light tracer also
+// takes an area source's light at near-specular vertices (LightView::lt_glossy), the hits of
+// the other samples from such a vertex are its too, and so are the light samples there
+// (sample_lights.h): the path tracer has none of those paths, whatever their MIS weights.
+template <bool Delta>
+inline void drop_light_traced_hits(const GeomView& G, const LightView& L, TileBuffers& tb) {
+  const bool glossy = L.lt_glossy != nullptr && G.mat_lt_glossy != nullptr;
+  for (int j = 0; j < tb.queue.count; ++j) {
+    const int32_t k = tb.queue.point[j];
+    if (!(tb.path.first_rough[k] > 0.f)) continue;
+    if (Delta && tb.queue.delta[j]) tb.queue.vis[j] = 0.f;
+    else if (glossy && L.lt_glossy[tb.queue.light[j]] != 0 && G.mat_lt_glossy[tb.points.mat[k]] != 0) tb.queue.vis[j] = 0.f;
+  }
 }
 
 // Weights the visible entries of the queue and adds them to their shading points.

@@ -61,6 +61,11 @@ struct Estimator {
   // tracer leaves them out (drop_light_traced_hits; the light stage, sample_lights.h).
   // Unbiased: the two estimators split path space.
   bool light_paths = false;
+  // --light-paths=glossy: also an area light's light at a near-specular vertex (the same
+  // bound as a distant source's) after a rough first one: the light tracer's, both of the
+  // path tracer's techniques there left out (veach-mis's caustics of its small bright
+  // source off its smoothest plate). Needs light_paths.
+  bool light_paths_glossy = false;
   // --equiangular (wave/equiangular.h): in scenes with media, each path ray's direct light
   // scattered along its first stretch of a scattering medium, from a point drawn by
   // equiangular sampling towards a source (Kulla & Fajardo 2012), MIS-weighted against the

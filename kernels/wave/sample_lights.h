@@ -223,10 +223,10 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
   out.scale = s.scale;
   out.is_delta = s.is_delta;
   out.ok = active && s.valid && front && out.cos_x > T(0.f);
-  // --light-paths: a distant source's light at a near-specular vertex of a path whose first
+  // --light-paths: a flagged source's light at a near-specular vertex of a path whose first
   // vertex is rough is the light tracer's (src/render/light_paths.h; the views are set only
   // then, and first_rough only from the path's second vertex on)
-  if constexpr ((Kinds & kind_delta) != 0 && (Bsdfs & ~bsdf_diffuse) != 0)
+  if constexpr ((Kinds & (kind_delta | kind_area)) != 0 && (Bsdfs & ~bsdf_diffuse) != 0)
     if (L.lt_glossy != nullptr && G.mat_lt_glossy != nullptr) {
       const auto traced = f_mask_from_i(gather(L.lt_glossy, light_idx) != i32_t<T>(0)) &&
                           f_mask_from_i(gather(G.mat_lt_glossy, load_i32<T>(tb.points.mat + k)) != i32_t<T>(0)) &&

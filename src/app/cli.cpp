@@ -61,11 +61,12 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                "probability --guide-alpha and mixed with BSDF sampling (MIS sees the mixture's density); over MPI the "
                "ranks learn together (the single process's image)");
   app.add_flag("--light-paths{on}", f.light_paths,
-               "[=auto|on|off] light tracing for the caustics (unbiased): the paths whose first vertex from the camera "
-               "is diffuse or in a medium and whose vertex next to an area light scatters by a delta lobe (a mirror, "
-               "smooth glass), or next to a distant source (a sun) by a glossy lobe of alpha 0.1 or less, are traced "
-               "from the lights and joined to the camera, and the path tracer leaves them out (it finds them only by "
-               "chance); the flag alone is on; default auto: on in scenes with a sun and such a glossy surface, or with "
+               "[=auto|on|glossy|off] light tracing for the caustics (unbiased): the paths whose first vertex from the "
+               "camera is diffuse or in a medium and whose vertex next to an area light scatters by a delta lobe (a "
+               "mirror, smooth glass), or next to a distant source (a sun) by a glossy lobe of alpha 0.1 or less, are "
+               "traced from the lights and joined to the camera, and the path tracer leaves them out (it finds them only "
+               "by chance); glossy: an area light's light off such a glossy lobe too (a small bright source's caustics "
+               "off near-mirrors); the flag alone is on; default auto: on in scenes with a sun and such a glossy surface, or with "
                "an area light, smooth glass or a mirror and a medium that scatters (volumetric caustics), unless "
                "--max-depth 1, --aov variance, --target-error, mpirun or an emitter with an alpha cut-out");
   app.add_option("--equiangular", f.equiangular,
@@ -218,11 +219,12 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   // --light-paths: auto is on where the scene holds paths only the light tracer finds at a
   // steady rate (light_paths_pay) and nothing refuses it
   if (f.light_paths == "on" || f.light_paths == "true") e.light_paths = true;
+  else if (f.light_paths == "glossy") e.light_paths = e.light_paths_glossy = true;
   else if (f.light_paths == "off" || f.light_paths == "false") e.light_paths = false;
   else if (f.light_paths.empty() || f.light_paths == "auto")
     e.light_paths = e.max_depth >= 2 && !o.aov_variance && !(f.target_error > 0) && !f.distributed &&
                     !alpha_cut_emitter(scene) && light_paths_pay(scene);
-  else throw std::invalid_argument("--light-paths: '" + f.light_paths + "' is not auto, on or off");
+  else throw std::invalid_argument("--light-paths: '" + f.light_paths + "' is not auto, on, glossy or off");
   validate(o);
   return o;
 }

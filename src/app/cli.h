@@ -23,7 +23,7 @@ struct RenderFlags {
   std::string filter;  // pixel filter; "": the scene file's PixelFilter, else box
   std::string regularize;  // --regularize on|off; "": the scene file's Integrator
   bool guide = false;      // --guide
-  std::string light_paths;   // --light-paths[=auto|on|off] (empty: auto; the flag alone: on)
+  std::string light_paths;   // --light-paths[=auto|on|glossy|off] (empty: auto; the flag alone: on)
   bool distributed = false;  // under mpirun (--light-paths auto is off there)
   std::string equiangular;   // --equiangular on | off (empty: the default)
   uint32_t guide_learn = 64;
@@ -45,7 +45,9 @@ struct RenderFlags {
 };
 
 // --light-paths asked for by name (on), not resolved by auto.
-inline bool light_paths_asked(const RenderFlags& f) { return f.light_paths == "on" || f.light_paths == "true"; }
+inline bool light_paths_asked(const RenderFlags& f) {
+  return f.light_paths == "on" || f.light_paths == "true" || f.light_paths == "glossy";
+}
 
 void add_render_flags(CLI::App& app, RenderFlags& f);
 // The flags of `tuile render` alone: --checkpoint, --resume, --time-budget, --target-error.

@@ -142,16 +142,23 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
     total += power;
   };
   // the near-specular materials (and the discs round them)
-  bool any_distant = false;
-  for (int32_t i = 0; i < L.count; ++i) any_distant |= is_distant(L.type[i]);
-  if (any_distant && !G.has_media && !G.has_instances) flag_glossy(scene, v);
+  bool any_distant = false, any_area = false;
+  for (int32_t i = 0; i < L.count; ++i) {
+    any_distant |= is_distant(L.type[i]);
+    any_area |= is_area(L.type[i]);
+  }
+  area_glossy_ = any_area && est.light_paths_glossy;
+  if ((any_distant || area_glossy_) && !G.has_media && !G.has_instances) flag_glossy(scene, v);
+  area_glossy_ = area_glossy_ && !discs_.empty();
   v.lt_glossy.assign(static_cast<size_t>(L.count), 0);
-  // area sources, where some surface can scatter by a delta lobe
-  if ((v.bsdf_kinds & bsdf_delta_capable) != 0 || G.has_mix)
+  // area sources, where some surface can scatter by a delta lobe (or is near-specular)
+  if ((v.bsdf_kinds & bsdf_delta_capable) != 0 || G.has_mix || area_glossy_)
     for (int32_t i = 0; i < L.count; ++i) {
       if (!is_area(L.type[i])) continue;
       const int32_t s = L.one_radiance ? 0 : i;
+      const size_t before = lights_.size();
       add_source(i, static_cast<double>(luminance(L.Lr[s], L.Lg[s], L.Lb[s])) * L.area[i] * (L.two_sided[i] > 0.5f ? 2 : 1));
+      if (area_glossy_ && lights_.size() > before) v.lt_glossy[static_cast<size_t>(i)] = 1;
     }
   // distant sources, towards the near-specular surfaces
   if (!discs_.empty()) {
@@ -523,7 +530,7 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           const bool from_distant = tb.path.first_rough[k] > 0.f;  // (near-specular: its own flag)
           const bool glossy = G.mat_lt_glossy != nullptr && G.mat_lt_glossy[m] != 0;
           const bool delta = ((1u << G.mat_kind[m]) & bsdf_delta_capable) != 0;
-          if (!mix && (from_distant ? !glossy : !delta)) tb.tech.valid[k] = 0;
+          if (!mix && (from_distant ? !glossy : !(delta || (area_glossy_ && glossy)))) tb.tech.valid[k] = 0;
         }
       }
       bounce_hits<vfloat, true>(G, L, hits, s, 0, tb);
@@ -631,9 +638,9 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
         const SurfaceBsdf<float, bsdf_all> bsdf = load_surface_bsdf<float, bsdf_all>(G, P, k, ns);
         const BsdfSample<float> bs = bsdf.sample(tb.tech.u2[k], tb.tech.u0[k], tb.tech.u1[k]);
         if (!bs.valid) continue;
-        if (j == 1) {  // (from an area source a delta lobe; from a distant one a flagged material's other lobes)
+        if (j == 1) {  // (a delta lobe from an area source; a flagged material's other lobes)
           const bool glossy = G.mat_lt_glossy != nullptr && G.mat_lt_glossy[P.mat[k]] != 0;
-          if (tb.path.first_rough[k] > 0.f ? bs.delta || !glossy : !bs.delta) continue;
+          if (tb.path.first_rough[k] > 0.f ? bs.delta || !glossy : !(bs.delta || (area_glossy_ && glossy))) continue;
         }
         const bool in_medium = bsdf.kind == static_cast<int32_t>(MaterialKind::phase);
         float adj = 1.f;

@@ -58,6 +58,9 @@ void validate(const RenderOptions& o) {
     if (e.max_depth < 2)
       throw std::invalid_argument("--light-paths joins paths of two vertices or more to the camera: it needs --max-depth 2 "
                                   "or more");
+    if (e.light_paths_glossy && e.strategy == Strategy::ris)
+      throw std::invalid_argument("--light-paths=glossy leaves an area light's samples at near-specular vertices to the "
+                                  "light tracer, and --strategy ris's BSDF candidates there do not: use mis, light or bsdf");
     if (o.aov_variance)
       throw std::invalid_argument("--light-paths: the variance layer is estimated from the camera's samples alone, "
                                   "which the light paths' contributions are not; leave out --aov variance");
@@ -148,7 +151,7 @@ std::string describe(const Estimator& e) {
     s += " max-depth=" + std::to_string(e.max_depth) + " rr-depth=" + std::to_string(e.rr_depth) + " rr-threshold=" + t;
   }
   if (e.regularize) s += " regularize=on";
-  if (e.light_paths) s += " light-paths=on";
+  if (e.light_paths) s += e.light_paths_glossy ? " light-paths=glossy" : " light-paths=on";
   if (e.equiangular) s += " equiangular=on";  // (off: the description, and checkpoints' fingerprint, of earlier releases)
   if (e.guide) {  // (likewise)
     char a[32];

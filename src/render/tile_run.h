@@ -505,8 +505,8 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
         timer.lap(Stage::intersect_bounce);
         read_bounce_visibility(tb);
       }
-      if constexpr (delta)
-        if (e.light_paths && d >= 1) drop_light_traced_hits(tb);
+      if (e.light_paths && d >= 1 && (delta || v.lights.lt_glossy != nullptr))
+        drop_light_traced_hits<delta>(v.geom, v.lights, tb);
       weight_queue<F.kinds, delta>(v.lights, e, c.rate_light, c.rate_bsdf, tb);
       // the rays that left the scene see the sky (traced against the whole scene: a scene
       // with a sky never traces its bounce rays against the emitters alone)
