@@ -49,6 +49,14 @@ inline void add_named_quad(Scene& s, const char* name, int mat, vec3f p0, vec3f 
   s.meshes.push_back(m);
 }
 
+// Smooth glass (a delta lobe), pbrt-v4's dielectric of index eta.
+inline Material glass_material(float eta = 1.5f) {
+  Material g;
+  g.kind = MaterialKind::dielectric;
+  g.eta = eta;
+  return g;
+}
+
 inline void add_triangle(Mesh& m, vec3f a, vec3f b, vec3f c) {
   const uint32_t base = static_cast<uint32_t>(m.positions.size() / 3);
   for (vec3f p : {a, b, c}) m.positions.insert(m.positions.end(), {p.x, p.y, p.z});

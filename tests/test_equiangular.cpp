@@ -163,10 +163,7 @@ Scene fog_room(int res, bool outside) {
   s.source = "test:fog-room";
   s.materials.push_back(diffuse_material(Rgb{0.7f, 0.7f, 0.7f}));  // 0
   s.materials.push_back(diffuse_material(Rgb{0.6f, 0.2f, 0.1f}));  // 1
-  Material glass;
-  glass.kind = MaterialKind::dielectric;
-  glass.eta = 1.5f;
-  s.materials.push_back(glass);  // 2
+  s.materials.push_back(glass_material());  // 2
   s.media.push_back(outside ? homogeneous({0.05f, 0.1f, 0.02f}, {0.5f, 0.6f, 0.8f}, 0.3f)
                             : homogeneous({0.1f, 0.1f, 0.1f}, {0.4f, 0.4f, 0.4f}, -0.2f));
   const int fog = 0;

@@ -65,10 +65,7 @@ Scene caustic_room(int res, bool shading_normals_ball = false, bool finalize = t
   s.source = "test:caustic-room";
   s.materials.push_back(diffuse_material(Rgb{0.7f, 0.7f, 0.7f}));  // 0
   s.materials.push_back(diffuse_material(Rgb{0.6f, 0.2f, 0.1f}));  // 1
-  Material glass;
-  glass.kind = MaterialKind::dielectric;
-  glass.eta = 1.5f;
-  s.materials.push_back(glass);  // 2
+  s.materials.push_back(glass_material());  // 2
   Material mirror;
   mirror.kind = MaterialKind::conductor;
   mirror.eta_rgb = {0.2f, 0.9f, 1.1f};
@@ -78,7 +75,7 @@ Scene caustic_room(int res, bool shading_normals_ball = false, bool finalize = t
   coat.kind = MaterialKind::coated_diffuse;
   coat.reflectance = {0.3f, 0.5f, 0.6f};
   s.materials.push_back(coat);  // 4: alpha 0, a smooth coat
-  Material rough_glass = glass;
+  Material rough_glass = glass_material();
   rough_glass.alpha_u.value = rough_glass.alpha_v.value = 0.25f;
   s.materials.push_back(rough_glass);  // 5
   auto quad = [&](const char* name, int mat, vec3f p0, vec3f e1, vec3f e2, float L = 0) {
@@ -259,10 +256,7 @@ Scene sun_wall(int res, bool more, bool sphere_sun = false) {
   mix.mix[1] = 0;
   mix.mix_amount.value = 0.4f;
   s.materials.push_back(mix);  // 5
-  Material glass;
-  glass.kind = MaterialKind::dielectric;
-  glass.eta = 1.5f;
-  s.materials.push_back(glass);  // 6
+  s.materials.push_back(glass_material());  // 6
   s.materials.push_back(diffuse_material(Rgb{0.02f, 0.02f, 0.02f}));  // 7
   add_named_quad(s, "ground", 7, {-3, 0, -2.5f}, {0, 0, 6}, {6, 0, 0});  // dark: the wall's light is the glints'
   add_named_quad(s, "wall", 0, {-2, 0, -2.5f}, {4, 0, 0}, {0, 1.5f, 0});

@@ -247,10 +247,7 @@ TEST(Paths, ConductorFurnace) {
 TEST(Paths, LightThroughGlassSlab) {
   Scene s;
   s.source = "test:slab";
-  Material glass;
-  glass.kind = MaterialKind::dielectric;
-  glass.eta = 1.5f;
-  s.materials.push_back(glass);
+  s.materials.push_back(glass_material());
   s.materials.push_back(diffuse_material(Rgb{0, 0, 0}));
   Mesh slab;
   slab.name = "slab";
