@@ -376,6 +376,28 @@ TEST(LightPaths, RefusesWhatItCannotDo) {
   finalize_scene(plain);
   Accel pa(plain);
   EXPECT_EQ(render_mean(plain, pa, options(true, 4, 0), 4), render_mean(plain, pa, options(false, 4, 0), 4));
+  // nothing the light tracer could join to the camera (every surface a coat or glass, the
+  // light's own material black diffuse): inactive, no light path traced
+  auto active = [](const Scene& sc) {
+    SceneViews v = build_views(sc, LightPick::power);
+    const float lo[3] = {-2, -1, -2}, hi[3] = {2, 3, 4};
+    return LightPaths(sc, v, options(true, 4, 0).est, 16, 16, lo, hi).active();
+  };
+  EXPECT_TRUE(active(caustic_room(16)));
+  Scene coats = caustic_room(16, false, false);
+  for (Material& m : coats.materials)
+    if (m.kind == MaterialKind::diffuse) {
+      m.kind = MaterialKind::coated_diffuse;
+      m.alpha_u.value = m.alpha_v.value = 0.3f;
+    }
+  const int black = static_cast<int>(coats.materials.size());
+  coats.materials.push_back(diffuse_material(Rgb{0, 0, 0}));
+  for (Mesh& m : coats.meshes)
+    if (m.name == "light") m.material = black;
+  finalize_scene(coats);
+  EXPECT_FALSE(active(coats));
+  coats.materials[static_cast<size_t>(black)].reflectance = {0.1f, 0.1f, 0.1f};  // a grey light housing: something to join
+  EXPECT_TRUE(active(coats));
 }
 
 // The default, auto: on where the scene holds paths only the light tracer finds at a steady

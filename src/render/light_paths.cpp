@@ -176,6 +176,29 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
            "near-specular surface";
     return;
   }
+  // nothing to join to the camera: no surface of a kind the light tracer joins (diffuse,
+  // diffuse transmission) that scatters any light, and no medium (coffee: every surface it
+  // sees a coat, the lights' own diffuse black); the path tracer's first vertices of those
+  // kinds scatter nothing either, so what it would leave out is zero
+  if (!G.has_media) {
+    bool joinable = false;
+    auto scatters = [&](int32_t m) {
+      const size_t i = static_cast<size_t>(m);
+      return light_traced_kind(v.mat_kind[i]) && (v.mat_kind[i] != static_cast<int32_t>(MaterialKind::diffuse) ||
+                                                   v.mat_texture[i] >= 0 || v.mat_r[i] + v.mat_g[i] + v.mat_b[i] > 0.f);
+    };
+    for (const int32_t m : v.geom_material) {
+      const size_t i = static_cast<size_t>(m);
+      joinable |= v.mat_mix0[i] >= 0 ? scatters(v.mat_mix0[i]) || scatters(v.mat_mix1[i]) : scatters(m);
+    }
+    if (!joinable) {
+      why_ = "no surface the light tracer joins to the camera (diffuse, diffuse transmission) scatters light, and "
+             "the scene has no medium";
+      lights_.clear();
+      v.lt_glossy.clear();
+      return;
+    }
+  }
   if (!v.lt_glossy.empty()) {  // the path tracer's light stages leave these paths to the light tracer
     v.geom.mat_lt_glossy = v.mat_lt_glossy.data();
     v.lights.lt_glossy = v.lt_glossy.data();
