@@ -505,6 +505,17 @@ bool load_everywhere(const Mpi& mpi, const RenderFlags& f, std::unique_ptr<Rende
   return false;
 }
 
+// --light-paths asked for by name under mpirun (auto is off there: RenderFlags::distributed):
+// a light path lands anywhere in the image, so the ranks cannot render parts of it yet.
+bool refuses_light_paths(const Mpi& mpi, const RenderFlags& f, const char* what) {
+  if (!light_paths_asked(f)) return false;
+  if (mpi.rank == 0)
+    std::cerr << "tuile: error: --light-paths: a light path lands anywhere in the image, so the ranks of mpirun cannot "
+                 "render parts of it yet; "
+              << what << " it in one process\n";
+  return true;
+}
+
 }  // namespace
 
 int run_render_distributed(const RenderFlags& flags) {
@@ -524,12 +535,7 @@ int run_render_distributed(const RenderFlags& flags) {
                    "ranks of mpirun render at the same time; render it in one process\n";
     return 1;
   }
-  if (light_paths_asked(f)) {  // (the renderer refuses a part of the tiles too)
-    if (mpi.rank == 0)
-      std::cerr << "tuile: error: --light-paths: a light path lands anywhere in the image, so the ranks of mpirun cannot "
-                   "render parts of it yet; render it in one process\n";
-    return 1;
-  }
+  if (refuses_light_paths(mpi, f, "render")) return 1;  // (the renderer refuses a part of the tiles too)
   std::unique_ptr<RenderJob> job;
   std::unique_ptr<Prepared> prepared;
   if (!load_everywhere(mpi, f, job, prepared)) return 1;
@@ -587,12 +593,7 @@ int run_bench_distributed(const BenchFlags& bf) {
   Mpi mpi;
   RenderFlags f = bf.render;
   f.distributed = true;  // (--light-paths auto: off)
-  if (light_paths_asked(f)) {
-    if (mpi.rank == 0)
-      std::cerr << "tuile: error: --light-paths: a light path lands anywhere in the image, so the ranks of mpirun cannot "
-                   "render parts of it yet; bench it in one process\n";
-    return 1;
-  }
+  if (refuses_light_paths(mpi, f, "bench")) return 1;
   std::unique_ptr<RenderJob> job;
   std::unique_ptr<Prepared> prepared;
   f.output.clear();
