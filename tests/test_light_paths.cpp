@@ -483,3 +483,76 @@ TEST(LightPaths, AutoIsOnWhereOnlyTheLightTracerFindsThePaths) {
     EXPECT_FALSE(resolved(s, ""));
   }
 }
+
+// A small bright lamp over a near-mirror (alpha 0.01), a wall catching its glint: the
+// paths wall -> mirror -> lamp that the path tracer finds only by chance (veach-mis's back
+// wall under its smallest lamp). `lamp_radius` 0.01 at 1.5 above the mirror's centre.
+Scene glint_room(float lamp_radius, float mirror_alpha, float mirror_size = 2) {
+  Scene s;
+  s.source = "test:glint-room";
+  s.materials.push_back(diffuse_material(Rgb{0.6f, 0.6f, 0.6f}));  // 0
+  Material metal;
+  metal.kind = MaterialKind::conductor;
+  metal.eta_rgb = {0.2f, 0.9f, 1.1f};
+  metal.k_rgb = {3.9f, 2.4f, 2.1f};
+  metal.alpha_u.value = metal.alpha_v.value = mirror_alpha;
+  s.materials.push_back(metal);  // 1
+  const float h = 0.5f * mirror_size;
+  add_named_quad(s, "mirror", 1, {-h, 0, -h}, {0, 0, mirror_size}, {mirror_size, 0, 0});  // facing up
+  add_named_quad(s, "wall", 0, {-3, -1, -3}, {6, 0, 0}, {0, 5, 0});
+  Sphere lamp;
+  lamp.center = {0, 1.5f, 0};
+  lamp.radius = lamp_radius;
+  lamp.material = 0;
+  lamp.emission = {5000, 5000, 5000};
+  s.spheres.push_back(lamp);
+  s.camera.width = s.camera.height = 16;
+  camera_look_at(s.camera, {0, 1, 6}, {0, 1, 0}, {0, 1, 0});
+  finalize_scene(s);
+  return s;
+}
+
+// auto's third choice, glossy: where at least 1% of the area sources' power falls on
+// near-specular surfaces from a source that looks small from them (light_paths_pay).
+TEST(LightPaths, AutoIsGlossyUnderASmallLampOverANearMirror) {
+  auto resolved = [](Scene s, const std::string& strategy = "") {
+    RenderFlags f;
+    f.max_depth = 5;
+    f.max_depth_given = true;
+    if (!strategy.empty()) f.strategy = strategy;
+    const RenderOptions o = resolve_options(f, s);
+    return o.est.light_paths_glossy ? std::string("glossy") : o.est.light_paths ? std::string("on") : std::string("off");
+  };
+  EXPECT_EQ(resolved(glint_room(0.01f, 0.01f)), "glossy");
+  EXPECT_EQ(resolved(glint_room(0.01f, 0.01f), "light"), "glossy");
+  EXPECT_EQ(resolved(glint_room(0.01f, 0.01f), "ris"), "off");  // (--light-paths=glossy refuses ris)
+  // a larger lamp (solid angle 0.014 sr), a rougher mirror (a lobe of 0.03 sr), a smooth one
+  // (a delta lobe: the light tracer's caustics, which on surfaces alone stay the path
+  // tracer's), or a mirror that catches a thousandth of the light: the path tracer's
+  EXPECT_EQ(resolved(glint_room(0.1f, 0.01f)), "off");
+  EXPECT_EQ(resolved(glint_room(0.01f, 0.05f)), "off");
+  EXPECT_EQ(resolved(glint_room(0.01f, 5e-4f)), "off");
+  EXPECT_EQ(resolved(glint_room(0.01f, 0.01f, 0.15f)), "off");
+  // the share itself: a mirror of area A straight under a lamp at distance d receives
+  // A / (4 pi d^2) of a sphere's power, A / (pi d^2) of a small square facing it
+  const double pi = 3.14159265358979323846;
+  const double A = 0.1 * 0.1, d2 = 1.5 * 1.5;
+  EXPECT_NEAR(area_glint_share(glint_room(0.01f, 0.01f, 0.1f)), A / (4 * pi * d2), 0.01 * A / (4 * pi * d2));
+  Scene square = glint_room(0.01f, 0.01f, 0.1f);
+  square.spheres.clear();
+  add_named_quad(square, "lamp", 0, {-0.005f, 1.5f, -0.005f}, {0.01f, 0, 0}, {0, 0, 0.01f}, 5000);  // facing down
+  finalize_scene(square);
+  EXPECT_NEAR(area_glint_share(square), A / (pi * d2), 0.01 * A / (pi * d2));
+  EXPECT_EQ(area_glint_share(glint_room(0.1f, 0.01f, 0.1f)), 0);  // (not small)
+  // no area source: no share
+  Scene dark = glint_room(0.01f, 0.01f);
+  dark.spheres.clear();
+  Light sun;
+  sun.type = LightKind::distant;
+  sun.e1 = vec3f{0, 1, 0};
+  sun.radiance = {3, 3, 3};
+  dark.lights.push_back(sun);
+  finalize_scene(dark);
+  EXPECT_EQ(area_glint_share(dark), 0);
+  EXPECT_EQ(resolved(dark), "on");  // (the sun's glints)
+}

@@ -67,7 +67,8 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                "traced from the lights and joined to the camera, and the path tracer leaves them out (it finds them only "
                "by chance); glossy: an area light's light off such a glossy lobe too (a small bright source's caustics "
                "off near-mirrors); the flag alone is on; default auto: on in scenes with a sun and such a glossy surface, or with "
-               "an area light, smooth glass or a mirror and a medium that scatters (volumetric caustics), unless "
+               "an area light, smooth glass or a mirror and a medium that scatters (volumetric caustics); glossy where 1% "
+               "of the area lights' power or more falls on such a surface from a light that looks small from it; unless "
                "--max-depth 1, --aov variance, --target-error, mpirun or an emitter with an alpha cut-out");
   app.add_option("--equiangular", f.equiangular,
                  "auto | on | off: in scenes with media, a light sample more per ray through a medium, at a distance "
@@ -221,9 +222,14 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   if (f.light_paths == "on" || f.light_paths == "true") e.light_paths = true;
   else if (f.light_paths == "glossy") e.light_paths = e.light_paths_glossy = true;
   else if (f.light_paths == "off" || f.light_paths == "false") e.light_paths = false;
-  else if (f.light_paths.empty() || f.light_paths == "auto")
-    e.light_paths = e.max_depth >= 2 && !o.aov_variance && !(f.target_error > 0) && !f.distributed &&
-                    !alpha_cut_emitter(scene) && light_paths_pay(scene);
+  else if (f.light_paths.empty() || f.light_paths == "auto") {
+    const LightPathsPay pay =
+        e.max_depth >= 2 && !o.aov_variance && !(f.target_error > 0) && !f.distributed && !alpha_cut_emitter(scene)
+            ? light_paths_pay(scene, e.strategy != Strategy::ris)
+            : LightPathsPay::no;
+    e.light_paths = pay != LightPathsPay::no;
+    e.light_paths_glossy = pay == LightPathsPay::glossy;
+  }
   else throw std::invalid_argument("--light-paths: '" + f.light_paths + "' is not auto, on, glossy or off");
   validate(o);
   return o;

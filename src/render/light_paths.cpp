@@ -52,6 +52,153 @@ bool any_used_material(const Scene& scene, const std::function<bool(const Materi
   return false;
 }
 
+// --light-paths auto's glossy choice (light_paths_pay): the share of the area sources'
+// power that falls on a near-specular surface from a source that looks small from it.
+// Measured on the corpus (bench/results.md, "Area sources' glossy caustics"): veach-mis
+// 0.048 (its near-mirror plate of alpha 0.01 under a lamp of radius 0.05), staircase2
+// 2.5e-6, every other scene 0.
+constexpr double glint_share_min = 0.01;
+// A surface's highlight of a source, the source's solid angle plus its lobe's, below which
+// the path tracer's paths through it (a rough point's direction towards the surface, then a
+// light sample or a BSDF sample there) find the source's reflection only by chance (sr).
+constexpr double glint_solid_angle_max = 3e-3;
+// At most this many (surface triangle, source) pairs are visited; larger scenes stride
+// through their triangles.
+constexpr double glint_pairs_max = 1 << 22;
+
+}  // namespace
+
+double area_glint_share(const Scene& scene) {
+  constexpr double pi = 3.14159265358979323846;
+  // the sources, one per emitting mesh or sphere: a sphere round them, their power, and for a
+  // flat one its normal (the triangles' summed normals, as long as their summed lengths)
+  struct Lamp {
+    vec3f c{0, 0, 0}, n{0, 0, 0};
+    double r = 0, power = 0, area = 0;
+    vec3f lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+    bool sphere = false, two_sided = false;
+  };
+  std::vector<Lamp> lamps;
+  std::vector<int> mesh_lamp(scene.meshes.size(), -1), sphere_lamp(scene.spheres.size(), -1);
+  double total = 0;
+  for (const Light& l : scene.lights) {
+    if (!is_area(static_cast<int32_t>(l.type)) || !(l.power > 0) || !std::isfinite(l.power)) continue;
+    int* slot = nullptr;
+    if (l.sphere >= 0 && static_cast<size_t>(l.sphere) < scene.spheres.size()) slot = &sphere_lamp[static_cast<size_t>(l.sphere)];
+    else if (l.mesh >= 0 && static_cast<size_t>(l.mesh) < scene.meshes.size()) slot = &mesh_lamp[static_cast<size_t>(l.mesh)];
+    if (slot == nullptr) continue;
+    if (*slot < 0) {
+      *slot = static_cast<int>(lamps.size());
+      lamps.emplace_back();
+    }
+    Lamp& a = lamps[static_cast<size_t>(*slot)];
+    a.power += l.power;
+    total += l.power;
+    a.two_sided = l.two_sided;
+    if (l.type == LightKind::sphere) {
+      a.sphere = true;
+      a.c = l.p0;
+      a.r = l.e1.x;
+      continue;
+    }
+    const vec3f v[4] = {l.p0, l.p0 + l.e1, l.p0 + l.e2, l.p0 + l.e1 + l.e2};
+    for (int i = 0; i < (l.type == LightKind::parallelogram ? 4 : 3); ++i) {
+      a.lo = {std::min(a.lo.x, v[i].x), std::min(a.lo.y, v[i].y), std::min(a.lo.z, v[i].z)};
+      a.hi = {std::max(a.hi.x, v[i].x), std::max(a.hi.y, v[i].y), std::max(a.hi.z, v[i].z)};
+    }
+    const vec3f nc = cross(l.e1, l.e2);
+    a.n = a.n + nc;
+    a.area += static_cast<double>(length(nc));
+  }
+  if (lamps.empty() || !(total > 0)) return 0;
+  for (Lamp& a : lamps) {
+    if (a.sphere) continue;
+    a.c = (a.lo + a.hi) * 0.5f;
+    a.r = static_cast<double>(length(a.hi - a.lo)) * 0.5;
+    const double nl = static_cast<double>(length(a.n));
+    a.n = nl > 0.9 * a.area && nl > 0 ? a.n * static_cast<float>(1 / nl) : vec3f{0, 0, 0};  // (not flat: none)
+  }
+  // the near-specular materials, each with the share of light its top lobe reflects or
+  // transmits (a coat: its Fresnel reflectance at normal incidence)
+  auto glint = [&](int mi, double& alpha) -> double {
+    if (mi < 0 || static_cast<size_t>(mi) >= scene.materials.size()) return 0;
+    const Material& m = scene.materials[static_cast<size_t>(mi)];
+    if (!microfacet_kind(static_cast<int32_t>(m.kind)) || m.alpha_u.texture >= 0 || m.alpha_v.texture >= 0) return 0;
+    alpha = std::max(m.alpha_u.value, m.alpha_v.value);
+    if (!(alpha >= smooth_alpha && alpha <= light_traced_alpha)) return 0;
+    if (m.kind != MaterialKind::coated_diffuse) return 1;
+    const double f = (m.eta - 1.0) / (m.eta + 1.0);
+    return f * f;
+  };
+  double share = 0;
+  // the light a point x of normal n and area A receives from each source, where the
+  // source's highlight there (its solid angle plus the lobe's) is small
+  auto visit = [&](const vec3f& x, const vec3f& n, double A, double alpha, double weight) {
+    const double lobe = pi * 4 * alpha * alpha;  // (the reflected directions spread by about 2 alpha)
+    if (lobe >= glint_solid_angle_max) return;
+    for (const Lamp& a : lamps) {
+      vec3f w = a.c - x;
+      const double d2 = static_cast<double>(dot(w, w));
+      if (!(d2 > a.r * a.r)) continue;  // (inside the source's sphere: not small)
+      const double omega = pi * a.r * a.r / d2;
+      if (omega + lobe >= glint_solid_angle_max) continue;
+      w = w * static_cast<float>(1 / std::sqrt(d2));
+      double intensity = a.power / (4 * pi);  // (W/sr towards x)
+      if (a.n.x != 0 || a.n.y != 0 || a.n.z != 0) {
+        const double c = -static_cast<double>(dot(w, a.n));
+        intensity = a.two_sided ? a.power * std::abs(c) / (2 * pi) : c > 0 ? a.power * c / pi : 0;
+      }
+      share += weight * intensity * std::abs(static_cast<double>(dot(w, n))) * A / d2 / total;
+    }
+  };
+  // a geometry's material: itself, or a mix's two choices, half each
+  auto visit_material = [&](int mi, auto&& at) {
+    if (mi < 0 || static_cast<size_t>(mi) >= scene.materials.size()) return;
+    const Material& m = scene.materials[static_cast<size_t>(mi)];
+    const bool mix = m.mix[0] >= 0 || m.mix[1] >= 0;
+    const int choices[2] = {mix ? m.mix[0] : mi, mix ? m.mix[1] : -1};
+    for (const int c : choices) {
+      double alpha = 0;
+      const double w = glint(c, alpha) * (mix ? 0.5 : 1.0);
+      if (w > 0) at(alpha, w);
+    }
+  };
+  size_t triangles = 0;
+  for (const Mesh& m : scene.meshes)
+    if (m.object < 0) triangles += m.triangle_count();
+  const size_t stride = std::max<size_t>(1, static_cast<size_t>(std::ceil(static_cast<double>(triangles) *
+                                                                          static_cast<double>(lamps.size()) / glint_pairs_max)));
+  for (const Mesh& m : scene.meshes) {
+    if (m.object >= 0) continue;
+    visit_material(m.material, [&](double alpha, double weight) {
+      const size_t nt = m.triangle_count(), np = m.positions.size() / 3;
+      for (size_t t = 0; t < nt; t += stride) {
+        uint32_t id[3];
+        for (int j = 0; j < 3; ++j) id[j] = m.indices[3 * t + static_cast<size_t>(j)];
+        if (id[0] >= np || id[1] >= np || id[2] >= np) continue;
+        auto p = [&](uint32_t i) { return vec3f{m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]}; };
+        const vec3f p0 = p(id[0]), p1 = p(id[1]), p2 = p(id[2]);
+        const vec3f nc = cross(p1 - p0, p2 - p0);
+        const float l = length(nc);
+        if (!(l > 0)) continue;
+        visit((p0 + p1 + p2) * (1.f / 3), nc * (1.f / l), 0.5 * static_cast<double>(l) * static_cast<double>(stride), alpha,
+              weight);
+      }
+    });
+  }
+  for (const Sphere& s : scene.spheres) {
+    if (s.object >= 0) continue;
+    visit_material(s.material, [&](double alpha, double weight) {  // (six points, a sixth of the area each)
+      const vec3f axes[6] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+      for (const vec3f& n : axes)
+        visit(s.center + n * s.radius, n, 4 * pi * s.radius * s.radius / 6, alpha, weight);
+    });
+  }
+  return share;
+}
+
+namespace {
+
 // Lane i's ray (a light path's next segment) from org along the unit d, traced to the
 // nearest hit.
 void set_ray(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<float>& d) {
@@ -91,7 +238,7 @@ double axis_integral(const FilterView& f, const FilterAxis& a) {
 
 }  // namespace
 
-bool light_paths_pay(const Scene& scene) {
+LightPathsPay light_paths_pay(const Scene& scene, bool glossy_allowed) {
   bool distant = false, area = false;
   for (const Light& l : scene.lights) {
     if (!l.radiance.any_positive()) continue;
@@ -99,6 +246,8 @@ bool light_paths_pay(const Scene& scene) {
     area |= is_area(static_cast<int32_t>(l.type));
   }
   const bool media = (scene.features & feat_media) != 0;
+  if (area && glossy_allowed && !media && scene.instances.empty() && area_glint_share(scene) >= glint_share_min)
+    return LightPathsPay::glossy;
   auto constant_alpha = [](const Material& m) { return m.alpha_u.texture < 0 && m.alpha_v.texture < 0; };
   if (distant && !media && scene.instances.empty() &&
       any_used_material(scene, [&](const Material& m) {
@@ -106,14 +255,15 @@ bool light_paths_pay(const Scene& scene) {
         return microfacet_kind(static_cast<int32_t>(m.kind)) && constant_alpha(m) && a >= smooth_alpha &&
                a <= light_traced_alpha;
       }))
-    return true;
+    return LightPathsPay::on;
   const bool scattering = std::any_of(scene.media.begin(), scene.media.end(),
                                       [](const Medium& m) { return m.supported && m.sigma_s.any_positive(); });
-  return area && media && scattering && any_used_material(scene, [&](const Material& m) {
-           if (m.kind == MaterialKind::thin_dielectric) return true;
-           return microfacet_kind(static_cast<int32_t>(m.kind)) && constant_alpha(m) &&
-                  std::max(m.alpha_u.value, m.alpha_v.value) < smooth_alpha;
-         });
+  const bool caustics = area && media && scattering && any_used_material(scene, [&](const Material& m) {
+                          if (m.kind == MaterialKind::thin_dielectric) return true;
+                          return microfacet_kind(static_cast<int32_t>(m.kind)) && constant_alpha(m) &&
+                                 std::max(m.alpha_u.value, m.alpha_v.value) < smooth_alpha;
+                        });
+  return caustics ? LightPathsPay::on : LightPathsPay::no;
 }
 
 bool alpha_cut_emitter(const Scene& scene) {

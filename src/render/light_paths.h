@@ -86,17 +86,32 @@ struct LightPathSplat {
 
 // What --light-paths auto (the default) turns on: whether the scene holds paths that the
 // path tracer finds only by chance and the light tracer at a steady rate, where the light
-// tracer's cost per sample is known to pay (bench/results.md, "Light paths by default"):
-// - the sun's glints: a distant source and, on a mesh or sphere, a material of constant
+// tracer's cost per sample is known to pay (bench/results.md, "Light paths by default" and
+// "Area sources' glossy caustics"):
+// - glossy (--light-paths=glossy), when glossy_allowed (not --strategy ris): small bright
+//   sources' glints, at least 1% of the area sources' power falling on near-specular
+//   surfaces (constant alphas in [smooth_alpha, light_traced_alpha]) from a source that
+//   looks small from them (its solid angle plus the lobe's below 0.003 sr: a lamp a
+//   hundredth of its distance across over a near-mirror), in a scene without media or
+//   instances; estimated from each triangle's centre, occlusion left out;
+// - on, the sun's glints: a distant source and, on a mesh or sphere, a material of constant
 //   alphas in [smooth_alpha, light_traced_alpha] (through a mix too), in a scene without
 //   media or instances (the paths the light tracer takes from a distant source);
-// - volumetric caustics: an area light, a surface with a delta lobe (constant alphas below
-//   smooth_alpha, or thin glass) and a medium that scatters (a caustic in a fog, which a
-//   light sample never reaches).
+// - on, volumetric caustics: an area light, a surface with a delta lobe (constant alphas
+//   below smooth_alpha, or thin glass) and a medium that scatters (a caustic in a fog,
+//   which a light sample never reaches).
 // An area light's caustics through glass onto surfaces alone are not enough: there the
 // path tracer's own samples of them cost less (staircase2: 0.82x the efficiency with
-// light paths). Scene-level facts only (no views), so that the flags can resolve it.
-bool light_paths_pay(const Scene& scene);
+// light paths), nor are its glints off rougher lobes or from larger sources (kitchen
+// 0.90x, bathroom 0.87x, staircase2 0.70x with --light-paths=glossy). Scene-level facts
+// only (no views), so that the flags can resolve it.
+enum class LightPathsPay { no, on, glossy };
+LightPathsPay light_paths_pay(const Scene& scene, bool glossy_allowed);
+// The share of the area sources' power that falls on near-specular surfaces from a source
+// whose highlight there is small (light_paths_pay's glossy choice): each triangle's (a
+// sphere's six points') light from each source taken as from a point of its power and
+// normal, without occlusion; 0 without area sources.
+double area_glint_share(const Scene& scene);
 // An emitter with an alpha cut-out (a mesh's alpha or a sphere's below 1), which the light
 // tracer refuses.
 bool alpha_cut_emitter(const Scene& scene);
