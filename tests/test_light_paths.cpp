@@ -445,7 +445,17 @@ TEST(LightPaths, AutoIsOnWhereOnlyTheLightTracerFindsThePaths) {
   EXPECT_FALSE(resolved(sun, "", 5, "variance"));
   EXPECT_THROW(resolved(sun, "on", 5, "variance"), std::invalid_argument);
   EXPECT_FALSE(resolved(sun, "", 5, "", 0.01));
-  EXPECT_FALSE(resolved(sun, "", 5, "", 0, true));
+  EXPECT_TRUE(resolved(sun, "", 5, "", 0, true));  // (mpirun: the light paths are units of their own)
+  {  // ... but not with --guide under mpirun
+    RenderFlags f;
+    f.max_depth = 5;
+    f.max_depth_given = true;
+    f.guide = true;
+    Scene s = sun;
+    EXPECT_TRUE(resolve_options(f, s).est.light_paths);
+    f.distributed = true;
+    EXPECT_FALSE(resolve_options(f, s).est.light_paths);
+  }
   EXPECT_TRUE(resolved(sun, "", 5, "mis_weight"));
   // the glossy surfaces rougher than the light tracer's bound, or smooth (a delta lobe: no
   // glint of a delta source): the path tracer's

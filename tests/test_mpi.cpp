@@ -135,11 +135,13 @@ TEST(Mpi, GuidedRendersGiveTheSingleProcessBytes) {
   EXPECT_TRUE(same_pixels(dir / "resumed-one.exr", dir / "resumed-mpi.exr"));
 }
 
-// --light-paths under mpirun: a light path lands anywhere in the image, so the ranks cannot
-// render parts of it yet. Its default, auto, is off there (a scene where it is on in one
-// process: a sun and a metal ball of alpha 0.05), so the job renders the single process's
-// `--light-paths=off` bytes; asked for by name, it is an error naming the flag.
-TEST(Mpi, LightPathsAutoIsOffAndOnIsRefused) {
+// --light-paths under mpirun: a light path lands anywhere in the image, so the light paths
+// are units of their own (chunks of about 2^22 paths, the whole image's sums each), which
+// rank 0 adds to each pass in the single process's order: the job renders the single
+// process's bytes, here where auto turns them on (a sun and a metal ball of alpha 0.05), at
+// a size where a pass holds two chunks and the last pass one. With --guide (whose learning
+// iterations cut the passes) auto is off and asking for them is an error naming the flag.
+TEST(Mpi, LightPathsRenderTheSingleProcessBits) {
   std::string why;
   if (!mpi_ready(why)) GTEST_SKIP() << why;
   TempDir dir;
@@ -152,14 +154,20 @@ TEST(Mpi, LightPathsAutoIsOffAndOnIsRefused) {
                           "\"integer indices\" [ 0 2 1  0 3 2 ]\n"
                           "Material \"conductor\" \"float roughness\" [ 0.05 ] \"bool remaproughness\" false\n"
                           "AttributeBegin\nTranslate 0 0.5 0\nShape \"sphere\" \"float radius\" [ 0.5 ]\nAttributeEnd\n";
-  const std::string args = " render " + scene + " --res 48x32 --spp 8 --quiet -o ";
+  const int w = 512, h = 256;
+  const uint32_t pass = fixed_passes(static_cast<uint64_t>(w) * h).pass_spp;
+  const uint32_t chunk = std::max<uint32_t>(1, (1u << 22) / (w * h));  // (Renderer::light_chunk_samples)
+  ASSERT_GT(pass, chunk);
+  const uint32_t spp = pass + chunk / 2;  // (a second pass of part of a chunk)
+  const std::string args = " render " + scene + " --res " + std::to_string(w) + "x" + std::to_string(h) + " --spp " +
+                           std::to_string(spp) + " --quiet -o ";
   std::string out;
   ASSERT_EQ(run(std::string(TUILE_BINARY) + args + (dir / "auto.exr"), out), 0) << out;
   ASSERT_EQ(run(std::string(TUILE_BINARY) + args + (dir / "off.exr") + " --light-paths=off", out), 0) << out;
   EXPECT_FALSE(same_pixels(dir / "auto.exr", dir / "off.exr"));  // on in one process
-  ASSERT_EQ(run(mpirun(2) + args + (dir / "mpi.exr"), out), 0) << out;
-  EXPECT_TRUE(same_pixels(dir / "off.exr", dir / "mpi.exr"));
-  EXPECT_NE(run(mpirun(2) + args + (dir / "on.exr") + " --light-paths", out), 0);
+  ASSERT_EQ(run(mpirun(3) + args + (dir / "mpi.exr"), out), 0) << out;
+  EXPECT_TRUE(same_pixels(dir / "auto.exr", dir / "mpi.exr"));
+  EXPECT_NE(run(mpirun(2) + args + (dir / "on.exr") + " --light-paths --guide", out), 0);
   EXPECT_EQ(count(out, "--light-paths"), 1u) << out;
 }
 

@@ -224,7 +224,7 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   else if (f.light_paths == "off" || f.light_paths == "false") e.light_paths = false;
   else if (f.light_paths.empty() || f.light_paths == "auto") {
     const LightPathsPay pay =
-        e.max_depth >= 2 && !o.aov_variance && !(f.target_error > 0) && !f.distributed && !alpha_cut_emitter(scene)
+        e.max_depth >= 2 && !o.aov_variance && !(f.target_error > 0) && !(f.distributed && f.guide) && !alpha_cut_emitter(scene)
             ? light_paths_pay(scene, e.strategy != Strategy::ris)
             : LightPathsPay::no;
     e.light_paths = pay != LightPathsPay::no;

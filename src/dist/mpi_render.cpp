@@ -112,17 +112,29 @@ struct Step {
 
 // The units of a render: for every step (the passes from `done` to spp, cut at the guide's
 // iterations), every block of tiles.
+// With --light-paths, each step's light paths too, in the renderer's chunks (render.h): a
+// unit whose block is blocks + j traces chunk j of its step for the whole image.
 struct Units {
   std::vector<uint32_t> pass_begin, pass_end;  // per pass
   std::vector<Step> steps;
   std::vector<int> pass_steps;  // per pass, its steps
   int blocks = 0, tiles_per_block = 1, tiles = 0;
+  uint32_t light_chunk = 0;  // samples per chunk of light paths (0: none)
+  std::vector<std::pair<uint32_t, uint32_t>> order;  // (step, block) of every unit, in the order sent
   std::vector<int> block_tiles(int b) const {
     std::vector<int> t;
     for (int i = b * tiles_per_block; i < std::min(tiles, (b + 1) * tiles_per_block); ++i) t.push_back(i);
     return t;
   }
-  int count() const { return static_cast<int>(steps.size()) * blocks; }
+  int light_chunks(size_t step) const {
+    const Step& s = steps[step];
+    return light_chunk == 0 ? 0 : static_cast<int>((s.end - s.begin + light_chunk - 1) / light_chunk);
+  }
+  int step_units(size_t step) const { return blocks + light_chunks(step); }
+  int pass_light_chunks(size_t pass) const {
+    return light_chunk == 0 ? 0 : static_cast<int>((pass_end[pass] - pass_begin[pass] + light_chunk - 1) / light_chunk);
+  }
+  int count() const { return static_cast<int>(order.size()); }
 };
 
 Units plan_units(const Renderer& r, const PassPlan& plan, uint32_t done, uint32_t spp, int workers, int tile_side) {
@@ -155,6 +167,10 @@ Units plan_units(const Renderer& r, const PassPlan& plan, uint32_t done, uint32_
   u.tiles_per_block = static_cast<int>(std::max<uint64_t>(1, (uint64_t(1) << 20) / per_tile));
   u.tiles_per_block = std::min(u.tiles_per_block, std::max(1, u.tiles / (4 * std::max(1, workers))));
   u.blocks = (u.tiles + u.tiles_per_block - 1) / u.tiles_per_block;
+  u.light_chunk = r.has_light_paths() ? r.light_chunk_samples() : 0;
+  for (size_t k = 0; k < u.steps.size(); ++k)  // (a step's light chunks first: they take longest)
+    for (int j = 0; j < u.step_units(k); ++j)
+      u.order.emplace_back(static_cast<uint32_t>(k), static_cast<uint32_t>((j + u.blocks) % u.step_units(k)));
   return u;
 }
 
@@ -180,8 +196,9 @@ void run_worker(const Mpi& mpi, Renderer& renderer, const Units& u, int width, i
   Film film;
   film.reset(width, height);
   WorkerReport rep;
-  std::vector<double> msg;
+  std::vector<double> msg, light;
   bool first = true;
+  renderer.set_light_paths_apart(true);  // (the light paths are units of their own)
   for (;;) {
     const auto w0 = std::chrono::steady_clock::now();
     MPI_Status st;
@@ -211,6 +228,22 @@ void run_worker(const Mpi& mpi, Renderer& renderer, const Units& u, int width, i
     const Step& step = u.steps[unit[0]];
     const uint32_t block = unit[1];
     try {
+      if (block >= static_cast<uint32_t>(u.blocks)) {  // a chunk of the step's light paths: the whole image's sums
+        const uint32_t b = step.begin + (block - static_cast<uint32_t>(u.blocks)) * u.light_chunk;
+        const RenderStats rs = renderer.render_light_chunk(light, b, std::min(step.end, b + u.light_chunk));
+        msg.assign(header_size, 0.0);
+        msg[h_step] = unit[0];
+        msg[h_block] = block;
+        msg[h_seconds] = rs.seconds;
+        msg[h_rej_bsdf] = static_cast<double>(rs.rejected_bsdf);
+        msg.insert(msg.end(), light.begin(), light.end());
+        rep.units += 1;
+        rep.render_seconds += rs.seconds;
+        const auto s0 = std::chrono::steady_clock::now();
+        MPI_Send(msg.data(), static_cast<int>(msg.size()), MPI_DOUBLE, 0, tag_result, MPI_COMM_WORLD);
+        rep.comm_seconds += seconds_since(s0);
+        continue;
+      }
       const std::vector<int> tiles = u.block_tiles(static_cast<int>(block));
       // the unit's pixels start from zero, so each gets exactly its tile's sums
       for (int t : tiles) {
@@ -286,6 +319,7 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
   // (pass, block) -> the sums of its steps so far, and how many steps they are
   std::map<std::pair<int, int>, std::vector<double>> pending;
   std::map<std::pair<int, int>, int> pending_steps;
+  std::vector<double> pass_sum;  // with light paths: a pass's sums before they join the image
   std::vector<int> returned(u.steps.size(), 0);  // per step, its blocks in
   // the first step that ends a learning iteration whose records are not summed yet: no unit
   // after it goes out before that (steps.size(): none)
@@ -298,10 +332,10 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
   std::vector<std::chrono::steady_clock::time_point> last_heard(static_cast<size_t>(mpi.size),
                                                                  std::chrono::steady_clock::now());
   auto can_send = [&] {
-    return next_unit < total_units && static_cast<size_t>(next_unit / u.blocks) <= barrier;
+    return next_unit < total_units && u.order[static_cast<size_t>(next_unit)].first <= barrier;
   };
   auto send_unit = [&](int w) {
-    const uint32_t unit[2] = {static_cast<uint32_t>(next_unit / u.blocks), static_cast<uint32_t>(next_unit % u.blocks)};
+    const uint32_t unit[2] = {u.order[static_cast<size_t>(next_unit)].first, u.order[static_cast<size_t>(next_unit)].second};
     MPI_Send(unit, 2, MPI_UINT32_T, w, tag_unit, MPI_COMM_WORLD);
     ++next_unit;
     ++outstanding[static_cast<size_t>(w)];
@@ -325,7 +359,7 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
     }
     bool busy = false;
     for (int w = 1; w <= workers; ++w) busy = busy || outstanding[static_cast<size_t>(w)] > 0;
-    if (!stopping && !busy && barrier < u.steps.size() && returned[barrier] == u.blocks) {
+    if (!stopping && !busy && barrier < u.steps.size() && returned[barrier] == u.step_units(barrier)) {
       // a learning iteration of the guide is complete (every unit up to it is in: none is
       // sent past it, so no worker is still recording or sending): every rank adds its
       // records into one sum and makes the guide from it; rank 0 (which records nothing)
@@ -411,20 +445,34 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
     for (;;) {
       const int k = merged_passes;
       bool complete = k < passes;
-      for (int b = 0; b < u.blocks && complete; ++b) {
+      // the pass's light chunks (a pass with light paths is one step: --guide refuses them)
+      const int chunks = complete ? u.pass_light_chunks(static_cast<size_t>(k)) : 0;
+      for (int b = 0; b < u.blocks + chunks && complete; ++b) {
         const auto it = pending_steps.find({k, b});
         complete = it != pending_steps.end() && it->second == u.pass_steps[static_cast<size_t>(k)];
       }
       if (!complete) break;
-      for (int b = 0; b < u.blocks; ++b) {
+      // with light paths, the pass's sums are made first (its camera paths', then its light
+      // chunks' in order) and then added to the image, as a single process adds a pass
+      if (chunks > 0) pass_sum.assign(film.sum.size(), 0.0);
+      double* sum_to = chunks > 0 ? pass_sum.data() : film.sum.data();
+      for (int b = 0; b < u.blocks + chunks; ++b) {
         std::vector<double>& m = pending[{k, b}];
+        if (b >= u.blocks) {
+          for (size_t i = 0; i < pass_sum.size(); ++i) pass_sum[i] += m[header_size + i];
+          out.stats.seconds += m[h_seconds];
+          out.stats.rejected_bsdf += static_cast<uint64_t>(m[h_rej_bsdf]);
+          pending.erase({k, b});
+          pending_steps.erase({k, b});
+          continue;
+        }
         size_t at = header_size;
         for (int t : u.block_tiles(b)) {
           const TileRect r = renderer.tile_rect(t);
           for (int y = r.y0; y < r.y0 + r.h; ++y)
             for (int x = r.x0; x < r.x0 + r.w; ++x) {
               const size_t i = static_cast<size_t>(y) * film.width + x;
-              for (int c = 0; c < 3; ++c) film.sum[3 * i + c] += m[at++];
+              for (int c = 0; c < 3; ++c) sum_to[3 * i + c] += m[at++];
               for (int c = 0; c < 3; ++c) film.sum_sq[3 * i + c] += m[at++];
               film.w_sum[i] += m[at++];
               film.w_cnt[i] += m[at++];
@@ -443,6 +491,8 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
         pending.erase({k, b});
         pending_steps.erase({k, b});
       }
+      if (chunks > 0)
+        for (size_t i = 0; i < pass_sum.size(); ++i) film.sum[i] += pass_sum[i];
       film.samples += u.pass_end[static_cast<size_t>(k)] - u.pass_begin[static_cast<size_t>(k)];
       out.stats.samples += static_cast<uint64_t>(u.pass_end[static_cast<size_t>(k)] - u.pass_begin[static_cast<size_t>(k)]) *
                            static_cast<uint64_t>(film.width) * static_cast<uint64_t>(film.height);
@@ -505,14 +555,14 @@ bool load_everywhere(const Mpi& mpi, const RenderFlags& f, std::unique_ptr<Rende
   return false;
 }
 
-// --light-paths asked for by name under mpirun (auto is off there: RenderFlags::distributed):
-// a light path lands anywhere in the image, so the ranks cannot render parts of it yet.
+// --light-paths asked for by name under mpirun with --guide (auto is off there:
+// RenderFlags::distributed): the guide's learning iterations cut the passes into steps,
+// which the light paths' chunks do not follow.
 bool refuses_light_paths(const Mpi& mpi, const RenderFlags& f, const char* what) {
-  if (!light_paths_asked(f)) return false;
+  if (!f.guide || !light_paths_asked(f)) return false;
   if (mpi.rank == 0)
-    std::cerr << "tuile: error: --light-paths: a light path lands anywhere in the image, so the ranks of mpirun cannot "
-                 "render parts of it yet; "
-              << what << " it in one process\n";
+    std::cerr << "tuile: error: --light-paths with --guide: the ranks of mpirun do not split that work yet; " << what
+              << " it in one process, or leave out one of the two\n";
   return true;
 }
 
@@ -520,7 +570,7 @@ bool refuses_light_paths(const Mpi& mpi, const RenderFlags& f, const char* what)
 
 int run_render_distributed(const RenderFlags& flags) {
   RenderFlags f = flags;
-  f.distributed = true;  // (--light-paths auto: off)
+  f.distributed = true;  // (--light-paths auto: off with --guide)
   Mpi mpi;
   if (f.time_budget > 0 || f.target_error > 0) {
     if (mpi.rank == 0)
@@ -592,7 +642,7 @@ int run_render_distributed(const RenderFlags& flags) {
 int run_bench_distributed(const BenchFlags& bf) {
   Mpi mpi;
   RenderFlags f = bf.render;
-  f.distributed = true;  // (--light-paths auto: off)
+  f.distributed = true;  // (--light-paths auto: off with --guide)
   if (refuses_light_paths(mpi, f, "bench")) return 1;
   std::unique_ptr<RenderJob> job;
   std::unique_ptr<Prepared> prepared;

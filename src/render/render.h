@@ -49,6 +49,7 @@ struct TileRect {
 
 class Guide;  // render/guide.h
 class LightPaths;  // render/light_paths.h
+struct SampleLayout;  // sample/layout.h
 
 class Renderer {
  public:
@@ -85,6 +86,17 @@ class Renderer {
   void guide_restart();
   int tile_count() const;
   TileRect tile_rect(int tile) const;
+  // --light-paths (null light tracer: none): a render's light paths, traced after its
+  // camera paths, come in chunks of about 2^22 paths (light_chunk_samples() samples of
+  // every pixel, counted from the render's begin), each added into a zeroed image of
+  // width x height x 3 doubles in tile order and then to the film: a distributed render
+  // (dist/mpi_render.cpp) traces the chunks on any rank with render_light_chunk and adds
+  // them in the same order, for the single process's bits. render(..., only) leaves its
+  // light paths out when set_light_paths_apart(true), and refuses them otherwise.
+  bool has_light_paths() const { return light_paths_ != nullptr; }
+  uint32_t light_chunk_samples() const;
+  RenderStats render_light_chunk(std::vector<double>& sums, uint32_t begin, uint32_t end);
+  void set_light_paths_apart(bool apart) { light_paths_apart_ = apart; }
   // The pipeline this scene and estimator select, and why.
   std::string pipeline_name(std::string* why = nullptr) const;
   // Whether bounce rays run against the emitters (BounceTrace resolved for this scene).
@@ -101,6 +113,8 @@ class Renderer {
   void set_cancel_flag(const std::atomic<bool>* flag) { cancel_ = flag; }
 
  private:
+  SampleLayout sample_layout(int bsdf_passes, int light_passes) const;
+  void trace_light_paths(std::vector<double>& sums, uint32_t s0, uint32_t s1, std::atomic<bool>& skipped);
   RenderStats render_range(Film& film, uint32_t begin, uint32_t end, Profile* profile, const std::vector<int>* only,
                            const Film* prior, bool record);
   // --guide: brings the guide to what samples [0, min(begin, learn)) teach it
@@ -117,6 +131,7 @@ class Renderer {
   std::unique_ptr<Guide> guide_;
   uint32_t guide_recorded_ = 0;  // the samples [0, n) whose records the guide holds or learned from
   std::unique_ptr<LightPaths> light_paths_;  // --light-paths, where there is something to trace
+  bool light_paths_apart_ = false;
 };
 
 }  // namespace tuile

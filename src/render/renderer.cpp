@@ -201,6 +201,82 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
   return total;
 }
 
+SampleLayout Renderer::sample_layout(int bsdf_passes, int light_passes) const {
+  const Estimator& est = opt_.est;
+  const bool has_media = views_->geom.has_media;
+  return SampleLayout{static_cast<uint32_t>(est.strategy == Strategy::ris ? bsdf_passes : est.bsdf_samples),
+                      static_cast<uint32_t>(light_passes), has_media, has_media && est.equiangular};
+}
+
+uint32_t Renderer::light_chunk_samples() const {
+  const uint64_t pixels = static_cast<uint64_t>(scene_.camera.width) * static_cast<uint64_t>(scene_.camera.height);
+  return static_cast<uint32_t>(std::min<uint64_t>(1u << 20, std::max<uint64_t>(1, (uint64_t(1) << 22) / std::max<uint64_t>(1, pixels))));
+}
+
+// Samples [s0, s1) of every pixel's light paths, in batches of about 2^20 paths (their
+// splats kept per tile), each batch's splats added to sums in tile order.
+void Renderer::trace_light_paths(std::vector<double>& sums, uint32_t s0, uint32_t s1, std::atomic<bool>& skipped) {
+  const Camera& cam = scene_.camera;
+  const Estimator& est = opt_.est;
+  const bool one = est.one_sample();
+  const bool ris = est.strategy == Strategy::ris;
+  const int light_passes =
+      ris ? est.ris_light : (est.pick == LightPick::all ? views_->lights.count : 1) * (one ? 1 : est.light_samples);
+  const int bsdf_passes = ris ? est.ris_bsdf + 1 : one ? 1 : est.bsdf_samples;
+  const uint32_t first_pair = sample_layout(bsdf_passes, light_passes).depth_base(static_cast<uint32_t>(est.max_depth));
+  const int ts = opt_.tile, tiles_x = div_up(cam.width, ts), tiles = tiles_x * div_up(cam.height, ts);
+  const uint64_t all_pixels = static_cast<uint64_t>(cam.width) * static_cast<uint64_t>(cam.height);
+  const uint32_t batch = static_cast<uint32_t>(std::max<uint64_t>(1, (uint64_t(1) << 20) / std::max<uint64_t>(1, all_pixels)));
+  auto& buffers = pool_->buffers;
+  const int threads = opt_.threads > 0 ? opt_.threads : tbb::this_task_arena::max_concurrency();
+  tbb::task_arena arena(threads);
+  std::vector<std::vector<LightPathSplat>> splats(static_cast<size_t>(tiles));
+  for (uint32_t b0 = s0; b0 < s1 && !skipped.load(); b0 += std::min(batch, s1 - b0)) {
+    const uint32_t b1 = b0 + std::min(batch, s1 - b0);
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
+                        [&](const tbb::blocked_range<int>& r) {
+                          TileBuffers& tb = *buffers.local();
+                          for (int t = r.begin(); t < r.end(); ++t) {
+                            if (cancel_ && cancel_->load(std::memory_order_relaxed)) {
+                              skipped.store(true, std::memory_order_relaxed);
+                              return;
+                            }
+                            light_paths_->trace_tile(accel_, tb, t, ts, tiles_x, b0, b1, first_pair,
+                                                     splats[static_cast<size_t>(t)], tb.stats.rejected_bsdf);
+                          }
+                        },
+                        tbb::simple_partitioner());
+    });
+    if (skipped.load()) break;
+    for (std::vector<LightPathSplat>& list : splats) {
+      for (const LightPathSplat& sp : list) {
+        double* px = sums.data() + 3 * static_cast<size_t>(sp.pixel);
+        px[0] += sp.r;
+        px[1] += sp.g;
+        px[2] += sp.b;
+      }
+      list.clear();
+    }
+  }
+}
+
+RenderStats Renderer::render_light_chunk(std::vector<double>& sums, uint32_t begin, uint32_t end) {
+  if (!light_paths_) throw std::logic_error("render_light_chunk: the render has no light paths");
+  const auto t0 = clock_type::now();
+  const size_t n = 3 * static_cast<size_t>(scene_.camera.width) * static_cast<size_t>(scene_.camera.height);
+  sums.assign(n, 0.0);
+  auto& buffers = pool_->buffers;
+  for (auto& p : buffers) p->stats.reset();
+  std::atomic<bool> skipped{false};
+  trace_light_paths(sums, begin, end, skipped);
+  RenderStats st;
+  st.seconds = std::chrono::duration<double>(clock_type::now() - t0).count();
+  st.cancelled = skipped.load();
+  for (auto& p : buffers) st.rejected_bsdf += p->stats.rejected_bsdf;
+  return st;
+}
+
 RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Profile* profile, const std::vector<int>* only,
                                    const Film* prior, bool record) {
   const Camera& cam = scene_.camera;
@@ -242,8 +318,7 @@ RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Pro
     c.opt_film = film.optimal.data();
   }
   if (record) c.guide_rec = guide_.get();
-  c.layout = SampleLayout{static_cast<uint32_t>(ris ? c.bsdf_passes : est.bsdf_samples), static_cast<uint32_t>(c.light_passes),
-                          v.geom.has_media, v.geom.has_media && est.equiangular};
+  c.layout = sample_layout(c.bsdf_passes, c.light_passes);
   std::string why;
   const PipelineEntry pipe = pick_pipeline(v, est, opt_.general_pipeline, why);
   const int all_tiles = c.tiles_x * (div_up(cam.height, ts));
@@ -272,43 +347,21 @@ RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Pro
                       },
                       tbb::simple_partitioner());
   });
-  // --light-paths: the light tracer's paths of every tile's pixels, in batches of samples of
-  // about 2^20 paths; each batch's splats added to the film in tile order (the same bits for
-  // any thread count and tile order)
+  // --light-paths: the light tracer's paths of every pixel, chunk by chunk (render.h), each
+  // chunk's splats added into a zeroed image and that image to the film
   if (light_paths_ && !skipped.load()) {
-    if (only)
+    if (only && !light_paths_apart_)
       throw std::invalid_argument("--light-paths: a light path lands anywhere in the image, so the light tracer does not "
-                                  "render a part of the tiles (a distributed render) yet");
-    const uint64_t all_pixels = static_cast<uint64_t>(cam.width) * static_cast<uint64_t>(cam.height);
-    const uint32_t batch = static_cast<uint32_t>(std::max<uint64_t>(1, (uint64_t(1) << 20) / std::max<uint64_t>(1, all_pixels)));
-    const uint32_t first_pair = c.layout.depth_base(static_cast<uint32_t>(est.max_depth));
-    std::vector<std::vector<LightPathSplat>> splats(static_cast<size_t>(tiles));
-    for (uint32_t s0 = begin; s0 < end && !skipped.load(); s0 += std::min(batch, end - s0)) {
-      const uint32_t s1 = s0 + std::min(batch, end - s0);
-      arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
-                          [&](const tbb::blocked_range<int>& r) {
-                            TileBuffers& tb = *buffers.local();
-                            for (int t = r.begin(); t < r.end(); ++t) {
-                              if (cancel_ && cancel_->load(std::memory_order_relaxed)) {
-                                skipped.store(true, std::memory_order_relaxed);
-                                return;
-                              }
-                              light_paths_->trace_tile(accel_, tb, t, ts, c.tiles_x, s0, s1, first_pair,
-                                                       splats[static_cast<size_t>(t)], tb.stats.rejected_bsdf);
-                            }
-                          },
-                          tbb::simple_partitioner());
-      });
-      if (skipped.load()) break;
-      for (std::vector<LightPathSplat>& list : splats) {
-        for (const LightPathSplat& sp : list) {
-          double* px = film.sum.data() + 3 * static_cast<size_t>(sp.pixel);
-          px[0] += sp.r;
-          px[1] += sp.g;
-          px[2] += sp.b;
-        }
-        list.clear();
+                                  "render a part of the tiles alone");
+    if (!only) {
+      std::vector<double> sums;
+      for (uint32_t s0 = begin; s0 < end && !skipped.load();) {
+        const uint32_t s1 = s0 + std::min(light_chunk_samples(), end - s0);
+        sums.assign(film.sum.size(), 0.0);
+        trace_light_paths(sums, s0, s1, skipped);
+        if (skipped.load()) break;
+        for (size_t i = 0; i < sums.size(); ++i) film.sum[i] += sums[i];
+        s0 = s1;
       }
     }
   }
