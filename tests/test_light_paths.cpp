@@ -17,11 +17,13 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <string>
 #include <vector>
 
 #include "app/cli.h"
 #include "media_util.h"
+#include "output_files.h"
 #include "render/light_paths.h"
 #include "render/options.h"
 #include "render_util.h"
@@ -565,4 +567,33 @@ TEST(LightPaths, AutoIsGlossyUnderASmallLampOverANearMirror) {
   finalize_scene(dark);
   EXPECT_EQ(area_glint_share(dark), 0);
   EXPECT_EQ(resolved(dark), "on");  // (the sun's glints)
+}
+
+// `tuile info` says what auto chose and the figure it rests on: veach-mis's layout in a
+// pbrt-v4 file (a sphere lamp of radius 0.01 at 1.5 over a conductor of alpha 0.01).
+TEST(LightPaths, InfoSaysGlossyAndTheGlintShare) {
+  using tuile::testing::CmdResult;
+  using tuile::testing::run_command;
+  using tuile::testing::TempDir;
+  TempDir dir;
+  const std::string scene = dir / "glint.pbrt";
+  std::ofstream(scene) << "LookAt 0 1 6  0 1 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 45 ]\n"
+                          "Integrator \"path\" \"integer maxdepth\" [ 5 ]\nWorldBegin\n"
+                          "Material \"diffuse\" \"rgb reflectance\" [ 0.6 0.6 0.6 ]\n"
+                          "Shape \"trianglemesh\" \"point3 P\" [ -3 -1 -3  3 -1 -3  3 4 -3  -3 4 -3 ] "
+                          "\"integer indices\" [ 0 1 2  0 2 3 ]\n"
+                          "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [ 5000 5000 5000 ]\n"
+                          "Translate 0 1.5 0\nShape \"sphere\" \"float radius\" [ 0.01 ]\nAttributeEnd\n"
+                          "Material \"conductor\" \"float roughness\" [ 0.01 ] \"bool remaproughness\" false\n"
+                          "Shape \"trianglemesh\" \"point3 P\" [ -1 0 -1  -1 0 1  1 0 1  1 0 -1 ] "
+                          "\"integer indices\" [ 0 1 2  0 2 3 ]\n";
+  const CmdResult r = run_command(TUILE_BINARY, "info " + scene);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("light-paths=glossy"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("light paths: glossy, a light path per pixel"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("glints: 0.1"), std::string::npos) << r.out;  // (about 0.11: A / (4 pi d^2) over the mirror)
+  const CmdResult off = run_command(TUILE_BINARY, "info " + scene + " --light-paths=off");
+  ASSERT_EQ(off.code, 0) << off.out;
+  EXPECT_EQ(off.out.find("light paths:"), std::string::npos) << off.out;
+  EXPECT_NE(off.out.find("glints: 0.1"), std::string::npos) << off.out;
 }

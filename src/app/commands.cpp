@@ -25,6 +25,7 @@
 #include "scene/image_io.h"
 #include "scene/sky_map.h"
 #include "render/filter_table.h"
+#include "render/light_paths.h"
 #include "render/render.h"
 #include "measure/roofline.h"
 
@@ -223,6 +224,16 @@ std::string info_text(const Prepared& p) {
                   r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
     else
       say("bounce rays: against the %s\n", r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
+    // --light-paths: what runs, and the figure auto's glossy choice rests on
+    if (opt.est.light_paths)
+      say("light paths: %s, %s\n", opt.est.light_paths_glossy ? "glossy" : "on",
+          r.has_light_paths() ? "a light path per pixel and sample after the camera's"
+                              : "inactive (nothing the light tracer could trace and join to the camera)");
+    const double glints = area_glint_share(scene);
+    if (glints > 0)
+      say("glints: %.3g of the area sources' power falls on near-specular surfaces from a source that looks small "
+          "from them (--light-paths auto takes glossy from 0.01)\n",
+          glints);
   }
   for (const std::string& w : scene.warnings) say("approximation: %s\n", w.c_str());
   for (const std::string& w : scene.notes) say("note: %s\n", w.c_str());
