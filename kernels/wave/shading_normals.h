@@ -153,6 +153,10 @@ inline bool bump_normal(const GeomView& G, int32_t t, int32_t g, int32_t prim, f
 // Then bump mapping (bump_normal) where the point's material has a displacement texture
 // (the material a mix chose, as pbrt-v4: resolve_mixes runs first); spheres are not
 // bumped (tuile keeps no (phi, theta) frame for them; the loader warns).
+// The vertex normals are gathered point by point (ShadingPoints::vn), the arithmetic runs
+// in SIMD over whole packets (the padding lanes' results are overwritten by finish_points),
+// bump mapping point by point; every lane computes the operations of the scalar
+// definition above in the same order (tests/test_shading_normals.cpp holds it).
 template <bool Materials> inline void apply_shading_normals(const GeomView& G, ShadingPoints& P) {
   // first a pass that prefetches the three vertex normals of every point (its indices
   // were prefetched with its hit), so that their cache misses overlap
@@ -163,61 +167,82 @@ template <bool Materials> inline void apply_shading_normals(const GeomView& G, S
     const uint32_t* idx = G.indices[g] + 3 * static_cast<size_t>(P.prim[k]);
     for (int i = 0; i < 3; ++i) __builtin_prefetch(N + 3 * static_cast<size_t>(idx[i]));
   }
+  // the vertex normals (an instance's placed in the world, unit, as its flattened copy's)
   for (int k = 0; k < P.count; ++k) {
-    const float gx = P.nx[k], gy = P.ny[k], gz = P.nz[k];
-    float sx = gx, sy = gy, sz = gz;
     const int32_t g = P.geom[k];
-    const int32_t inst = G.has_instances ? P.inst[k] : -1;
     const float* N = G.normals[g];  // (nullptr for every kind but meshes)
-    if (N) {
-      const uint32_t* idx = G.indices[g] + 3 * static_cast<size_t>(P.prim[k]);
-      const float b1 = P.bu[k], b2 = P.bv[k], b0 = 1.f - b1 - b2;
-      vec3f nv[3];
-      for (int i = 0; i < 3; ++i) {  // (an instance's placed in the world, unit, as its flattened copy's)
-        const float* q = N + 3 * static_cast<size_t>(idx[i]);
-        nv[i] = {q[0], q[1], q[2]};
-        if (inst >= 0 && (q[0] != 0.f || q[1] != 0.f || q[2] != 0.f)) nv[i] = instance_normal(G, inst, nv[i]);
-      }
-      const float x = b0 * nv[0].x + b1 * nv[1].x + b2 * nv[2].x;
-      const float y = b0 * nv[0].y + b1 * nv[1].y + b2 * nv[2].y;
-      const float z = b0 * nv[0].z + b1 * nv[1].z + b2 * nv[2].z;
-      const float l2 = x * x + y * y + z * z;
-      if (l2 > 1e-20f && std::isfinite(l2)) {
-        const float il = 1.f / std::sqrt(l2);
-        sx = x * il;
-        sy = y * il;
-        sz = z * il;
-        const float facing = sx * gx + sy * gy + sz * gz;
-        if constexpr (Materials) P.side[k] = facing >= 0.f ? 1.f : -1.f;
-        if (facing < 0.f) {
-          sx = -sx;
-          sy = -sy;
-          sz = -sz;
-        }
-      }
+    if (!N) {
+      for (int c = 0; c < 9; ++c) P.vn[c][k] = 0.f;
+      continue;
     }
-    if (G.has_bump && is_mesh(G, g)) {
-      const int32_t m = Materials ? P.mat[k] : G.geom_material[g];
-      const int32_t t = G.mat_bump[m];
-      vec3f sn;
-      if (t >= 0 && bump_normal(G, t, g, P.prim[k], P.bu[k], P.bv[k], {P.px[k], P.py[k], P.pz[k]}, {gx, gy, gz}, sn, inst)) {
-        sx = sn.x;
-        sy = sn.y;
-        sz = sn.z;
-      }
+    const int32_t inst = G.has_instances ? P.inst[k] : -1;
+    const uint32_t* idx = G.indices[g] + 3 * static_cast<size_t>(P.prim[k]);
+    for (int i = 0; i < 3; ++i) {
+      const float* q = N + 3 * static_cast<size_t>(idx[i]);
+      vec3f nv{q[0], q[1], q[2]};
+      if (inst >= 0 && (q[0] != 0.f || q[1] != 0.f || q[2] != 0.f)) nv = instance_normal(G, inst, nv);
+      P.vn[3 * i][k] = nv.x;
+      P.vn[3 * i + 1][k] = nv.y;
+      P.vn[3 * i + 2][k] = nv.z;
     }
-    // On wo's side: pbrt-v4's BxDFs are two-sided in the shading frame (a diffuse surface
-    // reflects light that arrives on the same side of the shading normal as wo), so where a
-    // bump or an interpolated normal tilts past wo, the light on wo's side of the tilted
-    // plane is the light that counts, and the BSDF samples go to that side.
-    if (sx * P.wox[k] + sy * P.woy[k] + sz * P.woz[k] < 0.f) {
-      sx = -sx;
-      sy = -sy;
-      sz = -sz;
+  }
+  // On wo's side: pbrt-v4's BxDFs are two-sided in the shading frame (a diffuse surface
+  // reflects light that arrives on the same side of the shading normal as wo), so where a
+  // bump or an interpolated normal tilts past wo, the light on wo's side of the tilted
+  // plane is the light that counts, and the BSDF samples go to that side.
+  const auto to_wo_side = [&](int k, vfloat& sx, vfloat& sy, vfloat& sz) {
+    const auto away = sx * vfloat::load_aligned(P.wox + k) + sy * vfloat::load_aligned(P.woy + k) +
+                          sz * vfloat::load_aligned(P.woz + k) <
+                      vfloat(0.f);
+    sx = xsimd::select(away, -sx, sx);
+    sy = xsimd::select(away, -sy, sy);
+    sz = xsimd::select(away, -sz, sz);
+  };
+  const int end = packet_padded(P.count);
+  for (int k = 0; k < end; k += static_cast<int>(vfloat::size)) {
+    const vfloat gx = vfloat::load_aligned(P.nx + k), gy = vfloat::load_aligned(P.ny + k), gz = vfloat::load_aligned(P.nz + k);
+    const vfloat b1 = vfloat::load_aligned(P.bu + k), b2 = vfloat::load_aligned(P.bv + k), b0 = vfloat(1.f) - b1 - b2;
+    auto at = [&](int c) { return vfloat::load_aligned(P.vn[c] + k); };
+    const vfloat x = b0 * at(0) + b1 * at(3) + b2 * at(6);
+    const vfloat y = b0 * at(1) + b1 * at(4) + b2 * at(7);
+    const vfloat z = b0 * at(2) + b1 * at(5) + b2 * at(8);
+    const vfloat l2 = x * x + y * y + z * z;
+    const auto ok = (l2 > vfloat(1e-20f)) & xsimd::isfinite(l2);
+    const vfloat il = vfloat(1.f) / xsimd::sqrt(l2);
+    vfloat sx = x * il, sy = y * il, sz = z * il;
+    const vfloat facing = sx * gx + sy * gy + sz * gz;
+    if constexpr (Materials)
+      xsimd::select(ok, xsimd::select(facing >= vfloat(0.f), vfloat(1.f), vfloat(-1.f)), vfloat::load_aligned(P.side + k))
+          .store_aligned(P.side + k);
+    const auto flip = facing < vfloat(0.f);
+    sx = xsimd::select(ok, xsimd::select(flip, -sx, sx), gx);
+    sy = xsimd::select(ok, xsimd::select(flip, -sy, sy), gy);
+    sz = xsimd::select(ok, xsimd::select(flip, -sz, sz), gz);
+    if (!G.has_bump) to_wo_side(k, sx, sy, sz);
+    sx.store_aligned(P.snx + k);
+    sy.store_aligned(P.sny + k);
+    sz.store_aligned(P.snz + k);
+  }
+  if (!G.has_bump) return;
+  for (int k = 0; k < P.count; ++k) {
+    const int32_t g = P.geom[k];
+    if (!is_mesh(G, g)) continue;
+    const int32_t m = Materials ? P.mat[k] : G.geom_material[g];
+    const int32_t t = G.mat_bump[m];
+    vec3f sn;
+    if (t >= 0 && bump_normal(G, t, g, P.prim[k], P.bu[k], P.bv[k], {P.px[k], P.py[k], P.pz[k]}, {P.nx[k], P.ny[k], P.nz[k]},
+                              sn, G.has_instances ? P.inst[k] : -1)) {
+      P.snx[k] = sn.x;
+      P.sny[k] = sn.y;
+      P.snz[k] = sn.z;
     }
-    P.snx[k] = sx;
-    P.sny[k] = sy;
-    P.snz[k] = sz;
+  }
+  for (int k = 0; k < end; k += static_cast<int>(vfloat::size)) {
+    vfloat sx = vfloat::load_aligned(P.snx + k), sy = vfloat::load_aligned(P.sny + k), sz = vfloat::load_aligned(P.snz + k);
+    to_wo_side(k, sx, sy, sz);
+    sx.store_aligned(P.snx + k);
+    sy.store_aligned(P.sny + k);
+    sz.store_aligned(P.snz + k);
   }
 }
 

@@ -74,6 +74,9 @@ struct ShadingPoints {
   // with instances (GeomView::has_instances) and those passes: the hit's instance or -1
   alignas(64) int32_t inst[lane_array];
   alignas(64) float snx[lane_array], sny[lane_array], snz[lane_array];
+  // scenes with shading normals: each point's three vertex normals, x y z of each in turn
+  // (zero where its geometry has none; apply_shading_normals' scratch)
+  alignas(64) float vn[9][lane_array];
   // scenes with textured roughness only (GeomView::has_rough_tex): the Trowbridge-Reitz
   // alphas at the point
   alignas(64) float ax[lane_array], ay[lane_array];
