@@ -113,7 +113,9 @@ class Renderer {
   void set_cancel_flag(const std::atomic<bool>* flag) { cancel_ = flag; }
 
  private:
-  SampleLayout sample_layout(int bsdf_passes, int light_passes) const;
+  int light_passes() const;  // the light samples' sampler pairs a vertex takes
+  int bsdf_passes() const;   // the BSDF samples'
+  SampleLayout sample_layout() const;
   void trace_light_paths(std::vector<double>& sums, uint32_t s0, uint32_t s1, std::atomic<bool>& skipped);
   RenderStats render_range(Film& film, uint32_t begin, uint32_t end, Profile* profile, const std::vector<int>* only,
                            const Film* prior, bool record);

@@ -201,11 +201,25 @@ RenderStats Renderer::render(Film& film, uint32_t begin, uint32_t end, Profile* 
   return total;
 }
 
-SampleLayout Renderer::sample_layout(int bsdf_passes, int light_passes) const {
+// ris: the light candidates' pairs, and the BSDF candidates' and the last BSDF sample's
+// (the path's continuation, the delta lobes)
+int Renderer::light_passes() const {
+  const Estimator& est = opt_.est;
+  return est.strategy == Strategy::ris
+             ? est.ris_light
+             : (est.pick == LightPick::all ? views_->lights.count : 1) * (est.one_sample() ? 1 : est.light_samples);
+}
+
+int Renderer::bsdf_passes() const {
+  const Estimator& est = opt_.est;
+  return est.strategy == Strategy::ris ? est.ris_bsdf + 1 : est.one_sample() ? 1 : est.bsdf_samples;
+}
+
+SampleLayout Renderer::sample_layout() const {
   const Estimator& est = opt_.est;
   const bool has_media = views_->geom.has_media;
-  return SampleLayout{static_cast<uint32_t>(est.strategy == Strategy::ris ? bsdf_passes : est.bsdf_samples),
-                      static_cast<uint32_t>(light_passes), has_media, has_media && est.equiangular};
+  return SampleLayout{static_cast<uint32_t>(est.strategy == Strategy::ris ? bsdf_passes() : est.bsdf_samples),
+                      static_cast<uint32_t>(light_passes()), has_media, has_media && est.equiangular};
 }
 
 uint32_t Renderer::light_chunk_samples() const {
@@ -218,12 +232,7 @@ uint32_t Renderer::light_chunk_samples() const {
 void Renderer::trace_light_paths(std::vector<double>& sums, uint32_t s0, uint32_t s1, std::atomic<bool>& skipped) {
   const Camera& cam = scene_.camera;
   const Estimator& est = opt_.est;
-  const bool one = est.one_sample();
-  const bool ris = est.strategy == Strategy::ris;
-  const int light_passes =
-      ris ? est.ris_light : (est.pick == LightPick::all ? views_->lights.count : 1) * (one ? 1 : est.light_samples);
-  const int bsdf_passes = ris ? est.ris_bsdf + 1 : one ? 1 : est.bsdf_samples;
-  const uint32_t first_pair = sample_layout(bsdf_passes, light_passes).depth_base(static_cast<uint32_t>(est.max_depth));
+  const uint32_t first_pair = sample_layout().depth_base(static_cast<uint32_t>(est.max_depth));
   const int ts = opt_.tile, tiles_x = div_up(cam.width, ts), tiles = tiles_x * div_up(cam.height, ts);
   const uint64_t all_pixels = static_cast<uint64_t>(cam.width) * static_cast<uint64_t>(cam.height);
   const uint32_t batch = static_cast<uint32_t>(std::max<uint64_t>(1, (uint64_t(1) << 20) / std::max<uint64_t>(1, all_pixels)));
@@ -284,7 +293,6 @@ RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Pro
   const SceneViews& v = *views_;
   const Estimator& est = opt_.est;
   const bool one = est.one_sample();
-  const bool ris = est.strategy == Strategy::ris;
   const float c_l = one ? est.one_sample_light_prob() : 0.f;
   const int ts = opt_.tile;
   TileContext c{v,
@@ -295,10 +303,8 @@ RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Pro
                 div_up(cam.width, ts),
                 cam.width,
                 cam.height,
-                // ris: the light candidates' pairs, and the BSDF candidates' and the last BSDF
-                // sample's (the path's continuation, the delta lobes)
-                ris ? est.ris_light : (est.pick == LightPick::all ? v.lights.count : 1) * (one ? 1 : est.light_samples),
-                ris ? est.ris_bsdf + 1 : one ? 1 : est.bsdf_samples,
+                light_passes(),
+                bsdf_passes(),
                 v.lights.count,
                 SampleLayout{},
                 one ? c_l : static_cast<float>(est.light_samples),
@@ -318,7 +324,7 @@ RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Pro
     c.opt_film = film.optimal.data();
   }
   if (record) c.guide_rec = guide_.get();
-  c.layout = sample_layout(c.bsdf_passes, c.light_passes);
+  c.layout = sample_layout();
   std::string why;
   const PipelineEntry pipe = pick_pipeline(v, est, opt_.general_pipeline, why);
   const int all_tiles = c.tiles_x * (div_up(cam.height, ts));
