@@ -409,14 +409,13 @@ TEST(LightPaths, RefusesWhatItCannotDo) {
 // scene refuses the light tracer.
 TEST(LightPaths, AutoIsOnWhereOnlyTheLightTracerFindsThePaths) {
   auto resolved = [](Scene s, const std::string& value, int max_depth = 5, const std::string& aov = "",
-                     double target_error = 0, bool distributed = false) {
+                     double target_error = 0) {
     RenderFlags f;
     f.light_paths = value;
     f.max_depth = max_depth;
     f.max_depth_given = true;
     f.aov = aov;
     f.target_error = target_error;
-    f.distributed = distributed;
     return resolve_options(f, s).est.light_paths;
   };
   const Scene sun = sun_wall(16, false);
@@ -447,16 +446,13 @@ TEST(LightPaths, AutoIsOnWhereOnlyTheLightTracerFindsThePaths) {
   EXPECT_FALSE(resolved(sun, "", 5, "variance"));
   EXPECT_THROW(resolved(sun, "on", 5, "variance"), std::invalid_argument);
   EXPECT_FALSE(resolved(sun, "", 5, "", 0.01));
-  EXPECT_TRUE(resolved(sun, "", 5, "", 0, true));  // (mpirun: the light paths are units of their own)
-  {  // ... but not with --guide under mpirun
+  {  // with --guide too (under mpirun as in one process: tests/test_mpi.cpp)
     RenderFlags f;
     f.max_depth = 5;
     f.max_depth_given = true;
     f.guide = true;
     Scene s = sun;
     EXPECT_TRUE(resolve_options(f, s).est.light_paths);
-    f.distributed = true;
-    EXPECT_FALSE(resolve_options(f, s).est.light_paths);
   }
   EXPECT_TRUE(resolved(sun, "", 5, "mis_weight"));
   // the glossy surfaces rougher than the light tracer's bound, or smooth (a delta lobe: no

@@ -24,7 +24,6 @@ struct RenderFlags {
   std::string regularize;  // --regularize on|off; "": the scene file's Integrator
   bool guide = false;      // --guide
   std::string light_paths;   // --light-paths[=auto|on|glossy|off] (empty: auto; the flag alone: on)
-  bool distributed = false;  // under mpirun (--light-paths auto is off there with --guide)
   std::string equiangular;   // --equiangular on | off (empty: the default)
   uint32_t guide_learn = 64;
   float guide_alpha = 0.5f;

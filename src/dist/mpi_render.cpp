@@ -30,6 +30,7 @@
 #include <iostream>
 #include <functional>
 #include <map>
+#include <tuple>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -113,13 +114,17 @@ struct Step {
 // The units of a render: for every step (the passes from `done` to spp, cut at the guide's
 // iterations), every block of tiles.
 // With --light-paths, each step's light paths too, in the renderer's chunks (render.h): a
-// unit whose block is blocks + j traces chunk j of its step for the whole image.
+// unit whose block is blocks + j traces chunk j of its step for the whole image (none for
+// the steps a resumed render learns its guide from again: their image is dropped).
 struct Units {
   std::vector<uint32_t> pass_begin, pass_end;  // per pass
   std::vector<Step> steps;
   std::vector<int> pass_steps;  // per pass, its steps
   int blocks = 0, tiles_per_block = 1, tiles = 0;
   uint32_t light_chunk = 0;  // samples per chunk of light paths (0: none)
+  std::vector<int> step_index;   // per step: its place among its pass's steps
+  std::vector<int> step_chunk0;  // per step: its first light chunk's place among its pass's
+  std::vector<int> pass_chunks;  // per pass: its light chunks, over its steps
   std::vector<std::pair<uint32_t, uint32_t>> order;  // (step, block) of every unit, in the order sent
   std::vector<int> block_tiles(int b) const {
     std::vector<int> t;
@@ -128,12 +133,10 @@ struct Units {
   }
   int light_chunks(size_t step) const {
     const Step& s = steps[step];
-    return light_chunk == 0 ? 0 : static_cast<int>((s.end - s.begin + light_chunk - 1) / light_chunk);
+    return light_chunk == 0 || s.pass < 0 ? 0 : static_cast<int>((s.end - s.begin + light_chunk - 1) / light_chunk);
   }
   int step_units(size_t step) const { return blocks + light_chunks(step); }
-  int pass_light_chunks(size_t pass) const {
-    return light_chunk == 0 ? 0 : static_cast<int>((pass_end[pass] - pass_begin[pass] + light_chunk - 1) / light_chunk);
-  }
+  int pass_light_chunks(size_t pass) const { return pass_chunks[pass]; }
   int count() const { return static_cast<int>(order.size()); }
 };
 
@@ -168,6 +171,14 @@ Units plan_units(const Renderer& r, const PassPlan& plan, uint32_t done, uint32_
   u.tiles_per_block = std::min(u.tiles_per_block, std::max(1, u.tiles / (4 * std::max(1, workers))));
   u.blocks = (u.tiles + u.tiles_per_block - 1) / u.tiles_per_block;
   u.light_chunk = r.has_light_paths() ? r.light_chunk_samples() : 0;
+  u.pass_chunks.assign(u.pass_begin.size(), 0);
+  std::vector<int> seen(u.pass_begin.size(), 0);
+  for (size_t k = 0; k < u.steps.size(); ++k) {
+    const int pass = u.steps[k].pass;
+    u.step_index.push_back(pass < 0 ? 0 : seen[static_cast<size_t>(pass)]++);
+    u.step_chunk0.push_back(pass < 0 ? 0 : u.pass_chunks[static_cast<size_t>(pass)]);
+    if (pass >= 0) u.pass_chunks[static_cast<size_t>(pass)] += u.light_chunks(k);
+  }
   for (size_t k = 0; k < u.steps.size(); ++k)  // (a step's light chunks first: they take longest)
     for (int j = 0; j < u.step_units(k); ++j)
       u.order.emplace_back(static_cast<uint32_t>(k), static_cast<uint32_t>((j + u.blocks) % u.step_units(k)));
@@ -320,6 +331,9 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
   std::map<std::pair<int, int>, std::vector<double>> pending;
   std::map<std::pair<int, int>, int> pending_steps;
   std::vector<double> pass_sum;  // with light paths: a pass's sums before they join the image
+  // with light paths and the guide: (pass, block, the step's place in the pass) -> that
+  // step's sums of the block's pixels (3 a pixel)
+  std::map<std::tuple<int, int, int>, std::vector<double>> step_sums;
   std::vector<int> returned(u.steps.size(), 0);  // per step, its blocks in
   // the first step that ends a learning iteration whose records are not summed yet: no unit
   // after it goes out before that (steps.size(): none)
@@ -427,9 +441,18 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
     ++returned[static_cast<size_t>(step)];
     const int pass = u.steps[static_cast<size_t>(step)].pass;
     if (pass < 0) continue;  // the guide learning again on a resume: the image has these samples
+    // a light chunk's place among its pass's chunks (over the pass's steps)
+    const int key = block >= u.blocks ? u.blocks + u.step_chunk0[static_cast<size_t>(step)] + (block - u.blocks) : block;
+    // a pass of several steps (the guide's learning iterations) with light paths: a single
+    // process adds each step's camera sums and then its light chunks, so each step's sums
+    // are kept apart too
+    if (block < u.blocks && u.pass_steps[static_cast<size_t>(pass)] > 1 && u.pass_light_chunks(static_cast<size_t>(pass)) > 0) {
+      std::vector<double>& own = step_sums[{pass, block, u.step_index[static_cast<size_t>(step)]}];
+      for (size_t at = header_size; at < msg.size(); at += values_per_pixel) own.insert(own.end(), &msg[at], &msg[at] + 3);
+    }
     // a pass's steps come in order (a barrier stands between two of one pass): their sums
     // are added as a single process adds them to the pass's film, which starts from zero
-    std::vector<double>& acc = pending[{pass, block}];
+    std::vector<double>& acc = pending[{pass, key}];
     if (acc.empty()) {
       acc = std::move(msg);
     } else {
@@ -440,39 +463,65 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
         acc[m] = std::max(acc[m], msg[m]);
       }
     }
-    ++pending_steps[{pass, block}];
+    ++pending_steps[{pass, key}];
     // add every pass whose blocks are all in, in pass order, blocks in order
     for (;;) {
       const int k = merged_passes;
       bool complete = k < passes;
-      // the pass's light chunks (a pass with light paths is one step: --guide refuses them)
+      // the pass's light chunks (one unit each), over its steps
       const int chunks = complete ? u.pass_light_chunks(static_cast<size_t>(k)) : 0;
       for (int b = 0; b < u.blocks + chunks && complete; ++b) {
         const auto it = pending_steps.find({k, b});
-        complete = it != pending_steps.end() && it->second == u.pass_steps[static_cast<size_t>(k)];
+        complete = it != pending_steps.end() && it->second == (b < u.blocks ? u.pass_steps[static_cast<size_t>(k)] : 1);
       }
       if (!complete) break;
       // with light paths, the pass's sums are made first (its camera paths', then its light
-      // chunks' in order) and then added to the image, as a single process adds a pass
+      // chunks' in order; with several steps, step by step) and then added to the image, as
+      // a single process adds a pass
+      const bool stepped = chunks > 0 && u.pass_steps[static_cast<size_t>(k)] > 1;
       if (chunks > 0) pass_sum.assign(film.sum.size(), 0.0);
-      double* sum_to = chunks > 0 ? pass_sum.data() : film.sum.data();
-      for (int b = 0; b < u.blocks + chunks; ++b) {
+      auto add_chunk = [&](int b) {
         std::vector<double>& m = pending[{k, b}];
+        for (size_t i = 0; i < pass_sum.size(); ++i) pass_sum[i] += m[header_size + i];
+        out.stats.seconds += m[h_seconds];
+        out.stats.rejected_bsdf += static_cast<uint64_t>(m[h_rej_bsdf]);
+        pending.erase({k, b});
+        pending_steps.erase({k, b});
+      };
+      if (stepped)
+        for (size_t sk = 0; sk < u.steps.size(); ++sk) {
+          if (u.steps[sk].pass != k) continue;
+          const int si = u.step_index[sk];
+          for (int b = 0; b < u.blocks; ++b) {
+            const std::vector<double>& own = step_sums[{k, b, si}];
+            size_t at = 0;
+            for (int t : u.block_tiles(b)) {
+              const TileRect r = renderer.tile_rect(t);
+              for (int y = r.y0; y < r.y0 + r.h; ++y)
+                for (int x = r.x0; x < r.x0 + r.w; ++x) {
+                  const size_t i = static_cast<size_t>(y) * film.width + x;
+                  for (int c = 0; c < 3; ++c) pass_sum[3 * i + c] += own[at++];
+                }
+            }
+            step_sums.erase({k, b, si});
+          }
+          for (int j = 0; j < u.light_chunks(sk); ++j) add_chunk(u.blocks + u.step_chunk0[sk] + j);
+        }
+      double* sum_to = stepped ? nullptr : chunks > 0 ? pass_sum.data() : film.sum.data();
+      for (int b = 0; b < u.blocks + chunks; ++b) {
         if (b >= u.blocks) {
-          for (size_t i = 0; i < pass_sum.size(); ++i) pass_sum[i] += m[header_size + i];
-          out.stats.seconds += m[h_seconds];
-          out.stats.rejected_bsdf += static_cast<uint64_t>(m[h_rej_bsdf]);
-          pending.erase({k, b});
-          pending_steps.erase({k, b});
+          if (!stepped) add_chunk(b);
           continue;
         }
+        std::vector<double>& m = pending[{k, b}];
         size_t at = header_size;
         for (int t : u.block_tiles(b)) {
           const TileRect r = renderer.tile_rect(t);
           for (int y = r.y0; y < r.y0 + r.h; ++y)
             for (int x = r.x0; x < r.x0 + r.w; ++x) {
               const size_t i = static_cast<size_t>(y) * film.width + x;
-              for (int c = 0; c < 3; ++c) sum_to[3 * i + c] += m[at++];
+              for (int c = 0; c < 3; ++c, ++at)
+                if (sum_to) sum_to[3 * i + c] += m[at];
               for (int c = 0; c < 3; ++c) film.sum_sq[3 * i + c] += m[at++];
               film.w_sum[i] += m[at++];
               film.w_cnt[i] += m[at++];
@@ -555,22 +604,10 @@ bool load_everywhere(const Mpi& mpi, const RenderFlags& f, std::unique_ptr<Rende
   return false;
 }
 
-// --light-paths asked for by name under mpirun with --guide (auto is off there:
-// RenderFlags::distributed): the guide's learning iterations cut the passes into steps,
-// which the light paths' chunks do not follow.
-bool refuses_light_paths(const Mpi& mpi, const RenderFlags& f, const char* what) {
-  if (!f.guide || !light_paths_asked(f)) return false;
-  if (mpi.rank == 0)
-    std::cerr << "tuile: error: --light-paths with --guide: the ranks of mpirun do not split that work yet; " << what
-              << " it in one process, or leave out one of the two\n";
-  return true;
-}
-
 }  // namespace
 
 int run_render_distributed(const RenderFlags& flags) {
   RenderFlags f = flags;
-  f.distributed = true;  // (--light-paths auto: off with --guide)
   Mpi mpi;
   if (f.time_budget > 0 || f.target_error > 0) {
     if (mpi.rank == 0)
@@ -585,7 +622,6 @@ int run_render_distributed(const RenderFlags& flags) {
                    "ranks of mpirun render at the same time; render it in one process\n";
     return 1;
   }
-  if (refuses_light_paths(mpi, f, "render")) return 1;  // (the renderer refuses a part of the tiles too)
   std::unique_ptr<RenderJob> job;
   std::unique_ptr<Prepared> prepared;
   if (!load_everywhere(mpi, f, job, prepared)) return 1;
@@ -642,8 +678,6 @@ int run_render_distributed(const RenderFlags& flags) {
 int run_bench_distributed(const BenchFlags& bf) {
   Mpi mpi;
   RenderFlags f = bf.render;
-  f.distributed = true;  // (--light-paths auto: off with --guide)
-  if (refuses_light_paths(mpi, f, "bench")) return 1;
   std::unique_ptr<RenderJob> job;
   std::unique_ptr<Prepared> prepared;
   f.output.clear();
