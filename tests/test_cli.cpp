@@ -62,7 +62,9 @@ TEST(Cli, BadInputIsAClearErrorWithExitOne) {
   r = run("render /nonexistent/scene.pbrt --quiet");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("/nonexistent/scene.pbrt"), std::string::npos) << r.out;
-  for (const char* args : {"--res 0x10", "--res 100000x100000", "--beta nan", "--strategy maybe", "--spp 0",
+  // (4294967304x4294967302 wrapped round to 8x6 in a 32-bit parse and rendered)
+  for (const char* args : {"--res 0x10", "--res 100000x100000", "--res 4294967304x4294967302", "--res -8x6", "--res 8x6x2",
+                           "--res 8 x6", "--beta nan", "--strategy maybe", "--spp 0",
                            "--light-samples 0", "--threads -1", "--aov unknown", "--pipeline fast",
                            "--bounce-rays nearest", "--bvh tiny"}) {
     r = run(std::string("render built-in:cornell --quiet -o ") + tmp("cli_x.exr") + " " + args);

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "render/views.h"
+#include "scene/image_io.h"
 #include "scene/pbrt.h"
 #include "scene/pbrt/ply.h"
 #include "wave/instances.h"
@@ -858,6 +859,46 @@ TEST(PbrtErrors, NanInfAndOverflow) {
   expect_error(t, loc(t, "1e400"), "fits in a float");
   t = "WorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ] \"integer indices\" [ 0 1 99999999999 ]\n";
   expect_error(t, loc(t, "\"integer indices\""), "32-bit");
+}
+
+// What a fuzzing pass found (each was a crash, an endless read or a silent result before):
+// a backslash that ends a string's line or an escape pbrt-v4 does not know, a camera far
+// out of Embree's range (its assertion aborted the process) or with a screen window of
+// 1e30, a device named by Include (/dev/zero: read for ever), an emission or coefficient
+// whose product with its scale overflows a float (a black or NaN image), and a float
+// texture with a NaN texel (a dark patch of rejected samples: now the missing-image rule).
+TEST(PbrtErrors, EscapesCamerasDevicesOverflowsAndNanTexels) {
+  expect_error("WorldBegin\nShape \"sphere\\\n", "t.pbrt:2:7", "closing");
+  std::string t = "WorldBegin\nShape \"sph\\ere\"\n";
+  expect_error(t, "t.pbrt:2:7", "one of");
+  EXPECT_NO_THROW(world("Shape \"sphere\" \"string name\" \"a \\\"b\\\" \\\\c\"\n"));
+  t = "Translate 1e19 0 0\nCamera \"perspective\"\nWorldBegin\n";
+  expect_error(t, "t.pbrt:2:1", "within 1e15");
+  t = "Scale 1e-20 1e-20 1e-20\nCamera \"perspective\"\nWorldBegin\n";
+  expect_error(t, "t.pbrt:2:1", "scaled by at most");
+  t = "Camera \"perspective\" \"float frameaspectratio\" [ 1e30 ]\nWorldBegin\n";
+  expect_error(t, "t.pbrt:1:1", "at most 1e6");
+  t = "WorldBegin\nInclude \"/dev/zero\"\n";
+  EXPECT_NE(error_of(t).find("it is a device"), std::string::npos) << error_of(t);
+  t = "WorldBegin\nMakeNamedMedium \"f\" \"string type\" \"homogeneous\" \"rgb Le\" [ 1e30 1e30 1e30 ] \"float Lescale\" [ 3e38 ]\n";
+  expect_error(t, "t.pbrt:2:1", "Lescale");
+  t = "WorldBegin\nMakeNamedMedium \"f\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [ 1e30 1 1 ] \"float scale\" [ 1e20 ]\n";
+  expect_error(t, "t.pbrt:2:1", "scale fits a float");
+  t = "WorldBegin\nLightSource \"point\" \"rgb I\" [ 1e30 1e30 1e30 ] \"float scale\" [ 1e30 ]\n";
+  expect_error(t, "t.pbrt:2:1", "fit a float");
+  t = "WorldBegin\nLightSource \"distant\" \"rgb L\" [ 1 1 1 ] \"float scale\" [ inf ]\n";
+  EXPECT_NE(error_of(t).find("error"), std::string::npos) << error_of(t);
+  t = "WorldBegin\nAreaLightSource \"diffuse\" \"rgb L\" [ 1e30 1 1 ] \"float scale\" [ 1e20 ]\n";
+  expect_error(t, "t.pbrt:2:1", "fit a float");
+  // a float image with a NaN texel: as an image that cannot be read (grey, a warning)
+  std::vector<float> rgb(4 * 4 * 3, 0.9f);
+  rgb[3 * 5 + 1] = std::nanf("");
+  write_exr((tmp_dir() / "nan.exr").string(), 4, 4, rgb);
+  const Scene s = world("Texture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"nan.exr\"\nMaterial \"diffuse\" \"texture reflectance\" \"t\"\n" + tri);
+  const Material& m = s.materials[size_t(s.meshes[0].material)];
+  EXPECT_EQ(m.texture, -1);
+  EXPECT_FLOAT_EQ(m.reflectance.g, 0.5f);
+  EXPECT_TRUE(has_warning(s, "texel (1, 1) is not finite"));
 }
 
 TEST(PbrtErrors, IndexOutOfRange) {

@@ -186,14 +186,21 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   o.threads = f.threads;
   o.tile = f.tile_given || e.max_depth == 1 ? f.tile : 32;
   if (!f.res.empty()) {
-    int w = 0, h = 0;
-    char x = 0, extra = 0;
-    if (std::sscanf(f.res.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X'))
+    // W and H as decimal digits alone (no sign, no spaces): a number too long for an int is
+    // absurd, not wrapped round
+    const size_t cut = f.res.find_first_of("xX");
+    auto axis = [&](const std::string& s, long long& v) {
+      if (s.empty() || s.size() > 12 || s.find_first_not_of("0123456789") != std::string::npos) return false;
+      v = std::stoll(s);
+      return true;
+    };
+    long long w = 0, h = 0;
+    if (cut == std::string::npos || !axis(f.res.substr(0, cut), w) || !axis(f.res.substr(cut + 1), h))
       throw std::invalid_argument("--res '" + f.res + "': expected WxH, e.g. 512x512");
-    if (w < 1 || h < 1 || w > 32768 || h > 32768 || static_cast<double>(w) * h > double(1u << 28))
+    if (w < 1 || h < 1 || w > 32768 || h > 32768 || static_cast<double>(w) * static_cast<double>(h) > double(1u << 28))
       throw std::invalid_argument("--res '" + f.res + "': absurd resolution (1..32768 per axis, at most 2^28 pixels)");
-    scene.camera.width = w;
-    scene.camera.height = h;
+    scene.camera.width = static_cast<int>(w);
+    scene.camera.height = static_cast<int>(h);
   }
   o.bounce = flag_value("--bounce-rays", true, [&] { return parse_bounce_trace(f.bounce_rays); });
   if (f.pipeline == "general") o.general_pipeline = true;

@@ -7,6 +7,7 @@
 #include <ImfRgbaFile.h>
 #include <stb/stb_image.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -57,13 +58,26 @@ static bool load_exr(const std::string& path, Texture& out, std::string& reason)
   }
 }
 
+// A float image's texels must be finite: a NaN or an infinity would turn every path that
+// reads it into a rejected sample (a silently dark patch).
+static bool finite_texels(const Texture& t, std::string& reason) {
+  for (size_t i = 0; i < t.rgb.size(); ++i)
+    if (!std::isfinite(t.rgb[i])) {
+      const size_t p = i / 3;
+      reason = "texel (" + std::to_string(p % size_t(std::max(t.width, 1))) + ", " + std::to_string(p / size_t(std::max(t.width, 1))) +
+               ") is not finite (NaN or infinity)";
+      return false;
+    }
+  return true;
+}
+
 bool load_image(const std::string& path, const std::string& encoding, Texture& out, std::string& reason) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) {
     reason = "no such file";
     return false;
   }
-  if (ends_with_ci(path, ".exr")) return load_exr(path, out, reason);
+  if (ends_with_ci(path, ".exr")) return load_exr(path, out, reason) && finite_texels(out, reason);
   int w = 0, h = 0, n = 0;
   if (ends_with_ci(path, ".hdr") || ends_with_ci(path, ".pfm")) {
     float* data = stbi_loadf(path.c_str(), &w, &h, &n, 3);
@@ -75,7 +89,7 @@ bool load_image(const std::string& path, const std::string& encoding, Texture& o
     out.height = h;
     out.rgb.assign(data, data + size_t(w) * h * 3);
     stbi_image_free(data);
-    return true;
+    return finite_texels(out, reason);
   }
   // Decode curve for 8/16-bit values in [0, 1].
   float gamma = 0;  // 0 = sRGB

@@ -62,8 +62,12 @@ Token Lexer::scan() {
     const size_t start = ++pos_;
     while (pos_ < n && text_[pos_] != '"') {
       if (text_[pos_] == '\n') fail(t, "unterminated string", "a closing '\"' on the same line");
-      if (text_[pos_] == '\\') {
-        if (pos_ + 1 >= n || text_[pos_ + 1] == '\n') break;
+      if (text_[pos_] == '\\') {  // an escape: pbrt-v4's, anything else is an error
+        if (pos_ + 1 >= n || text_[pos_ + 1] == '\n' || text_[pos_ + 1] == '\r')
+          fail(t, "unterminated string (a backslash ends its line)", "a closing '\"' on the same line");
+        const char e = text_[pos_ + 1];
+        if (std::string_view("bfnrt\\'\"").find(e) == std::string_view::npos)
+          fail(t, std::string("unknown escape '\\") + e + "' in a string", "one of \\b \\f \\n \\r \\t \\\\ \\' \\\"");
         ++pos_;
       }
       ++pos_;

@@ -1,7 +1,10 @@
 // The pbrt-v4 reader's Camera and Film directives: a perspective camera (its transform,
 // field of view, frame aspect ratio and screen window) and the film's resolution and
 // output name, with warnings for what tuile does not model (depth of field, crop windows).
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <string>
 
 #include "lexer.h"
@@ -34,6 +37,27 @@ void Loader::camera(Lexer& lx, const Token& t, Params& ps) {
     if (sw->nums.size() != 4) sw->fail("screenwindow has " + std::to_string(sw->nums.size()) + " values", "4 values: xmin xmax ymin ymax");
     if (!(sw->nums[0] < sw->nums[1] && sw->nums[2] < sw->nums[3])) sw->fail("screenwindow is empty", "xmin < xmax and ymin < ymax");
     for (int i = 0; i < 4; ++i) cam.screen[i] = float(sw->nums[i]);
+  }
+  // Embree takes rays whose origin lies within about 1.8e18 of the origin and whose
+  // direction is finite: a camera far out, scaled beyond floats or with a screen window
+  // billions of times its distance across would hand it rays it refuses (an abort)
+  double far = 0, spread = 0;
+  for (int i = 0; i < 3; ++i) {
+    far = std::max(far, std::abs(double(cam.world_from_camera[i][3])));
+    for (int j = 0; j < 3; ++j) spread = std::max(spread, std::abs(double(cam.world_from_camera[i][j])));
+  }
+  if (!(far <= 1e15) || !(spread <= 1e15))
+    lx.fail(t, "the camera's transform is out of range (its position or scale beyond 1e15, or not finite)",
+            "a camera within 1e15 of the origin, scaled by at most 1e15");
+  const double tan_half = std::tan(double(cam.fov_deg) * 3.14159265358979323846 / 360.0);
+  double window = 0;
+  for (int i = 0; i < 4; ++i) window = std::max(window, std::abs(double(cam.screen[i])));
+  if (!(window * tan_half <= 1e6)) {  // (all zero: the film's aspect ratio, bounded by its resolution)
+    char across[32];
+    std::snprintf(across, sizeof across, "%.3g", window * tan_half);
+    lx.fail(t, std::string("the screen window (frameaspectratio, screenwindow) is ") + across +
+                   " times the camera's distance across",
+            "a window of at most 1e6 at distance 1");
   }
   if (ps.one_float("lensradius", 0) > 0)
     warn("dof", loc_str(lx, t) + ": depth of field (lensradius) is not supported: the camera is a pinhole");

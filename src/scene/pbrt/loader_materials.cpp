@@ -483,6 +483,8 @@ void Loader::make_medium(Lexer& lx, const Token& t, const std::string& name, Par
     if (!(scale >= 0) || !std::isfinite(scale)) ps.get("scale", "float")->fail("\"scale\" is negative or not finite", "a finite scale >= 0");
     md.sigma_a = mul(md.sigma_a, scale);
     md.sigma_s = mul(md.sigma_s, scale);
+    if (!finite_rgb(md.sigma_a) || !finite_rgb(md.sigma_s))
+      lx.fail(t, "the medium's sigma_a or sigma_s times \"scale\" is not finite", "coefficients whose product with scale fits a float");
     md.g = ps.one_float("g", 0);
     if (!(md.g > -1 && md.g < 1)) ps.get("g", "float")->fail("\"g\" is " + std::to_string(md.g), "an asymmetry in (-1, 1)");
     if (ps.get("Le", "rgb|blackbody|spectrum")) ps.spectrum("Le", true, md.Le);
@@ -490,6 +492,7 @@ void Loader::make_medium(Lexer& lx, const Token& t, const std::string& name, Par
     if (!(le_scale >= 0) || !std::isfinite(le_scale))
       ps.get("Lescale", "float")->fail("\"Lescale\" is negative or not finite", "a finite scale >= 0");
     md.Le = mul(md.Le, le_scale);
+    if (!finite_rgb(md.Le)) lx.fail(t, "the medium's Le times \"Lescale\" is not finite", "an emission whose product with Lescale fits a float");
   }
   warn_unused(ps, "MakeNamedMedium", lx, t);
   named_media_[name] = int(scene.media.size());

@@ -5,6 +5,7 @@
 // (directives, graphics state, the end of loading), loader_camera.cpp, loader_materials.cpp,
 // loader_lights.cpp, loader_shapes.cpp and loader_files.cpp.
 #pragma once
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <map>
@@ -28,6 +29,7 @@ std::string loc_str(const Lexer& lx, const Token& t);
 
 // A colour scaled by s.
 inline Rgb mul(Rgb c, float s) { return {c.r * s, c.g * s, c.b * s}; }
+inline bool finite_rgb(const Rgb& c) { return std::isfinite(c.r) && std::isfinite(c.g) && std::isfinite(c.b); }
 
 struct AreaLight {
   Rgb L{1, 1, 1};

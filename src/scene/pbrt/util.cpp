@@ -59,6 +59,12 @@ bool read_file(const std::string& path, std::string& out, std::string& reason) {
     reason = "it is a directory";
     return false;
   }
+  // a device (/dev/zero, /dev/urandom) never ends: refused; a pipe is read, up to the limit
+  const auto kind = std::filesystem::status(path, ec).type();
+  if (kind == std::filesystem::file_type::character || kind == std::filesystem::file_type::block) {
+    reason = "it is a device, not a file";
+    return false;
+  }
   if (ends_with(path, ".gz")) return read_gzip(path, out, reason);
   FILE* f = std::fopen(path.c_str(), "rb");
   if (!f) {
@@ -73,9 +79,17 @@ bool read_file(const std::string& path, std::string& out, std::string& reason) {
   }
   size_t got = out.empty() ? 0 : std::fread(out.data(), 1, out.size(), f);
   if (got < out.size()) out.resize(got);
-  // Streams whose size is unknown: read the rest in chunks.
+  // Streams whose size is unknown: read the rest in chunks, up to 4 GiB.
   char buf[1 << 16];
-  for (size_t n; (n = std::fread(buf, 1, sizeof buf, f)) > 0;) out.append(buf, n);
+  for (size_t n; (n = std::fread(buf, 1, sizeof buf, f)) > 0;) {
+    out.append(buf, n);
+    if (out.size() > (size_t(1) << 32)) {
+      std::fclose(f);
+      out.clear();
+      reason = "the stream is longer than 4 GiB";
+      return false;
+    }
+  }
   const bool bad = std::ferror(f);
   std::fclose(f);
   if (bad) {
