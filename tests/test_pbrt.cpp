@@ -1,5 +1,6 @@
 // The pbrt-v4 reader: directives, shapes, materials, lights, files and error messages.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <zlib.h>
 
 #include <ImfRgbaFile.h>
@@ -875,11 +876,42 @@ TEST(PbrtErrors, EscapesCamerasDevicesOverflowsAndNanTexels) {
   t = "Translate 1e19 0 0\nCamera \"perspective\"\nWorldBegin\n";
   expect_error(t, "t.pbrt:2:1", "within 1e15");
   t = "Scale 1e-20 1e-20 1e-20\nCamera \"perspective\"\nWorldBegin\n";
-  expect_error(t, "t.pbrt:2:1", "scaled by at most");
+  expect_error(t, "t.pbrt:2:1", "scaled by 1e-12 to 1e12");
+  t = "Scale 1e25 1e25 1e25\nCamera \"perspective\"\nWorldBegin\n";
+  expect_error(t, "t.pbrt:2:1", "scaled by 1e-12 to 1e12");
+  t = "PixelFilter \"gaussian\" \"float sigma\" [ 1e-30 ]\nWorldBegin\n";
+  expect_error(t, loc(t, "\"float sigma\""), "1e-4");
   t = "Camera \"perspective\" \"float frameaspectratio\" [ 1e30 ]\nWorldBegin\n";
   expect_error(t, "t.pbrt:1:1", "at most 1e6");
   t = "WorldBegin\nInclude \"/dev/zero\"\n";
   EXPECT_NE(error_of(t).find("it is a device"), std::string::npos) << error_of(t);
+  const fs::path fifo = tmp_dir() / "fifo";
+  fs::remove(fifo);
+  // a PLY whose uv is NaN (its positions and normals were checked already)
+  write_text(tmp_dir() / "nan_uv.ply",
+             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+             "property float u\nproperty float v\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+             "0 0 0 nan 0\n1 0 0 1 0\n0 1 0 0 1\n3 0 1 2\n");
+  {
+    Scene nan_uv = world("Shape \"plymesh\" \"string filename\" \"nan_uv.ply\"\n");
+    try {
+      finalize_scene(nan_uv);  // (where a scene's meshes are checked)
+      ADD_FAILURE() << "a NaN uv was accepted";
+    } catch (const SceneError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("uv coordinate is NaN"), std::string::npos) << what;
+      EXPECT_NE(what.find("t.pbrt:2"), std::string::npos) << what;
+    }
+  }
+  ASSERT_EQ(mkfifo(fifo.string().c_str(), 0600), 0);  // (no writer: opening it would wait for ever)
+  t = "WorldBegin\nInclude \"fifo\"\n";
+  EXPECT_NE(error_of(t).find("not a regular file"), std::string::npos) << error_of(t);
+  t = "WorldBegin\nShape \"plymesh\" \"string filename\" \"fifo\"\n";
+  EXPECT_NE(error_of(t).find("not a regular file"), std::string::npos) << error_of(t);
+  t = "WorldBegin\nLightSource \"infinite\" \"string filename\" \"/dev/zero\"\n";
+  expect_error(t, "t.pbrt:2:1", "readable");
+  EXPECT_NE(error_of(t).find("not a regular file"), std::string::npos) << error_of(t);
+  fs::remove(fifo);
   t = "WorldBegin\nMakeNamedMedium \"f\" \"string type\" \"homogeneous\" \"rgb Le\" [ 1e30 1e30 1e30 ] \"float Lescale\" [ 3e38 ]\n";
   expect_error(t, "t.pbrt:2:1", "Lescale");
   t = "WorldBegin\nMakeNamedMedium \"f\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [ 1e30 1 1 ] \"float scale\" [ 1e20 ]\n";

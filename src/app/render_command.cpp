@@ -5,6 +5,7 @@
 // continues the render a checkpoint belongs to; --time-budget and --target-error stop at
 // a pass boundary. Every file is written atomically, every EXR carries its spp, seed,
 // estimator, sampler, tuile's version, the render time and the command line.
+#include <algorithm>
 #include <unistd.h>
 
 #include <chrono>
@@ -106,7 +107,9 @@ RenderJob start_render_job(const RenderFlags& f, std::shared_ptr<Prepared> loade
 void print_scene_warnings(const RenderFlags& f, const RenderJob& job) {
   if (f.quiet) return;
   for (const std::string& w : job.p->scene.warnings) std::cerr << "tuile: warning: " << w << "\n";
-  if (job.p->scene.lights.empty()) std::cerr << "tuile: warning: the scene has no light; the image is black\n";
+  const Scene& s = job.p->scene;
+  const bool glowing = std::any_of(s.media.begin(), s.media.end(), [](const Medium& m) { return m.Le.any_positive(); });
+  if (s.lights.empty() && !glowing) std::cerr << "tuile: warning: the scene has no light; the image is black\n";
   if (f.resume)
     std::cerr << "tuile: resuming " << job.ckpt << " at " << job.film.samples << " of " << job.spp << " spp\n";
 }

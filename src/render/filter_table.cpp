@@ -39,7 +39,8 @@ std::string filter_problem(const FilterParams& p, std::string* param) {
   auto radius_ok = [](float r) { return std::isfinite(r) && r > 0 && r <= max_radius; };
   if (!radius_ok(p.xradius)) return bad("xradius", "a radius in (0, 32] pixels");
   if (!radius_ok(p.yradius)) return bad("yradius", "a radius in (0, 32] pixels");
-  if (p.kind == FilterKind::gaussian && !(std::isfinite(p.sigma) && p.sigma > 0)) return bad("sigma", "a finite number > 0");
+  // (a sigma far below a pixel makes every table entry but the centre underflow: the filter vanishes)
+  if (p.kind == FilterKind::gaussian && !(std::isfinite(p.sigma) && p.sigma >= 1e-4f)) return bad("sigma", "a finite number >= 1e-4");
   if (p.kind == FilterKind::mitchell && !(std::isfinite(p.b) && std::abs(p.b) <= 100))
     return bad("B", "a finite number in [-100, 100]");
   if (p.kind == FilterKind::mitchell && !(std::isfinite(p.c) && std::abs(p.c) <= 100))

@@ -277,6 +277,8 @@ void validate_scene(Scene& scene) {
       throw SceneError(m.name + ": error: normal count does not match vertices");
     for (float v : m.normals)
       if (!std::isfinite(v)) throw SceneError(m.name + ": error: a shading normal has a NaN or infinite component");
+    for (float v : m.uvs)
+      if (!std::isfinite(v)) throw SceneError(m.name + ": error: a uv coordinate is NaN or infinite");
     if (m.material >= static_cast<int>(scene.materials.size()))
       throw SceneError(m.name + ": error: material index out of range");
     for (float c : {m.emission.r, m.emission.g, m.emission.b})

@@ -110,7 +110,7 @@ bool exr_has_rgb(const std::string& path, std::string& reason) {
 bool read_rgb_image(const std::string& path, RgbImage& out, std::string& reason) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) {
-    reason = "no such file";
+    reason = std::filesystem::exists(path, ec) ? "it is not a regular file" : "no such file";
     return false;
   }
   if (ends_with_ci(path, ".pfm")) return read_pfm(path, out, reason);

@@ -41,14 +41,17 @@ void Loader::camera(Lexer& lx, const Token& t, Params& ps) {
   // Embree takes rays whose origin lies within about 1.8e18 of the origin and whose
   // direction is finite: a camera far out, scaled beyond floats or with a screen window
   // billions of times its distance across would hand it rays it refuses (an abort)
-  double far = 0, spread = 0;
-  for (int i = 0; i < 3; ++i) {
-    far = std::max(far, std::abs(double(cam.world_from_camera[i][3])));
-    for (int j = 0; j < 3; ++j) spread = std::max(spread, std::abs(double(cam.world_from_camera[i][j])));
+  double far = 0, small = INFINITY, large = 0;
+  for (int j = 0; j < 3; ++j) {
+    far = std::max(far, std::abs(double(cam.world_from_camera[j][3])));
+    double n2 = 0;
+    for (int i = 0; i < 3; ++i) n2 += double(cam.world_from_camera[i][j]) * double(cam.world_from_camera[i][j]);
+    small = std::min(small, std::sqrt(n2));
+    large = std::max(large, std::sqrt(n2));
   }
-  if (!(far <= 1e15) || !(spread <= 1e15))
-    lx.fail(t, "the camera's transform is out of range (its position or scale beyond 1e15, or not finite)",
-            "a camera within 1e15 of the origin, scaled by at most 1e15");
+  if (!(far <= 1e15) || !(small >= 1e-12) || !(large <= 1e12))
+    lx.fail(t, "the camera's transform is out of range (its position beyond 1e15, its scale beyond 1e-12 to 1e12, or not finite)",
+            "a camera within 1e15 of the origin, scaled by 1e-12 to 1e12");
   const double tan_half = std::tan(double(cam.fov_deg) * 3.14159265358979323846 / 360.0);
   double window = 0;
   for (int i = 0; i < 4; ++i) window = std::max(window, std::abs(double(cam.screen[i])));

@@ -59,10 +59,18 @@ bool read_file(const std::string& path, std::string& out, std::string& reason) {
     reason = "it is a directory";
     return false;
   }
-  // a device (/dev/zero, /dev/urandom) never ends: refused; a pipe is read, up to the limit
+  // a device (/dev/zero, /dev/urandom) never ends and a named pipe without a writer never
+  // opens: refused; the standard input or a shell's process substitution (/dev/fd/N) is
+  // read, up to the limit below
   const auto kind = std::filesystem::status(path, ec).type();
-  if (kind == std::filesystem::file_type::character || kind == std::filesystem::file_type::block) {
+  const bool stream = path == "/dev/stdin" || path.rfind("/dev/fd/", 0) == 0 || path.rfind("/proc/self/fd/", 0) == 0;
+  if (!stream && (kind == std::filesystem::file_type::character || kind == std::filesystem::file_type::block)) {
     reason = "it is a device, not a file";
+    return false;
+  }
+  if (!stream && kind != std::filesystem::file_type::regular && kind != std::filesystem::file_type::not_found &&
+      kind != std::filesystem::file_type::none) {
+    reason = "it is not a regular file (a pipe or a socket)";
     return false;
   }
   if (ends_with(path, ".gz")) return read_gzip(path, out, reason);
