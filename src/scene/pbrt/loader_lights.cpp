@@ -23,8 +23,8 @@ void Loader::area_light(Lexer& lx, const Token& t, const std::string& type, Para
   a.L = mul(a.L, s);
   a.two_sided = ps.one_bool("twosided", false);
   a.power = ps.one_float("power", -1);
-  if (!finite_rgb(a.L) || !(std::isfinite(a.power)))
-    lx.fail(t, "the area light's emission (L times scale) or power is not finite", "values whose products fit a float");
+  if (!emission_in_range(a.L) || !(std::isfinite(a.power)))
+    lx.fail(t, "the area light's emission (L times scale) or power is not finite or above 1e30", "values whose products fit a float");
   if (ps.get("filename", "string")) warn("arealightimage", loc_str(lx, t) + ": image area lights are not supported: L used");
   warn_unused(ps, "AreaLightSource", lx, t);
   gs_.has_area = true;
@@ -98,8 +98,8 @@ void Loader::light(Lexer& lx, const Token& t, const std::string& type, Params& p
     l.e1 = vec3f(float(w.x), float(w.y), float(w.z));
   }
   warn_unused(ps, "LightSource \"" + type + "\"", lx, t);
-  if (!finite_rgb(l.radiance) || !std::isfinite(l.p0.x) || !std::isfinite(l.p0.y) || !std::isfinite(l.p0.z))
-    lx.fail(t, "the light's emission (its " + std::string(what) + " times scale, power or illuminance) or position is not finite",
+  if (!emission_in_range(l.radiance) || !std::isfinite(l.p0.x) || !std::isfinite(l.p0.y) || !std::isfinite(l.p0.z))
+    lx.fail(t, "the light's emission (its " + std::string(what) + " times scale, power or illuminance) or position is not finite or above 1e30",
             "values whose products fit a float");
   scene.lights.push_back(l);
 }

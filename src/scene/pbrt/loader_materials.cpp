@@ -492,7 +492,7 @@ void Loader::make_medium(Lexer& lx, const Token& t, const std::string& name, Par
     if (!(le_scale >= 0) || !std::isfinite(le_scale))
       ps.get("Lescale", "float")->fail("\"Lescale\" is negative or not finite", "a finite scale >= 0");
     md.Le = mul(md.Le, le_scale);
-    if (!finite_rgb(md.Le)) lx.fail(t, "the medium's Le times \"Lescale\" is not finite", "an emission whose product with Lescale fits a float");
+    if (!emission_in_range(md.Le)) lx.fail(t, "the medium's Le times \"Lescale\" is not finite or above 1e30", "an emission whose product with Lescale fits a float");
   }
   warn_unused(ps, "MakeNamedMedium", lx, t);
   named_media_[name] = int(scene.media.size());

@@ -5,6 +5,7 @@
 // (directives, graphics state, the end of loading), loader_camera.cpp, loader_materials.cpp,
 // loader_lights.cpp, loader_shapes.cpp and loader_files.cpp.
 #pragma once
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -30,6 +31,9 @@ std::string loc_str(const Lexer& lx, const Token& t);
 // A colour scaled by s.
 inline Rgb mul(Rgb c, float s) { return {c.r * s, c.g * s, c.b * s}; }
 inline bool finite_rgb(const Rgb& c) { return std::isfinite(c.r) && std::isfinite(c.g) && std::isfinite(c.b); }
+// An emission the renderer's products (areas, pi, MIS weights, throughputs) keep finite:
+// below 1e30 in every channel (3e38, a float's largest, made every sample of a sky NaN).
+inline bool emission_in_range(const Rgb& c) { return finite_rgb(c) && std::max(std::max(std::abs(c.r), std::abs(c.g)), std::abs(c.b)) <= 1e30f; }
 
 struct AreaLight {
   Rgb L{1, 1, 1};
