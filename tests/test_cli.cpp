@@ -64,7 +64,7 @@ TEST(Cli, BadInputIsAClearErrorWithExitOne) {
   EXPECT_NE(r.out.find("/nonexistent/scene.pbrt"), std::string::npos) << r.out;
   // (4294967304x4294967302 wrapped round to 8x6 in a 32-bit parse and rendered)
   for (const char* args : {"--res 0x10", "--res 100000x100000", "--res 4294967304x4294967302", "--res -8x6", "--res 8x6x2",
-                           "--res 8 x6", "--beta nan", "--strategy maybe", "--spp 0",
+                           "--res 8 x6", "--mpi-timeout nan", "--beta nan", "--strategy maybe", "--spp 0",
                            "--light-samples 0", "--threads -1", "--aov unknown", "--pipeline fast",
                            "--bounce-rays nearest", "--bvh tiny"}) {
     r = run(std::string("render built-in:cornell --quiet -o ") + tmp("cli_x.exr") + " " + args);

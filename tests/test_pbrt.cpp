@@ -922,6 +922,8 @@ TEST(PbrtErrors, EscapesCamerasDevicesOverflowsAndNanTexels) {
   EXPECT_NE(error_of(t).find("error"), std::string::npos) << error_of(t);
   t = "WorldBegin\nAreaLightSource \"diffuse\" \"rgb L\" [ 1e30 1 1 ] \"float scale\" [ 1e20 ]\n";
   expect_error(t, "t.pbrt:2:1", "fit a float");
+  t = "WorldBegin\nMaterial \"coateddiffuse\" \"float g\" [ 5 ]\n";
+  expect_error(t, loc(t, "\"float g\""), "(-1, 1)");
   t = "WorldBegin\nLightSource \"infinite\" \"rgb L\" [ 3e38 3e38 3e38 ]\n";  // (finite, but every sky sample was NaN)
   expect_error(t, "t.pbrt:2:1", "fit a float");
   // a float image with a NaN texel: as an image that cannot be read (grey, a warning)

@@ -126,7 +126,13 @@ void add_mpi_flags(CLI::App& app, RenderFlags& f) {
   app.add_option("--mpi-timeout", f.mpi_timeout,
                  "under mpirun: end the job when a rank sends nothing for SECONDS while it has work")
       ->capture_default_str()
-      ->check(CLI::Range(0.1, 1e6));
+      ->check(CLI::Range(0.1, 1e6))
+      ->check(CLI::Validator(
+          [](std::string& s) {  // (a NaN passes CLI::Range: every comparison with it is false)
+            const double v = std::strtod(s.c_str(), nullptr);
+            return v >= 0.1 && v <= 1e6 ? std::string() : "--mpi-timeout " + s + " is not a number in [0.1, 1e6]";
+          },
+          "", ""));
 }
 
 namespace {

@@ -531,7 +531,10 @@ int Loader::make_material(Lexer& lx, const Token& t, const std::string& type, Pa
   auto layer = [&] {  // coated*: the medium between coat and base
     if (!float_param(ps, "thickness", m, index, FloatFix::thickness)) m.thickness = 0.01f;
     albedo("albedo", SpectrumFix::albedo, m.albedo);
-    float_param(ps, "g", m, index, FloatFix::g);
+    if (float_param(ps, "g", m, index, FloatFix::g) && !(m.g > -1 && m.g < 1)) {  // (a constant: a texture's is read later)
+      const Param* gp = ps.get("g", "float|texture");
+      if (gp && gp->type == "float") gp->fail("\"g\" is " + std::to_string(m.g), "an asymmetry in (-1, 1)");
+    }
     m.max_depth = ps.one_int("maxdepth", 10);
     m.nsamples = ps.one_int("nsamples", 1);
     if (m.max_depth < 0) ps.get("maxdepth", "integer")->fail("\"maxdepth\" is negative", "a depth >= 0");
