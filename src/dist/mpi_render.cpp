@@ -137,6 +137,9 @@ struct Units {
   }
   int step_units(size_t step) const { return blocks + light_chunks(step); }
   int pass_light_chunks(size_t pass) const { return pass_chunks[pass]; }
+  // a pass of several steps (the guide's learning iterations) with light chunks: rank 0
+  // keeps each step's camera sums apart, to add them between the steps' chunks
+  bool steps_apart(size_t pass) const { return pass_steps[pass] > 1 && pass_chunks[pass] > 0; }
   int count() const { return static_cast<int>(order.size()); }
 };
 
@@ -443,10 +446,8 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
     if (pass < 0) continue;  // the guide learning again on a resume: the image has these samples
     // a light chunk's place among its pass's chunks (over the pass's steps)
     const int key = block >= u.blocks ? u.blocks + u.step_chunk0[static_cast<size_t>(step)] + (block - u.blocks) : block;
-    // a pass of several steps (the guide's learning iterations) with light paths: a single
-    // process adds each step's camera sums and then its light chunks, so each step's sums
-    // are kept apart too
-    if (block < u.blocks && u.pass_steps[static_cast<size_t>(pass)] > 1 && u.pass_light_chunks(static_cast<size_t>(pass)) > 0) {
+    // a single process adds each step's camera sums and then its light chunks
+    if (block < u.blocks && u.steps_apart(static_cast<size_t>(pass))) {
       std::vector<double>& own = step_sums[{pass, block, u.step_index[static_cast<size_t>(step)]}];
       for (size_t at = header_size; at < msg.size(); at += values_per_pixel) own.insert(own.end(), &msg[at], &msg[at] + 3);
     }
@@ -478,7 +479,7 @@ CoordinatorResult coordinate(const Mpi& mpi, Renderer& renderer, const Units& u,
       // with light paths, the pass's sums are made first (its camera paths', then its light
       // chunks' in order; with several steps, step by step) and then added to the image, as
       // a single process adds a pass
-      const bool stepped = chunks > 0 && u.pass_steps[static_cast<size_t>(k)] > 1;
+      const bool stepped = u.steps_apart(static_cast<size_t>(k));
       if (chunks > 0) pass_sum.assign(film.sum.size(), 0.0);
       auto add_chunk = [&](int b) {
         std::vector<double>& m = pending[{k, b}];
