@@ -1,6 +1,7 @@
 // The pbrt-v4 reader: directives, shapes, materials, lights, files and error messages.
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <unistd.h>
 #include <zlib.h>
 
 #include <ImfRgbaFile.h>
@@ -935,6 +936,84 @@ TEST(PbrtErrors, EscapesCamerasDevicesOverflowsAndNanTexels) {
   EXPECT_EQ(m.texture, -1);
   EXPECT_FLOAT_EQ(m.reflectance.g, 0.5f);
   EXPECT_TRUE(has_warning(s, "texel (1, 1) is not finite"));
+}
+
+// Values that overflow while rendering, and errors raised after loading, found by a fuzzing
+// pass: each now either follows pbrt-v4 (reflectances clamped to [0, 1]) or is an error
+// naming its file and line.
+TEST(PbrtErrors, OverflowsClampedOrNamed) {
+  // pbrt-v4's materials clamp reflectance, transmittance and albedo to [0, 1]: 3e38 (whose
+  // products overflowed, every sample dropped, a black image) and 2 are 1
+  Scene s = world("Material \"diffuse\" \"rgb reflectance\" [ 3e38 2 0.25 ]\n" + tri);
+  finalize_scene(s);
+  Rgb r = s.materials[size_t(s.meshes[0].material)].reflectance;
+  EXPECT_EQ(r.r, 1.f);
+  EXPECT_EQ(r.g, 1.f);
+  EXPECT_EQ(r.b, 0.25f);
+  s = world("Texture \"t\" \"spectrum\" \"scale\" \"rgb tex\" [ 3e38 0.5 0 ] \"float scale\" [ 3e38 ]\n"
+            "Material \"diffusetransmission\" \"texture transmittance\" \"t\"\n" + tri);
+  finalize_scene(s);
+  r = s.materials[size_t(s.meshes[0].material)].transmittance;
+  EXPECT_EQ(r.r, 1.f);
+  EXPECT_EQ(r.g, 1.f);
+  EXPECT_EQ(r.b, 0.f);
+  // an image's texels times a huge scale: clamped texel by texel (nearest lookups)
+  write_exr((tmp_dir() / "grey.exr").string(), 2, 2, {0.5f, 0, 0.001f, 0.5f, 0, 0.001f, 0.5f, 0, 0.001f, 0.5f, 0, 0.001f});
+  s = world("Texture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"grey.exr\" \"float scale\" [ 3e38 ]\n"
+            "Material \"diffuse\" \"texture reflectance\" \"t\"\n" + tri);
+  finalize_scene(s);
+  const Texture& tx = s.textures[size_t(s.materials[size_t(s.meshes[0].material)].texture)];
+  for (size_t i = 0; i < tx.rgb.size(); ++i) EXPECT_EQ(tx.rgb[i], i % 3 == 1 ? 0.f : 1.f) << i;
+  // a float texture whose product overflows: an error at the texture, not "material: error"
+  std::string t = "WorldBegin\nTexture \"r\" \"float\" \"scale\" \"float tex\" [ 1e30 ] \"float scale\" [ 1e30 ]\n"
+                  "Material \"dielectric\" \"texture roughness\" \"r\"\n" + tri;
+  expect_error(t, "t.pbrt:2:1", "fit in a float");
+  // a sphere the transforms move beyond a float's range: an error at its Shape
+  t = "WorldBegin\nTranslate 3e38 0 0\nTranslate 3e38 0 0\nShape \"sphere\"\n";
+  expect_error(t, "t.pbrt:4:1", "centre finite");
+  t = "WorldBegin\nObjectBegin \"o\"\nShape \"sphere\"\nObjectEnd\nTranslate 3e38 0 0\nObjectInstance \"o\"\nTranslate 3e38 0 0\n"
+      "ObjectInstance \"o\"\n";
+  std::string e = error_of(t);
+  if (e == "(no error)") {  // (a placed instance: its transform is checked with the scene)
+    try {
+      Scene placed = load(t);
+      finalize_scene(placed);
+    } catch (const SceneError& x) {
+      e = x.what();
+    }
+  }
+  EXPECT_NE(e.find("t.pbrt:8"), std::string::npos) << e;
+  EXPECT_NE(e.find("error: "), std::string::npos) << e;
+  // a sky map's texels above 1e30, or times a scale above it: an error naming the file
+  const auto write_pfm = [](const fs::path& p, float hot) {  // 4 x 4 of 1, one texel's green `hot`
+    std::vector<float> texels(4 * 4 * 3, 1.f);
+    texels[7] = hot;
+    std::ofstream f(p, std::ios::binary);
+    f << "PF\n4 4\n-1.0\n";  // (little-endian floats)
+    f.write(reinterpret_cast<const char*>(texels.data()), std::streamsize(texels.size() * sizeof(float)));
+  };
+  write_pfm(tmp_dir() / "hot.pfm", 3e38f);
+  t = "WorldBegin\nLightSource \"infinite\" \"string filename\" \"hot.pfm\"\n";
+  expect_error(t, "t.pbrt:2:1", "finite, non-negative texels");
+  EXPECT_NE(error_of(t).find("above 1e30"), std::string::npos) << error_of(t);
+  write_pfm(tmp_dir() / "hot.pfm", 1e20f);
+  t = "WorldBegin\nLightSource \"infinite\" \"string filename\" \"hot.pfm\" \"float scale\" [ 1e20 ]\n";
+  expect_error(t, "t.pbrt:2:1", "fits a float");
+  EXPECT_NE(error_of(t).find("hot.pfm"), std::string::npos) << error_of(t);
+  t = "WorldBegin\nLightSource \"infinite\" \"string filename\" \"hot.pfm\" \"float scale\" [ 1e5 ]\n";
+  EXPECT_EQ(error_of(t), "(no error)");
+  // loopsubdiv: levels whose triangles would not fit in any machine's memory of today (64
+  // control triangles at levels 12: 2^30 triangles, about 270 GB) are refused before the
+  // subdivision starts
+  std::string P = "\"point3 P\" [", idx = "\"integer indices\" [";
+  for (int i = 0; i < 64; ++i) {
+    P += " " + std::to_string(3 * i) + " 0 0 " + std::to_string(3 * i + 1) + " 0 0 " + std::to_string(3 * i) + " 1 0";
+    idx += " " + std::to_string(3 * i) + " " + std::to_string(3 * i + 1) + " " + std::to_string(3 * i + 2);
+  }
+  t = "WorldBegin\nShape \"loopsubdiv\" \"integer levels\" [ 12 ] " + P + " ] " + idx + " ]\n";
+  expect_error(t, "t.pbrt:2:1", "fewer levels");
+  if (double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE)) < 2.6e11)  // (else the 2^28 cap says so)
+    EXPECT_NE(error_of(t).find("GB of memory"), std::string::npos) << error_of(t);
 }
 
 TEST(PbrtErrors, IndexOutOfRange) {

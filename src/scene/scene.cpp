@@ -201,6 +201,21 @@ bool bumps(const Scene& scene, const Material& m) {
 // chooses between, spheres are not bump mapped (displacement textures are, on triangles:
 // surface_hits.h bump_normal).
 void resolve_material_params(Scene& scene) {
+  // Reflectances, transmittances and a layer's albedo are clamped to [0, 1], as pbrt-v4's
+  // materials clamp their textures' values (a reflectance of 2, or a scale texture that
+  // overflows to infinity, is 1); texels are looked up nearest, so clamping them here is
+  // clamping each lookup. NaN is an error.
+  for (Material& m : scene.materials)
+    for (Rgb* c : {&m.reflectance, &m.transmittance, &m.albedo})
+      for (float* x : {&c->r, &c->g, &c->b}) {
+        if (std::isnan(*x)) throw SceneError("material: error: a reflectance, transmittance or albedo is NaN");
+        *x = std::clamp(*x, 0.f, 1.f);
+      }
+  for (Texture& t : scene.textures)
+    for (float& x : t.rgb) {
+      if (std::isnan(x)) throw SceneError("texture \"" + t.name + "\": error: a texel is NaN");
+      x = std::clamp(x, 0.f, 1.f);
+    }
   const int nm = static_cast<int>(scene.materials.size());
   const int nt = static_cast<int>(scene.textures.size()), nf = static_cast<int>(scene.float_textures.size());
   bool averaged = false;

@@ -161,11 +161,11 @@ bool make_sky_map(const std::string& name, const RgbImage& img, SkyMap& out, std
   }
   const size_t n = static_cast<size_t>(img.width) * static_cast<size_t>(img.height);
   for (size_t i = 0; i < 3 * n; ++i)
-    if (!std::isfinite(img.rgb[i]) || img.rgb[i] < 0) {
+    if (!std::isfinite(img.rgb[i]) || img.rgb[i] < 0 || img.rgb[i] > 1e30f) {  // (sums of 1e30s fit a float)
       const size_t t = i / 3;
       reason = "texel (" + std::to_string(t % static_cast<size_t>(img.width)) + ", " +
                std::to_string(t / static_cast<size_t>(img.width)) + ") has a " +
-               (std::isfinite(img.rgb[i]) ? "negative" : "NaN or infinite") + " value";
+               (!std::isfinite(img.rgb[i]) ? "NaN or infinite" : img.rgb[i] < 0 ? "negative" : "above 1e30") + " value";
       return false;
     }
   out.file = name;

@@ -2,6 +2,7 @@
 // the shapes that follow) and LightSource point, spot, distant and infinite (a constant L
 // or an environment map, src/scene/sky_map.h; pbrt-v4's power and illuminance
 // normalisations); other light types are ignored with a warning.
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -131,6 +132,10 @@ void Loader::infinite_map(Lexer& lx, const Token& t, const std::string& path, Pa
     const double ez = sky_map_upper_illuminance(map);
     if (ez > 0) k *= static_cast<float>(e / ez);
   }
+  const float brightest = img.rgb.empty() ? 0.f : *std::max_element(img.rgb.begin(), img.rgb.end());
+  if (!std::isfinite(k) || !(double(brightest) * k <= 1e30))
+    lx.fail(t, "the infinite light's brightest texel of \"" + path + "\" times its scale or illuminance is above 1e30",
+            "a radiance whose product with scale fits a float");
   // the frame: the transform's axes, made orthonormal (keeping a reflection's handedness)
   const Vec3d cx = apply_vector(gs_.ctm, {1, 0, 0}), cy = apply_vector(gs_.ctm, {0, 1, 0}), cz = apply_vector(gs_.ctm, {0, 0, 1});
   const double lx_ = length(cx), ly_ = length(cy), lz_ = length(cz);

@@ -129,6 +129,8 @@ bool Loader::constant_float(int fd, float& v, int depth) const {
 // RoughnessToAlpha = sqrt when remap_roughness). Errors name the parameter.
 void Loader::set_float(Material& m, FloatFix::Field field, float v, const std::string& file, int line, int col,
                        const std::string& name) {
+  if (!std::isfinite(v))  // a float texture's product that overflowed
+    fail(file, line, col, "\"" + name + "\" is not finite (its texture's values overflow a float)", "a finite value");
   switch (field) {
     case FloatFix::alpha_u:
     case FloatFix::alpha_v:

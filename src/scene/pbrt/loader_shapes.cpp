@@ -12,6 +12,8 @@
 #include <utility>
 #include <vector>
 
+#include <unistd.h>
+
 #include "lexer.h"
 #include "loader_state.h"
 #include "scene/loop_subdiv.h"
@@ -146,6 +148,18 @@ void Loader::mesh_shape(Lexer& lx, const Token& t, const std::string& type, Para
       if (L) L->fail("\"levels\" " + std::to_string(levels) + " out of range", "0..12 (each level makes 4 times the triangles)");
       lx.fail(t, "levels out of range", "0..12");
     }
+    // its memory before it starts: a render of a subdivided mesh peaks at about 250 bytes a
+    // triangle (measured, levels 8 to 10), which must fit in the machine's memory
+    const double tris = double(idx.size() / 3) * std::pow(4.0, levels), bytes = 250 * tris;
+    const double phys = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
+    const auto gb = [](double b) { return std::to_string(int64_t(std::ceil(b / 1e9))) + " GB"; };
+    if (phys > 0 && bytes > phys)
+      lx.fail(t, "loopsubdiv: levels " + std::to_string(levels) + " makes " + std::to_string(int64_t(tris)) + " triangles, about " +
+                     gb(bytes) + " of memory to subdivide and render, more than this machine's " + gb(phys),
+              "fewer levels (each makes 4 times the triangles)");
+    if (bytes > 2e9)
+      note("loopsubdiv:" + where, where + ": loopsubdiv at levels " + std::to_string(levels) + " makes " + std::to_string(int64_t(tris)) +
+                                      " triangles: about " + gb(bytes) + " of memory");
     LoopMesh lm;
     std::string why;
     if (loop_subdivide(pos, idx, levels, lm, why)) {
@@ -218,6 +232,8 @@ void Loader::sphere_shape(Lexer& lx, const Token& t, Params& ps, const std::stri
   os.sphere.radius = float(r * std::cbrt(std::abs(gs_.ctm.det3())));
   if (!(os.sphere.radius > 0) || !std::isfinite(os.sphere.radius))
     lx.fail(t, "sphere with a degenerate transform", "a transform that keeps the sphere's size finite and non-zero");
+  if (!std::isfinite(os.sphere.center.x) || !std::isfinite(os.sphere.center.y) || !std::isfinite(os.sphere.center.z))
+    lx.fail(t, "sphere whose centre the transform moves beyond a float's range", "a transform that keeps the centre finite");
   os.sphere.material = gs_.material;
   os.media = {gs_.medium_in, gs_.medium_out, gs_.medium_where};
   os.sphere.reverse_orientation = gs_.reverse != gs_.ctm.swaps_handedness();
@@ -698,6 +714,10 @@ template <class IsInterface> void Loader::place_instances(IsInterface&& is_inter
       const Vec3d c = apply_point(in.ctm, {s.center.x, s.center.y, s.center.z});
       s.center = vec3f(float(c.x), float(c.y), float(c.z));
       s.radius = float(s.radius * std::cbrt(std::abs(in.ctm.det3())));
+      if (!std::isfinite(s.center.x) || !std::isfinite(s.center.y) || !std::isfinite(s.center.z) || !std::isfinite(s.radius) ||
+          !(s.radius > 0))
+        throw SceneError(in.where + ": error: the instance's transform moves a sphere beyond a float's range or shrinks it to nothing "
+                                    "(expected a transform that keeps the sphere finite)");
       s.reverse_orientation = s.reverse_orientation != swaps;
       scene.spheres.push_back(s);
     }

@@ -448,6 +448,12 @@ ResolvedFloat Loader::resolve_float(int fd, int depth) {
       r.texture = add_float_texture(std::move(t));
     }
   }
+  // a product or a scaled image whose values overflow a float: an error at its definition
+  if (r.image ? !std::all_of(scene.float_textures[size_t(r.texture)].value.begin(), scene.float_textures[size_t(r.texture)].value.end(),
+                             [](float x) { return std::isfinite(x); })
+              : !std::isfinite(r.value))
+    fail(d.file, d.line, d.col, "float texture \"" + d.name + "\" has values that are not finite (its product or scale overflows a float)",
+         "values whose products fit in a float");
   resolved_float_[fd] = r;
   return r;
 }
