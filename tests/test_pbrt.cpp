@@ -1002,6 +1002,13 @@ TEST(PbrtErrors, OverflowsClampedOrNamed) {
   EXPECT_NE(error_of(t).find("hot.pfm"), std::string::npos) << error_of(t);
   t = "WorldBegin\nLightSource \"infinite\" \"string filename\" \"hot.pfm\" \"float scale\" [ 1e5 ]\n";
   EXPECT_EQ(error_of(t), "(no error)");
+  // tangents and face indices of the wrong count (pbrt-v4 discards them with an error)
+  t = "WorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ] \"vector3 S\" [ 1 0 0 ]\n";
+  expect_error(t, loc(t, "\"vector3 S\""), "one tangent per vertex");
+  t = "WorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ] \"integer faceIndices\" [ 0 1 ]\n";
+  expect_error(t, loc(t, "\"integer faceIndices\""), "one face index per face");
+  EXPECT_NO_THROW(world("Shape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ] \"integer faceIndices\" [ 7 ] "
+                        "\"vector3 S\" [ 1 0 0 1 0 0 1 0 0 ]\n"));
   // loopsubdiv: levels whose triangles would not fit in any machine's memory of today (64
   // control triangles at levels 12: 2^30 triangles, about 270 GB) are refused before the
   // subdivision starts

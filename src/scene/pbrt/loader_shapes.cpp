@@ -130,8 +130,15 @@ void Loader::mesh_shape(Lexer& lx, const Token& t, const std::string& type, Para
   const Param* N = ps.get("N", "normal3");
   if (N && N->nums.size() != 3 * nv)
     N->fail("\"N\" has " + std::to_string(N->nums.size() / 3) + " normals for " + std::to_string(nv) + " vertices", "one normal per vertex");
-  ps.get("S", "vector3");
-  ps.get("faceIndices", "integer");
+  // tangents and face indices are not used, but a wrong count means a broken mesh, as for uv
+  // and N (pbrt-v4 discards them with an error)
+  const Param* S = ps.get("S", "vector3");
+  if (S && S->nums.size() != 3 * nv)
+    S->fail("\"S\" has " + std::to_string(S->nums.size() / 3) + " tangents for " + std::to_string(nv) + " vertices", "one tangent per vertex");
+  const Param* F = ps.get("faceIndices", "integer");
+  const size_t faces = I ? I->nums.size() / per : 1;
+  if (F && F->nums.size() != faces)
+    F->fail("\"faceIndices\" has " + std::to_string(F->nums.size()) + " values for " + std::to_string(faces) + " faces", "one face index per face");
   std::vector<uint32_t> idx;
   if (I) idx.assign(I->nums.begin(), I->nums.end());
   else
