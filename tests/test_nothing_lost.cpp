@@ -145,6 +145,42 @@ TEST(NothingLost, SigintWritesCompletePassesAndExits130) { interrupt_and_check(S
 
 TEST(NothingLost, SigtermWritesCompletePassesAndExits143) { interrupt_and_check(SIGTERM, 143); }
 
+// A render stopped before its first pass is complete writes nothing: an earlier render's
+// image and checkpoint of the same name stay as they were (they were replaced by an image of
+// 0 spp, all black, and an empty checkpoint). Whatever moment the signal lands at, no image
+// of 0 spp is ever left.
+TEST(NothingLost, AStopBeforeTheFirstPassKeepsTheEarlierFiles) {
+  TempDir dir;
+  const std::string out = dir / "s.exr";
+  const std::vector<std::string> scene = {"render", "built-in:cornell", "--threads", "2", "-o", out};
+  // the earlier render: interrupted, so that it leaves a checkpoint
+  const Child first = spawn_tuile(with(scene, {"--res", "96x64", "--spp", "1000000", "--checkpoint", "0.001"}), dir / "log0");
+  ASSERT_GT(first.pid, 0);
+  ASSERT_TRUE(wait_for_file(first, checkpoint_path(out))) << read_file(first.log);
+  kill(first.pid, SIGINT);
+  ASSERT_EQ(wait_child(first), 130) << read_file(first.log);
+  const std::string image0 = read_file(out), checkpoint0 = read_file(checkpoint_path(out));
+  ASSERT_GT(header_spp(out), 0);
+  // the same name again without --resume, at a size whose first pass takes seconds (2^23
+  // samples): it warns that the checkpoint exists, and is stopped as soon as it says so
+  const Child second = spawn_tuile(with(scene, {"--res", "2048x2048", "--spp", "64"}), dir / "log1");
+  ASSERT_GT(second.pid, 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  while (read_file(second.log).find("an earlier render's checkpoint") == std::string::npos &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(120))
+    std::this_thread::yield();
+  ASSERT_NE(read_file(second.log).find("an earlier render's checkpoint"), std::string::npos) << read_file(second.log);
+  kill(second.pid, SIGINT);
+  EXPECT_EQ(wait_child(second), 130) << read_file(second.log);
+  EXPECT_GT(header_spp(out), 0) << read_file(second.log);
+  if (read_file(second.log).find("nothing written") != std::string::npos) {
+    EXPECT_TRUE(read_file(out) == image0) << "the earlier image was replaced";
+    EXPECT_TRUE(read_file(checkpoint_path(out)) == checkpoint0) << "the earlier checkpoint was replaced";
+  } else {  // (the first pass won the race: its image replaced the earlier one)
+    EXPECT_NE(read_file(second.log).find("complete spp"), std::string::npos) << read_file(second.log);
+  }
+}
+
 TEST(NothingLost, SecondSigintAbortsWith130) {
   TempDir dir;
   const std::string out = dir / "long.exr";

@@ -112,6 +112,9 @@ void print_scene_warnings(const RenderFlags& f, const RenderJob& job) {
   if (s.lights.empty() && !glowing) std::cerr << "tuile: warning: the scene has no light; the image is black\n";
   if (f.resume)
     std::cerr << "tuile: resuming " << job.ckpt << " at " << job.film.samples << " of " << job.spp << " spp\n";
+  else if (!job.ckpt.empty() && access(job.ckpt.c_str(), F_OK) == 0)
+    std::cerr << "tuile: warning: " << job.ckpt << " (an earlier render's checkpoint) exists: this render starts from 0 spp "
+              << "and replaces it if it writes one (to continue that render instead: --resume)\n";
 }
 
 int finish_render_job(const RenderFlags& f, RenderJob& job, StopReason reason, const RenderStats& st,
@@ -119,6 +122,12 @@ int finish_render_job(const RenderFlags& f, RenderJob& job, StopReason reason, c
   const RenderOptions& opt = job.p->opt;
   const Film& film = job.film;
   const bool interrupted = reason == StopReason::cancelled || reason == StopReason::failed;
+  if (interrupted && film.samples == 0) {  // no pass complete: the files of an earlier render stay as they were
+    std::fprintf(stderr, "tuile: %s before its first pass was complete: nothing written (%s and its checkpoint, if any, are "
+                         "as they were)\n",
+                 reason == StopReason::failed ? "the job failed" : "interrupted", job.out.c_str());
+    return reason == StopReason::failed ? 1 : exit_code_for_signal(stop_signal());
+  }
   // what the render has, before anything else can go wrong
   bool checkpoint_saved = false;
   if (interrupted || f.checkpoint_seconds > 0) {
