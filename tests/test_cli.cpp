@@ -311,3 +311,37 @@ TEST(Cli, GuideRendersAndRefusesWhatItCannotCombineWith) {
   EXPECT_NE(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("--guide"), std::string::npos) << r.out;
 }
+
+// `tuile diff`'s verdict: an infinity against a number or the other infinity is the largest
+// relative difference (inf / inf was NaN, which compared as no larger: exit 0 at any
+// tolerance), reported where it is; 0 against -0 differs in bits (exit 1 at the default
+// tolerance, which asks for identical bits) by nothing in value (exit 0 at any other); a
+// NaN tolerance is refused.
+TEST(Cli, DiffCountsInfinitiesAndSignedZeros) {
+  const std::vector<float> ones(8 * 8 * 3, 1.f), zeros(8 * 8 * 3, 0.f);
+  std::vector<float> inf = ones, neg_zeros(8 * 8 * 3, -0.f), ninf = ones;
+  inf[3 * (3 * 8 + 3) + 1] = INFINITY;  // pixel 3,3 channel G
+  ninf[3 * (3 * 8 + 3) + 1] = -INFINITY;
+  tuile::write_exr(tmp("diff_one.exr"), 8, 8, ones);
+  tuile::write_exr(tmp("diff_inf.exr"), 8, 8, inf);
+  tuile::write_exr(tmp("diff_ninf.exr"), 8, 8, ninf);
+  tuile::write_exr(tmp("diff_zero.exr"), 8, 8, zeros);
+  tuile::write_exr(tmp("diff_negzero.exr"), 8, 8, neg_zeros);
+  for (const char* tol : {"", " --tolerance 1"}) {
+    CmdResult r = run("diff " + tmp("diff_one.exr") + " " + tmp("diff_inf.exr") + tol);
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find("largest relative inf (pixel 3,3 channel G"), std::string::npos) << r.out;
+    r = run("diff " + tmp("diff_inf.exr") + " " + tmp("diff_ninf.exr") + tol);
+    EXPECT_EQ(r.code, 1) << r.out;
+  }
+  CmdResult r = run("diff " + tmp("diff_zero.exr") + " " + tmp("diff_negzero.exr"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("differ: 192 of 192"), std::string::npos) << r.out;
+  r = run("diff " + tmp("diff_zero.exr") + " " + tmp("diff_negzero.exr") + " --tolerance 1e-9");
+  EXPECT_EQ(r.code, 0) << r.out;
+  r = run("diff " + tmp("diff_one.exr") + " " + tmp("diff_one.exr"));
+  EXPECT_EQ(r.code, 0) << r.out;
+  r = run("diff " + tmp("diff_one.exr") + " " + tmp("diff_zero.exr") + " --tolerance nan");
+  EXPECT_NE(r.out.find("--tolerance nan is not a number"), std::string::npos) << r.out;
+  EXPECT_NE(r.code, 0) << r.out;
+}

@@ -1,11 +1,12 @@
 // `tuile diff A.exr B.exr`: whether two renders are bit-identical, and if not by how much
 // they differ (largest absolute and relative difference, how many values differ, where the
-// worst one is; channel means, relMSE and region ratios). Exit status 0 when identical or within --tolerance, 1 when not, 2 when an
+// worst one is; channel means, relMSE and region ratios). Exit status 0 when identical (in every bit, with the default tolerance 0) or within --tolerance, 1 when not, 2 when an
 // image cannot be read or the sizes differ.
 #include <CLI/CLI.hpp>
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
 
@@ -20,7 +21,12 @@ void add_diff_flags(CLI::App& app, DiffFlags& f) {
   app.add_option("b", f.b, "second image (.exr)")->required();
   app.add_option("--tolerance", f.tolerance,
                  "accept a largest relative difference |a - b| / max(|a|, |b|) up to this (default 0: identical bits)")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(CLI::Validator(
+          [](std::string& s) {  // (CLI::Range lets a NaN through: every comparison with it is false)
+            const double v = std::strtod(s.c_str(), nullptr);
+            return v >= 0 && v <= 1 ? std::string() : "--tolerance " + s + " is not a number in [0, 1]";
+          },
+          "", ""));
 }
 
 int run_diff(const DiffFlags& f) {
@@ -41,12 +47,13 @@ int run_diff(const DiffFlags& f) {
   double max_abs = 0, max_rel = 0;
   for (size_t i = 0; i < a.size(); ++i) {
     if (std::memcmp(&a[i], &b[i], sizeof(float)) == 0) continue;
-    ++differing;
+    if (differing++ == 0) worst = i;  // (0 against -0 differs in bits alone: its relative difference is 0)
     const double x = a[i], y = b[i];
     const double d = std::fabs(x - y);
-    // NaN against a number (or the other way) counts as the largest possible difference.
-    const double rel = std::isnan(d) ? INFINITY : d / std::max(std::fabs(x), std::fabs(y));
-    if (std::isnan(d) || d > max_abs) max_abs = std::isnan(d) ? INFINITY : d;
+    // NaN or an infinity against anything else (a number, the other infinity) counts as the
+    // largest possible difference (inf / inf and 0 / 0 would be NaN, which compares as no larger)
+    const double rel = !std::isfinite(d) ? INFINITY : d == 0 ? 0 : d / std::max(std::fabs(x), std::fabs(y));
+    if (!std::isfinite(d) || d > max_abs) max_abs = std::isfinite(d) ? d : INFINITY;
     if (rel > max_rel) {
       max_rel = rel;
       worst = i;
@@ -85,7 +92,8 @@ int run_diff(const DiffFlags& f) {
     for (int gx = 0; gx < grid; ++gx) std::printf(" %7.4f", rb[gy][gx] > 0 ? ra[gy][gx] / rb[gy][gx] : NAN);
     std::printf("\n");
   }
-  return max_rel <= f.tolerance ? 0 : 1;
+  // the default tolerance, 0, asks for identical bits; above it, values within the tolerance
+  return (f.tolerance > 0 && max_rel <= f.tolerance) ? 0 : 1;
 }
 
 }  // namespace tuile
