@@ -550,3 +550,41 @@ TEST(Materials, CheckpointFingerprintFollowsTheSurfaces) {
     EXPECT_NE(render_fingerprint(c, o, plan), base) << "change " << i;
   }
 }
+
+// ... and the media (their coefficients, which shapes bound them, the camera's), the skies'
+// maps and the shapes' alpha: a resume after any of them changed was accepted, and averaged
+// two scenes' samples.
+TEST(Materials, CheckpointFingerprintFollowsMediaSkiesAndAlpha) {
+  Scene s = every_surface();
+  Medium fog;
+  fog.supported = true;
+  fog.sigma_s = {0.5f, 0.5f, 0.5f};
+  s.media.push_back(fog);
+  s.meshes[0].medium_inside = 0;
+  SkyMap sky;
+  sky.res = 2;
+  sky.texels.assign(4 * 4, 1.f);
+  s.sky_maps.push_back(sky);
+  Light l;
+  l.type = LightKind::infinite;
+  l.radiance = {1, 1, 1};
+  l.sky_map = 0;
+  s.lights.push_back(l);
+  finalize_scene(s);
+  RenderOptions o;
+  const PassPlan plan = fixed_passes(16 * 16);
+  const std::string base = render_fingerprint(s, o, plan);
+  std::vector<std::function<void(Scene&)>> changes = {
+      [](Scene& c) { c.media[0].sigma_s.g = 0.25f; },
+      [](Scene& c) { c.media[0].g = 0.3f; },
+      [](Scene& c) { c.media[0].Le.r = 1.f; },
+      [](Scene& c) { c.camera_medium = 0; },
+      [](Scene& c) { c.meshes[0].medium_inside = -1; },
+      [](Scene& c) { c.sky_maps[0].texels[5] = 2.f; },
+      [](Scene& c) { c.meshes[0].alpha.value = 0.5f; }};
+  for (size_t i = 0; i < changes.size(); ++i) {
+    Scene c = s;
+    changes[i](c);
+    EXPECT_NE(render_fingerprint(c, o, plan), base) << "change " << i;
+  }
+}

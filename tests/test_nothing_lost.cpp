@@ -376,6 +376,24 @@ TEST(NothingLost, DamagedCheckpointsAreRefused) {
     std::ofstream(ck, std::ios::binary) << bad;
     EXPECT_THROW(load_checkpoint(ck), std::runtime_error);
   }
+  // a valid checksum over a film that disagrees with its fingerprint (another size, other
+  // passes, NaN sums: written by hand or by a faulty build) is refused, not resumed
+  ASSERT_EQ(run_tuile(with(kScene, {"--spp", "4", "--checkpoint", "1000", "-o", out, "--quiet"}), dir / "log"), 0);
+  const Checkpoint c = load_checkpoint(ck);
+  for (int k = 0; k < 3; ++k) {
+    Film f = c.film;
+    PassPlan plan = c.plan;
+    if (k == 0) f.reset(c.film.width / 2, c.film.height), f.samples = c.film.samples;
+    if (k == 1) plan.pass_spp += 1;
+    if (k == 2) f.sum[5] = std::nan("");
+    save_checkpoint(ck, c.fingerprint, plan, f);
+    ASSERT_NO_THROW(load_checkpoint(ck));
+    EXPECT_EQ(run_tuile(with(kScene, {"--spp", "8", "-o", out, "--resume"}), dir / "log"), 1) << k;
+    const std::string log = read_file(dir / "log");
+    EXPECT_TRUE(log.find("hand-made checkpoint") != std::string::npos || log.find("NaN") != std::string::npos) << log;
+  }
+  save_checkpoint(ck, c.fingerprint, c.plan, c.film);  // (the checkpoint as it was resumes)
+  EXPECT_EQ(run_tuile(with(kScene, {"--spp", "8", "-o", out, "--resume", "--quiet"}), dir / "log"), 0) << read_file(dir / "log");
   std::ofstream(ck, std::ios::binary) << "not a checkpoint at all";
   EXPECT_THROW(load_checkpoint(ck), std::runtime_error);
   EXPECT_EQ(run_tuile(with(kScene, {"--spp", "8", "-o", out, "--resume"}), dir / "log"), 1);

@@ -93,6 +93,18 @@ RenderJob start_render_job(const RenderFlags& f, std::shared_ptr<Prepared> loade
       throw std::invalid_argument(job.ckpt + ": this checkpoint belongs to another render; it was made by\n" +
                                   c.fingerprint + "and this render is\n" + job.fingerprint +
                                   "(resume with the same scene, resolution, estimator, sampler and seed)");
+    // what the fingerprint says, the film and the passes must agree with (a checkpoint of a
+    // valid checksum written by hand, or by another build, could say otherwise)
+    const bool passes = c.plan.schedule == job.plan.schedule && c.plan.pass_spp == job.plan.pass_spp;
+    if (c.film.width != scene.camera.width || c.film.height != scene.camera.height || !passes)
+      throw std::invalid_argument(job.ckpt + ": the checkpoint's film (" + std::to_string(c.film.width) + "x" +
+                                  std::to_string(c.film.height) + ", " + std::to_string(c.film.samples) +
+                                  " spp) or passes do not match its own fingerprint's render (" +
+                                  std::to_string(scene.camera.width) + "x" + std::to_string(scene.camera.height) +
+                                  "): a damaged or hand-made checkpoint");
+    for (const auto* v : {&c.film.sum, &c.film.sum_sq})
+      for (const double x : *v)
+        if (!std::isfinite(x)) throw std::invalid_argument(job.ckpt + ": the checkpoint's sums hold NaN or infinity");
     if (c.film.samples > job.spp)
       throw std::invalid_argument(job.ckpt + ": the checkpoint holds " + std::to_string(c.film.samples) +
                                   " spp, more than the " + std::to_string(job.spp) + " asked for");

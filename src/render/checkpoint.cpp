@@ -131,6 +131,34 @@ std::string render_fingerprint(const Scene& scene, const RenderOptions& options,
     c.add(&l.e2, sizeof(l.e2));
     c.add(&l.radiance, sizeof(l.radiance));
   }
+  // the media and which shapes bound them, the skies' maps and the shapes' alpha (a scene
+  // without them adds nothing: the fingerprint of earlier releases)
+  for (const Medium& md : scene.media) {
+    const float f[] = {md.sigma_a.r, md.sigma_a.g, md.sigma_a.b, md.sigma_s.r, md.sigma_s.g, md.sigma_s.b, md.g, md.Le.r, md.Le.g, md.Le.b};
+    c.add(f, sizeof(f));
+    const uint8_t supported = md.supported;
+    c.add(&supported, 1);
+  }
+  if (!scene.media.empty()) {
+    c.add(&scene.camera_medium, sizeof(scene.camera_medium));
+    const auto sides = [&](int inside, int outside) {
+      const int32_t m[] = {inside, outside};
+      c.add(m, sizeof(m));
+    };
+    for (const Mesh& m : scene.meshes) sides(m.medium_inside, m.medium_outside);
+    for (const Sphere& sp : scene.spheres) sides(sp.medium_inside, sp.medium_outside);
+    for (const Curves& cv : scene.curves) sides(cv.medium_inside, cv.medium_outside);
+  }
+  for (const SkyMap& m : scene.sky_maps) {
+    c.add(&m.res, sizeof(m.res));
+    c.add_vector(m.texels);
+  }
+  for (const Light& l : scene.lights)
+    if (l.sky_map >= 0) c.add(&l.sky_map, sizeof(l.sky_map));
+  for (const Mesh& m : scene.meshes)
+    if (m.has_alpha()) c.add(&m.alpha, sizeof(m.alpha));
+  for (const Sphere& sp : scene.spheres)
+    if (sp.alpha < 1) c.add(&sp.alpha, sizeof(sp.alpha));
   Estimator est = options.est;
   if (est.sampler != SamplerKind::stratified) est.spp = 0;  // the other samplers do not read spp
   char crc_hex[16];
