@@ -790,6 +790,23 @@ TEST(Pbrt, IncludeImportAndGzipScenes) {
   write_gz(tmp_dir() / "scene.pbrt.gz", "WorldBegin\nInclude \"sub/inner.pbrt\"\n");
   const Scene g = load_pbrt((tmp_dir() / "scene.pbrt.gz").string());
   EXPECT_EQ(g.meshes.size(), 1u);
+  // a gzip file cut short (inside its stream, or without its 8-byte trailer) is an error, not
+  // the scene's first part read as if it were the whole
+  std::string body = "WorldBegin\n";
+  for (int i = 0; i < 300; ++i) body += "Shape \"sphere\" \"float radius\" [ " + std::to_string(i + 1) + " ]\n";
+  write_gz(tmp_dir() / "long.pbrt.gz", body);
+  std::ifstream in(tmp_dir() / "long.pbrt.gz", std::ios::binary);
+  const std::string gz((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(load_pbrt((tmp_dir() / "long.pbrt.gz").string()).spheres.size(), 300u);
+  for (size_t cut : {size_t(60), gz.size() / 2, gz.size() - 8}) {
+    write_text(tmp_dir() / "cut.pbrt.gz", gz.substr(0, cut));
+    try {
+      load_pbrt((tmp_dir() / "cut.pbrt.gz").string());
+      ADD_FAILURE() << "a gzip file cut to " << cut << " of " << gz.size() << " bytes was read";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("cut short"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(Pbrt, IgnoredDirectivesWarnOnce) {

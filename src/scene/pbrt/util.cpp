@@ -41,7 +41,16 @@ static bool read_gzip(const std::string& path, std::string& out, std::string& re
       return false;
     }
     used += size_t(n);
-    if (n == 0) break;
+    if (n == 0) {
+      int code = 0;
+      gzerror(f, &code);
+      if (code == Z_BUF_ERROR) {  // (zlib: the input ended inside a gzip stream)
+        reason = "gzip data cut short (the file ends inside its compressed stream)";
+        gzclose(f);
+        return false;
+      }
+      break;
+    }
     if (used > limit) {
       reason = "decompressed size exceeds 16 GiB";
       gzclose(f);
