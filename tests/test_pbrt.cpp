@@ -4,6 +4,11 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfOutputFile.h>
+
 #include <ImfRgbaFile.h>
 
 #include <algorithm>
@@ -1038,6 +1043,71 @@ TEST(PbrtErrors, OverflowsClampedOrNamed) {
   expect_error(t, "t.pbrt:2:1", "fewer levels");
   if (double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE)) < 2.6e11)  // (else the 2^28 cap says so)
     EXPECT_NE(error_of(t).find("GB of memory"), std::string::npos) << error_of(t);
+}
+
+// Image files that decoders accept in part: a Radiance .hdr cut short (stb_image decoded
+// the missing scanlines as black, or repeated the last texel) and an EXR without R, G and B
+// (OpenEXR's RGBA interface filled them with 0: a black texture) now follow the rule for
+// images that cannot be read (grey 0.5 with a warning naming the file; --strict: an error);
+// an EXR of one channel is grey, as pbrt-v4 reads it.
+TEST(PbrtErrors, CutShortHdrAndExrWithoutColours) {
+  // 8 x 4 texels of 1.0 (RGBE 128 128 128 129), run-length encoded: 2 2 0 8, then per channel
+  // one run of 8
+  std::string hdr = "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 8\n";
+  for (int y = 0; y < 4; ++y) {
+    hdr += std::string("\x02\x02\x00\x08", 4);
+    for (int c = 0; c < 4; ++c) hdr += std::string(1, char(128 + 8)) + std::string(1, char(c < 3 ? 128 : 129));
+  }
+  const std::string use = "Texture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"img.hdr\"\n"
+                          "Material \"diffuse\" \"texture reflectance\" \"t\"\n" + tri;
+  write_text(tmp_dir() / "img.hdr", hdr);
+  Scene s = world(use);
+  ASSERT_GE(s.materials[size_t(s.meshes[0].material)].texture, 0);
+  EXPECT_FLOAT_EQ(s.textures[size_t(s.materials[size_t(s.meshes[0].material)].texture)].rgb[5], 1.f);
+  for (size_t cut : {hdr.size() - 3, hdr.size() - 12, size_t(50)}) {
+    write_text(tmp_dir() / "img.hdr", hdr.substr(0, cut));
+    s = world(use);
+    EXPECT_EQ(s.materials[size_t(s.meshes[0].material)].texture, -1) << cut;
+    EXPECT_TRUE(has_warning(s, "cut short")) << cut;
+  }
+  // flat (no runs: 4 texels a scanline), cut short
+  std::string flat = "#?RADIANCE\n\n-Y 2 +X 4\n";
+  for (int i = 0; i < 8; ++i) flat += std::string("\x80\x80\x80\x81", 4);
+  write_text(tmp_dir() / "img.hdr", flat.substr(0, flat.size() - 4));
+  s = world(use);
+  EXPECT_TRUE(has_warning(s, "cut short"));
+  // an EXR whose channels are neither R, G, B nor Y nor a single one; and one of a single channel
+  const auto exr = [&](const std::vector<std::string>& names, float v) {
+    Imf::Header h(2, 2);
+    for (const std::string& n : names) h.channels().insert(n, Imf::Channel(Imf::FLOAT));
+    std::vector<float> px(4, v);
+    Imf::FrameBuffer fb;
+    for (const std::string& n : names) fb.insert(n, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(px.data()), sizeof(float), 2 * sizeof(float)));
+    Imf::OutputFile f((tmp_dir() / "img.exr").string().c_str(), h);
+    f.setFrameBuffer(fb);
+    f.writePixels(2);
+  };
+  const std::string use_exr = "Texture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"img.exr\"\n"
+                              "Material \"diffuse\" \"texture reflectance\" \"t\"\n" + tri;
+  exr({"diffuse.R", "diffuse.G", "diffuse.B"}, 0.25f);
+  s = world(use_exr);
+  EXPECT_EQ(s.materials[size_t(s.meshes[0].material)].texture, -1);
+  EXPECT_TRUE(has_warning(s, "no R, G and B channels"));
+  {
+    LoadOptions strict;
+    strict.strict = true;
+    try {
+      load_pbrt_string("WorldBegin\n" + use_exr, "t.pbrt", tmp_dir().string(), strict);
+      ADD_FAILURE() << "--strict read an EXR without colours";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("no R, G and B channels"), std::string::npos) << e.what();
+    }
+  }
+  exr({"A"}, 0.25f);
+  s = world(use_exr);
+  ASSERT_GE(s.materials[size_t(s.meshes[0].material)].texture, 0);
+  const Texture& grey = s.textures[size_t(s.materials[size_t(s.meshes[0].material)].texture)];
+  for (float v : grey.rgb) EXPECT_FLOAT_EQ(v, 0.25f);
 }
 
 TEST(PbrtErrors, IndexOutOfRange) {
