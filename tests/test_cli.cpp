@@ -345,3 +345,29 @@ TEST(Cli, DiffCountsInfinitiesAndSignedZeros) {
   EXPECT_NE(r.out.find("--tolerance nan is not a number"), std::string::npos) << r.out;
   EXPECT_NE(r.code, 0) << r.out;
 }
+
+// An output named as a file the scene reads (its texture, its sky map, the scene file itself)
+// is refused before any work: the render replaced it, and the next render read its own
+// output.
+TEST(Cli, AnOutputNeverReplacesWhatTheSceneReads) {
+  const std::vector<float> grey(4 * 4 * 3, 0.5f);
+  tuile::write_exr(tmp("cli_in_tex.exr"), 4, 4, grey);
+  const std::string scene = tmp("cli_in.pbrt");
+  std::ofstream(scene) << "Film \"rgb\" \"string filename\" \"cli_in_tex.exr\" \"integer xresolution\" [ 8 ] \"integer yresolution\" [ 8 ]\n"
+                          "Camera \"perspective\"\nWorldBegin\nLightSource \"point\" \"rgb I\" [ 1 1 1 ]\n"
+                          "Texture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"cli_in_tex.exr\"\n"
+                          "Material \"diffuse\" \"texture reflectance\" \"t\"\n"
+                          "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 3 1 -1 3 0 1 3 ] \"point2 uv\" [ 0 0 1 0 0 1 ]\n";
+  std::ifstream before_in(tmp("cli_in_tex.exr"), std::ios::binary);
+  const std::string before((std::istreambuf_iterator<char>(before_in)), std::istreambuf_iterator<char>());
+  for (const std::string& out : {tmp("cli_in_tex.exr"), tmp("./cli_in_tex.exr")}) {  // (the same file spelt two ways)
+    const CmdResult r = run("render " + scene + " --spp 1 --quiet -o " + out);
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find("is a file the scene reads"), std::string::npos) << r.out;
+  }
+  std::ifstream after_in(tmp("cli_in_tex.exr"), std::ios::binary);
+  const std::string after((std::istreambuf_iterator<char>(after_in)), std::istreambuf_iterator<char>());
+  EXPECT_TRUE(after == before) << "the texture was replaced";
+  const CmdResult ok = run("render " + scene + " --spp 1 --quiet -o " + tmp("cli_in_out.exr"));
+  EXPECT_EQ(ok.code, 0) << ok.out;
+}

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <stdexcept>
 
@@ -79,6 +80,14 @@ RenderJob start_render_job(const RenderFlags& f, std::shared_ptr<Prepared> loade
   else if (job.p != nullptr && loaded_scene) job.out.clear();
   else if (!scene.file_output.empty()) job.out = with_extension(scene.file_output, ".exr");
   if (f.output.empty() && !job.out.empty()) check_output_path(job.out, {".exr"});
+  if (!job.out.empty())  // (an image the scene reads, e.g. its sky map, named as the output: refused before any work)
+    for (const std::string& o : {job.out, with_extension(job.out, ".png"), checkpoint_path(job.out)})
+      for (const std::string& in : scene.inputs) {
+        std::error_code ec;
+        if (std::filesystem::exists(o, ec) && std::filesystem::equivalent(o, in, ec))
+          throw std::invalid_argument(o + " is a file the scene reads (" + in + "): the render would replace it; choose "
+                                      "another output name (-o)");
+      }
   if (job.out.empty() && (f.resume || f.checkpoint_seconds > 0))
     throw std::invalid_argument(std::string(f.resume ? "--resume" : "--checkpoint") +
                                 " needs --output: the checkpoint is the output's name with .checkpoint");

@@ -280,6 +280,7 @@ struct Scene {
   std::vector<SkyMap> sky_maps;     // the skies' environment maps (Light::sky_map)
   std::vector<std::string> warnings;  // approximations made at load, one per kind
   std::vector<std::string> notes;     // what the loader did that changes nothing in the image (zero-area faces dropped)
+  std::vector<std::string> inputs;    // the files it was read from (scene files, meshes, images): no output may replace them
   // Settings from the file (pbrt Sampler/Film/Integrator); the command line overrides them.
   int file_spp = 0;
   std::string file_sampler;       // "", "independent", "stratified", "sobol"

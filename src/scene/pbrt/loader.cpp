@@ -72,6 +72,7 @@ void Loader::include(Lexer& lx, const Token& t) {
   std::string text, reason;
   if (!read_file(path, text, reason))
     lx.fail(nt, "cannot read included file '" + path + "': " + reason, "an existing, readable file");
+  scene.inputs.push_back(path);
   lexers_.push_back(std::make_unique<Lexer>(std::move(text), path, parent_dir(path)));
 }
 
@@ -376,7 +377,9 @@ Scene load_pbrt(const std::string& path, const LoadOptions& options) {
   std::string text, reason;
   if (!pbrt::read_file(path, text, reason))
     throw SceneError(path + ":1:1: error: cannot read scene file: " + reason + " (expected an existing, readable .pbrt file)");
-  return pbrt::load(std::make_unique<pbrt::Lexer>(std::move(text), path, pbrt::parent_dir(path)), path, options);
+  Scene s = pbrt::load(std::make_unique<pbrt::Lexer>(std::move(text), path, pbrt::parent_dir(path)), path, options);
+  s.inputs.insert(s.inputs.begin(), path);
+  return s;
 }
 
 Scene load_pbrt_string(const std::string& text, const std::string& virtual_name, const std::string& base_dir,

@@ -124,6 +124,7 @@ void Loader::infinite_map(Lexer& lx, const Token& t, const std::string& path, Pa
   }
   RgbImage img;
   std::string reason;
+  scene.inputs.push_back(path);
   if (!read_rgb_image(path, img, reason)) lx.fail(t, "cannot read the infinite light's image \"" + path + "\": " + reason, "an existing, readable PFM, EXR, HDR or 8/16-bit image");
   SkyMap map;
   if (!make_sky_map(path, img, map, reason)) lx.fail(t, "infinite light's image \"" + path + "\": " + reason, "an equal-area (square) map of finite, non-negative texels");

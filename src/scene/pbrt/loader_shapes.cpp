@@ -212,6 +212,7 @@ void Loader::ply_shape(Lexer& lx, const Token& t, Params& ps) {
   j.ctm = gs_.ctm;
   j.ro = gs_.reverse;
   j.mesh = new_mesh(lx, t);
+  scene.inputs.push_back(j.path);
   plys_.push_back(std::move(j));
 }
 

@@ -153,6 +153,7 @@ int Loader::image_job(const std::string& path, const std::string& encoding, cons
     j.path = path;
     j.encoding = encoding;
     j.where = where;
+    scene.inputs.push_back(path);
     images_.push_back(std::move(j));
     it = image_by_path_.emplace(key, int(images_.size() - 1)).first;
   }
