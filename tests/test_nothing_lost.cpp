@@ -255,7 +255,8 @@ TEST(NothingLost, UnwritableOutputFailsBeforeAnyWork) {
   TempDir dir;
   std::ofstream(dir / "file") << "x";
   for (const std::string& bad :
-       {dir / "missing/out.exr", dir / "file/out.exr", dir / "out.png", dir / "out", std::string(dir / "")}) {
+       {dir / "missing/out.exr", dir / "file/out.exr", dir / "out.png", dir / "out", std::string(dir / ""),
+        dir / (std::string(241, 'n') + ".exr")}) {  // (its checkpoint's name would pass 255 bytes)
     const auto t0 = std::chrono::steady_clock::now();
     const int code = run_tuile(with(kScene, {"--spp", "1000000", "-o", bad}), dir / "log");
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -263,6 +264,18 @@ TEST(NothingLost, UnwritableOutputFailsBeforeAnyWork) {
     EXPECT_LT(seconds, 1.0) << bad;
     EXPECT_NE(read_file(dir / "log").find(bad), std::string::npos) << "the message names the output: " << read_file(dir / "log");
   }
+}
+
+// A long output name (its temporary file's name, the name plus ".tmp-PID-N", passed the 255
+// bytes a name may have, and every write of it failed: the checkpoints silently) writes its
+// image and checkpoints.
+TEST(NothingLost, ALongOutputNameWritesItsCheckpoints) {
+  TempDir dir;
+  const std::string out = dir / (std::string(236, 'n') + ".exr");
+  ASSERT_EQ(run_tuile(with(kScene, {"--spp", "4", "--checkpoint", "0.001", "-o", out}), dir / "log"), 0) << read_file(dir / "log");
+  EXPECT_EQ(header_spp(out), 4);
+  EXPECT_EQ(load_checkpoint(checkpoint_path(out)).film.samples, 4u);
+  EXPECT_EQ(read_file(dir / "log").find("warning"), std::string::npos) << read_file(dir / "log");
 }
 
 TEST(NothingLost, TargetErrorStopsWithinAFactorOfTwo) {

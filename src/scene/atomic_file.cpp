@@ -29,10 +29,15 @@ void sync_path(const std::string& path, bool directory) {
   ::close(fd);
 }
 
-// A unique name beside path: "path.tmp-PID-N" (removed on failure, renamed on success).
+// A unique name beside path: "path.tmp-PID-N" (removed on failure, renamed on success); a
+// long file name is shortened first, so that the temporary name stays within the 255 bytes
+// a name may have (a name of 240 bytes made every write of it fail).
 std::string temporary_beside(const std::string& path) {
   static int counter = 0;
-  return path + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
+  const std::filesystem::path p(path);
+  std::string name = p.filename().string();
+  if (name.size() > 200) name.resize(200);
+  return (p.parent_path() / (name + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++))).string();
 }
 
 }  // namespace
@@ -76,6 +81,11 @@ void check_output_path(const std::string& path, const std::vector<std::string>& 
   if (!std::filesystem::is_directory(dir, ec))
     throw std::invalid_argument(path + ": " + dir + " is not a directory");
   if (std::filesystem::is_directory(path, ec)) throw std::invalid_argument(path + ": is a directory");
+  // the longest name written beside it: its checkpoint (".checkpoint") or preview (".png")
+  const size_t name = std::filesystem::path(path).filename().string().size();
+  if (name + std::strlen(".checkpoint") > 255)
+    throw std::invalid_argument(path + ": the file name is " + std::to_string(name) +
+                                " bytes long; its checkpoint's name (+ \".checkpoint\") would pass the 255 a name may have");
   const std::string probe = temporary_beside(path);
   const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0644);
   if (fd < 0)
