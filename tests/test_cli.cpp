@@ -371,3 +371,37 @@ TEST(Cli, AnOutputNeverReplacesWhatTheSceneReads) {
   const CmdResult ok = run("render " + scene + " --spp 1 --quiet -o " + tmp("cli_in_out.exr"));
   EXPECT_EQ(ok.code, 0) << ok.out;
 }
+
+// What is written beside an output is checked before any work too: a directory in the PNG
+// preview's or the checkpoint's place (the EXR was written, then the preview failed), a
+// checkpoint that is a directory (an I/O library's message naming nothing), and envmap's
+// output (checked after the conversion) and its input's negative texels (the converted map
+// was written, then refused by the scene that named it).
+TEST(Cli, WhatIsWrittenBesideAnOutputIsCheckedFirst) {
+  const std::string dir = tmp("cli_beside");
+  fs::remove_all(dir);
+  fs::create_directories(dir + "/p.png");
+  fs::create_directories(dir + "/c.exr.checkpoint");
+  CmdResult r = run("render --res 16x16 --spp 1 -o " + dir + "/p.exr");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("p.png: is a directory"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir + "/p.exr"));
+  r = run("render --res 16x16 --spp 1 -o " + dir + "/c.exr");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("c.exr.checkpoint: is a directory"), std::string::npos) << r.out;
+  r = run("render --res 16x16 --spp 1 --resume -o " + dir + "/c.exr");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("c.exr.checkpoint"), std::string::npos) << r.out;
+  std::vector<float> map(16 * 8 * 3, 1.f);
+  tuile::write_exr(dir + "/in.exr", 16, 8, map);
+  fs::create_directories(dir + "/out.exr");
+  r = run("envmap " + dir + "/in.exr " + dir + "/out.exr");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("out.exr: is a directory"), std::string::npos) << r.out;
+  map[7] = -1.f;
+  tuile::write_exr(dir + "/in.exr", 16, 8, map);
+  r = run("envmap " + dir + "/in.exr " + dir + "/neg.exr");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("negative"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir + "/neg.exr"));
+}

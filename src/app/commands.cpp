@@ -22,6 +22,7 @@
 
 #include "accel/embree.h"
 #include "app/prepare.h"
+#include "scene/atomic_file.h"
 #include "scene/image_io.h"
 #include "scene/sky_map.h"
 #include "render/filter_table.h"
@@ -553,11 +554,13 @@ void add_envmap_flags(CLI::App& app, EnvmapFlags& f) {
 }
 
 int run_envmap(const EnvmapFlags& f) {
+  check_output_path(f.out, {".exr", ".pfm"});  // before the work, not after it
   RgbImage in;
   std::string reason;
   if (!read_rgb_image(f.in, in, reason)) throw std::runtime_error(f.in + ": cannot read the map: " + reason);
-  for (float v : in.rgb)
-    if (!std::isfinite(v)) throw std::runtime_error(f.in + ": the map has a NaN or infinite texel");
+  for (float v : in.rgb)  // (what an infinite light refuses in a map: a converted map must load)
+    if (!std::isfinite(v) || v < 0 || v > 1e30f)
+      throw std::runtime_error(f.in + ": the map has a NaN, infinite, negative or above-1e30 texel (" + std::to_string(v) + ")");
   if (in.width != 2 * in.height)
     std::fprintf(stderr, "tuile: warning: %s is %dx%d, not 2:1: read as latitude-longitude all the same\n", f.in.c_str(),
                  in.width, in.height);

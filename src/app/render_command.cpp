@@ -80,6 +80,13 @@ RenderJob start_render_job(const RenderFlags& f, std::shared_ptr<Prepared> loade
   else if (job.p != nullptr && loaded_scene) job.out.clear();
   else if (!scene.file_output.empty()) job.out = with_extension(scene.file_output, ".exr");
   if (f.output.empty() && !job.out.empty()) check_output_path(job.out, {".exr"});
+  if (!job.out.empty())  // its preview and checkpoint are written beside it: neither may be a directory
+    for (const std::string& o : {with_extension(job.out, ".png"), checkpoint_path(job.out)}) {
+      std::error_code ec;
+      if (std::filesystem::is_directory(o, ec))
+        throw std::invalid_argument(o + ": is a directory (the render writes " + (o == checkpoint_path(job.out) ? "its checkpoint" : "its PNG preview") +
+                                    " there); choose another output name (-o)");
+    }
   if (!job.out.empty())  // (an image the scene reads, e.g. its sky map, named as the output: refused before any work)
     for (const std::string& o : {job.out, with_extension(job.out, ".png"), checkpoint_path(job.out)})
       for (const std::string& in : scene.inputs) {

@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -207,6 +208,9 @@ void save_checkpoint(const std::string& path, const std::string& fingerprint, co
 }
 
 Checkpoint load_checkpoint(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec))
+    throw std::runtime_error(path + ": not a checkpoint (not a regular file: a directory or a device)");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(path + ": no checkpoint (render with --checkpoint SECONDS, or interrupt a render, to make one)");
   const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
