@@ -405,3 +405,26 @@ TEST(Cli, WhatIsWrittenBesideAnOutputIsCheckedFirst) {
   EXPECT_NE(r.out.find("negative"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(dir + "/neg.exr"));
 }
+
+// The measuring commands' outputs are checked before their work: converge's --csv in a
+// missing folder (the folder, at any depth, was created), bench's --json, profile's --trace
+// and --json naming one file (one replaced the other), figures' --out naming a file.
+TEST(Cli, MeasuringCommandsCheckTheirOutputsFirst) {
+  const std::string dir = tmp("cli_measure");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  CmdResult r = run("converge built-in:two-panels --res 16x16 --csv " + dir + "/missing/deeper/c.csv");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("--csv"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir + "/missing"));
+  r = run("bench built-in:cornell --res 16x16 --spp 1 --repeat 1 --json " + dir + "/missing/b.json");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("does not exist"), std::string::npos) << r.out;
+  r = run("profile built-in:cornell --res 16x16 --spp 1 --json " + dir + "/t.json --trace " + dir + "/./t.json");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("one file"), std::string::npos) << r.out;
+  std::ofstream(dir + "/a-file") << "x";
+  r = run("figures --quick --out " + dir + "/a-file");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("not a folder"), std::string::npos) << r.out;
+}

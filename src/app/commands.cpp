@@ -288,6 +288,7 @@ int run_bench(const BenchFlags& f, std::string* json) {
   auto say = [&text](const char* fmt, auto... args) { appendf(text, fmt, args...); };
   if (f.repeat < 1 || f.repeat > 1000) throw std::invalid_argument("--repeat must be in 1..1000");
   if (f.warmup < 0 || f.warmup > 1000) throw std::invalid_argument("--warmup must be in 0..1000");
+  if (!f.json.empty()) check_output_path(f.json, {".json"});  // before the work, not after it
   const auto start = std::chrono::steady_clock::now();
   Prepared p = prepare(f.render);
   Renderer renderer(p.scene, *p.accel, p.opt);
@@ -380,6 +381,13 @@ int run_bench(const BenchFlags& f, std::string* json) {
 int run_profile(const ProfileFlags& f, std::string* json) {
   std::string text;
   auto say = [&text](const char* fmt, auto... args) { appendf(text, fmt, args...); };
+  // the outputs, before the work: writable, and not one file for both
+  if (!f.json.empty()) check_output_path(f.json, {".json"});
+  if (!f.trace.empty()) check_output_path(f.trace, {".json"});
+  std::error_code ec;
+  if (!f.json.empty() && !f.trace.empty() &&
+      (f.json == f.trace || std::filesystem::weakly_canonical(f.json, ec) == std::filesystem::weakly_canonical(f.trace, ec)))
+    throw std::invalid_argument("--trace and --json name one file (" + f.json + "): one would replace the other");
   Prepared p = prepare(f.render);
   Renderer renderer(p.scene, *p.accel, p.opt);
   const uint32_t spp = p.opt.est.spp;

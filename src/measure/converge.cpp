@@ -18,6 +18,7 @@
 #include "accel/embree.h"
 #include "scene/image_io.h"
 #include "measure/metrics.h"
+#include "scene/atomic_file.h"
 #include "measure/plot.h"
 #include "render/render.h"
 
@@ -109,9 +110,15 @@ std::string stem_of(const std::string& path) {
   return path.substr(0, dot);
 }
 
-void make_parent_dir(const std::string& path) {
-  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
-  if (!parent.empty()) std::filesystem::create_directories(parent);
+// An output of the run, checked before it starts (its directory exists, it can be written
+// there, it is not a directory), as render checks its image: a typo's directories are not
+// created, and no output fails after the work.
+void check_output(const std::string& path, const char* flag, const std::vector<std::string>& extensions) {
+  try {
+    check_output_path(path, extensions);
+  } catch (const std::exception& e) {
+    throw std::invalid_argument(std::string(flag) + " " + e.what());
+  }
 }
 
 bool ends_with(const std::string& s, const std::string& e) {
@@ -263,8 +270,8 @@ ConvergeResult converge(const ConvergeFlags& f, Scene& scene, const Accel& accel
 int run_converge(const ConvergeFlags& f) {
   if (!f.plot.empty() && !ends_with(f.plot, ".svg") && !ends_with(f.plot, ".png") && !ends_with(f.plot, ".pdf"))
     throw std::invalid_argument("--plot '" + f.plot + "': expected a .png, .svg or .pdf file name");
-  if (!f.csv.empty()) make_parent_dir(f.csv);
-  if (!f.plot.empty()) make_parent_dir(f.plot);
+  if (!f.csv.empty()) check_output(f.csv, "--csv", {".csv", ".txt"});
+  if (!f.plot.empty()) check_output(f.plot, "--plot", {".png", ".svg", ".pdf"});
   Scene scene = load_scene(f.render.scene, LoadOptions{f.render.strict});
   (void)resolve_options(f.render, scene);  // validates the shared flags, applies --res
   for (const std::string& w : scene.warnings)

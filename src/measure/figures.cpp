@@ -240,7 +240,13 @@ void add_figures_flags(CLI::App& app, FiguresFlags& f) {
 
 int run_figures(const FiguresFlags& f) {
   if (f.threads < 0 || f.threads > 1024) throw std::invalid_argument("--threads must be in 0..1024");
-  std::filesystem::create_directories(f.out);
+  {  // the output folder (made if missing), before any work
+    std::error_code ec;
+    if (std::filesystem::exists(f.out, ec) && !std::filesystem::is_directory(f.out, ec))
+      throw std::invalid_argument("--out " + f.out + ": exists and is not a folder");
+    std::filesystem::create_directories(f.out, ec);
+    if (ec) throw std::invalid_argument("--out " + f.out + ": cannot make the folder: " + ec.message());
+  }
   const bool q = f.quick;
   Figures figs;
 
