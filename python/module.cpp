@@ -14,6 +14,7 @@
 #include <CLI/CLI.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <exception>
@@ -28,6 +29,7 @@
 #include "app/prepare.h"
 #include "app/render_job.h"
 #include "render/render.h"
+#include "scene/atomic_file.h"
 #include "scene/image_io.h"
 #include "scene/scene.h"
 
@@ -84,13 +86,22 @@ std::vector<std::string> to_args(const std::string& where, CLI::App& app, const 
       throw py::value_error(where + ": unknown argument '" + name + "' (known: " + known + ")");
     }
     std::string value;
-    if (py::isinstance<py::bool_>(v)) {
+    const CLI::Option* opt = app.get_option_no_throw("--" + flag);
+    const std::string type_name = py::cast<std::string>(py::str(py::type::of(v).attr("__name__")));
+    if (py::isinstance<py::bool_>(v) || type_name == "bool_") {  // (numpy's bool too)
+      // (True for a flag; an option that needs a value took the next argument as it: spp=True)
+      if (opt->get_expected_min() > 0)
+        throw py::value_error(where + ": " + name + ": expected a value, not " + (v.cast<bool>() ? "True" : "False"));
       args.push_back("--" + flag + (v.cast<bool>() ? "" : "=false"));
       continue;
     } else if (py::isinstance<py::str>(v)) {
       value = v.cast<std::string>();
     } else if (py::isinstance<py::int_>(v) || py::isinstance<py::float_>(v)) {
       value = py::cast<std::string>(py::repr(v));
+    } else if (PyIndex_Check(v.ptr())) {  // numpy's integers
+      value = py::cast<std::string>(py::repr(py::int_(py::reinterpret_borrow<py::object>(v))));
+    } else if (py::hasattr(v, "__float__") && !py::isinstance<py::sequence>(v)) {  // numpy's floats
+      value = py::cast<std::string>(py::repr(py::float_(py::reinterpret_borrow<py::object>(v))));
     } else if (name == "res" && (py::isinstance<py::tuple>(v) || py::isinstance<py::list>(v)) && py::len(v) == 2) {
       const py::sequence s = v.cast<py::sequence>();
       if (!py::isinstance<py::int_>(s[0]) || !py::isinstance<py::int_>(s[1]))
@@ -333,6 +344,8 @@ py::object converge_py(PyScene& s, const py::object& strategies, const py::objec
   } else if (!reference.is_none()) {
     ref = array_image(reference.cast<py::array>(), "reference");
   }
+  for (float x : ref)  // (a NaN in the reference made every row's error NaN)
+    if (!std::isfinite(x)) throw py::value_error(where + ": reference: holds NaN or infinite values");
   auto lk = s.claim();
   std::atomic<bool> cancel{false};
   ConvergeResult res;
@@ -459,6 +472,11 @@ PYBIND11_MODULE(_tuile, m) {
       [](const std::string& path, const py::array& image) {
         const py::array_t<float, py::array::c_style | py::array::forcecast> f = image;
         if (f.ndim() != 3 || f.shape(2) != 3) throw py::value_error("write_exr: expected an (H, W, 3) array");
+        try {  // (an EXR named .png, a folder: refused before writing)
+          check_output_path(path, {".exr"});
+        } catch (const std::invalid_argument& e) {
+          throw py::value_error(std::string("write_exr: ") + e.what());
+        }
         write_exr(path, static_cast<int>(f.shape(1)), static_cast<int>(f.shape(0)),
                   std::vector<float>(f.data(), f.data() + f.size()));
       },

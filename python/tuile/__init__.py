@@ -10,10 +10,11 @@ Every keyword argument of Scene.render is a flag of `tuile render` (light_pick="
 bits as the command line. See docs/python.md; plots are in tuile.plot (matplotlib).
 """
 import json as _json
+import os as _os
 import re as _re
 import warnings as _warnings
 
-from ._tuile import Film, Scene, SceneError, read_exr, strategies, write_exr  # noqa: F401
+from ._tuile import Film, Scene, SceneError, strategies  # noqa: F401
 from ._tuile import __version__  # noqa: F401
 from . import _tuile
 
@@ -27,12 +28,35 @@ def load(path, strict=False):
     ValueError) naming the file and line. What tuile approximates is given as warnings;
     strict=True is pbrt-v4's behaviour where tuile is lenient (an image texture that
     cannot be read is an error, not its constant mean with a warning)."""
-    if not isinstance(path, str):
-        raise ValueError("load: path: expected a file name or 'built-in:NAME', not %s" % type(path).__name__)
-    scene = Scene(path, strict=bool(strict))
+    path = _path(path, "load")
+    if not isinstance(strict, bool):  # (strict="no" was true)
+        raise ValueError("load: strict: expected True or False, not %r" % (strict,))
+    scene = Scene(path, strict=strict)
     for w in scene.warnings:
         _warnings.warn("tuile: " + w, stacklevel=2)
     return scene
+
+
+def _path(path, where):
+    """A file name given as a str or an os.PathLike (pathlib.Path), as a str."""
+    if isinstance(path, str):
+        return path
+    if hasattr(path, "__fspath__"):
+        p = _os.fspath(path)
+        if isinstance(p, str):
+            return p
+    raise ValueError("%s: path: expected a file name (str or pathlib.Path) or 'built-in:NAME', not %s"
+                     % (where, type(path).__name__))
+
+
+def read_exr(path):
+    """An EXR's RGB as an (H, W, 3) float32 array."""
+    return _tuile.read_exr(_path(path, "read_exr"))
+
+
+def write_exr(path, image):
+    """Writes an (H, W, 3) array as an RGB float EXR (the name must end in .exr)."""
+    _tuile.write_exr(_path(path, "write_exr"), image)
 
 
 def _value(text):
@@ -84,18 +108,20 @@ def converge(scene, strategies=None, budget=10.0, reference=None, images=False, 
     strategies: names from tuile.strategies() (default: all); reference: None (one is
     rendered with mis:power and another seed), an EXR's path or an (H, W, 3) array; other
     keywords are `tuile converge`'s flags (spp_max, reference_spp, res, seed, ...)."""
-    if isinstance(scene, str):
+    if isinstance(scene, str) or hasattr(scene, "__fspath__"):
         scene = load(scene)
     if not isinstance(scene, Scene):
         raise ValueError("converge: scene: expected a tuile.Scene or a path")
+    if hasattr(reference, "__fspath__"):
+        reference = _path(reference, "converge")
     return _tuile._converge(scene, strategies=strategies, reference=reference, images=images, budget=budget, **flags)
 
 
 def _scene_source(scene, where):
     if isinstance(scene, Scene):
         return scene.source
-    if isinstance(scene, str):
-        return scene
+    if isinstance(scene, str) or hasattr(scene, "__fspath__"):
+        return _path(scene, where)
     raise ValueError(where + ": scene: expected a tuile.Scene or a path")
 
 

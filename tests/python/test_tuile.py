@@ -96,6 +96,7 @@ def test_arrays_share_memory_with_the_film(cornell):
     (dict(guide=True, max_depth=3, guide_alpha=2), "guide_alpha"),
     (dict(light_paths=True, max_depth=1), "light_paths"),
     (dict(light_paths="sometimes"), "light_paths"),
+    (dict(spp=True, res="16x16"), "spp"),  # (a value option given True took the next flag as its value)
 ])
 def test_bad_arguments_raise_value_error_naming_the_argument(cornell, kw, name):
     with pytest.raises(ValueError, match=name):
@@ -127,6 +128,31 @@ def test_missing_images_warn_unless_strict(tmp_path):
         tuile.load(str(f), strict=True)
     with pytest.raises(ValueError, match="strict"):
         scene.render(strict=True)
+
+
+def test_paths_numpy_numbers_and_strict_are_taken_as_given(cornell, tmp_path):
+    # pathlib.Path wherever a file is named; numpy's numbers as flags' values; strict a bool
+    f = tmp_path / "tri.pbrt"
+    f.write_text('WorldBegin\nLightSource "point" "rgb I" [ 1 1 1 ]\n'
+                 'Shape "trianglemesh" "point3 P" [ 1 0 0  0 1 0  0 0 1 ]\n')
+    scene = tuile.load(f)
+    assert scene.source == str(f)
+    with pytest.raises(ValueError, match="strict"):
+        tuile.load(f, strict="no")  # (any non-empty string was True)
+    a = cornell.render(spp=np.int64(2), res="16x12", seed=np.uint32(3),
+                       rr_threshold=np.float32(0.25), quiet=np.bool_(True))
+    b = cornell.render(spp=2, res="16x12", seed=3, rr_threshold=0.25)
+    assert np.array_equal(a, b)
+    tuile.write_exr(tmp_path / "a.exr", a)
+    assert np.array_equal(tuile.read_exr(tmp_path / "a.exr"), a)
+    with pytest.raises(ValueError, match="extension"):
+        tuile.write_exr(tmp_path / "a.png", a)  # (an EXR named .png was written)
+    (tmp_path / "d.exr").mkdir()
+    with pytest.raises(ValueError, match="directory"):
+        tuile.write_exr(tmp_path / "d.exr", a)
+    with pytest.raises(ValueError, match="reference"):
+        tuile.converge(cornell, strategies=["mis:power"], budget=0.1, reference=np.full(a.shape, np.nan, np.float32),
+                       res="16x12", quiet=True)
 
 
 def test_info_is_what_tuile_info_prints(cornell):
