@@ -319,7 +319,8 @@ RgbImage latlong_to_equal_area(const RgbImage& ll, int res, int samples) {
     y = std::clamp(y, 0, H - 1);
     return static_cast<double>(ll.rgb[(static_cast<size_t>(y) * static_cast<size_t>(W) + static_cast<size_t>(x)) * 3 + static_cast<size_t>(c)]);
   };
-  for (int y = 0; y < res; ++y)
+  // rows in parallel (each texel depends on the input alone: the same bits on any thread count)
+  tbb::parallel_for(0, res, [&](int y) {
     for (int x = 0; x < res; ++x) {
       double acc[3] = {0, 0, 0};
       for (int sy = 0; sy < samples; ++sy)
@@ -342,6 +343,7 @@ RgbImage latlong_to_equal_area(const RgbImage& ll, int res, int samples) {
         out.rgb[(static_cast<size_t>(y) * static_cast<size_t>(res) + static_cast<size_t>(x)) * 3 + static_cast<size_t>(c)] =
             static_cast<float>(acc[c] / (samples * samples));
     }
+  });
   return out;
 }
 
