@@ -114,7 +114,7 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
 
 void add_render_run_flags(CLI::App& app, RenderFlags& f) {
   app.add_option("--checkpoint", f.checkpoint_seconds,
-                 "save the film to OUT.checkpoint every SECONDS (at the end of a pass; atomically)");
+                 "save the film to OUT.checkpoint every SECONDS (at the end of a pass; atomically; 0, the default: only when interrupted)");
   app.add_flag("--resume", f.resume, "continue the render whose checkpoint is OUT.checkpoint, up to --spp");
   app.add_option("--time-budget", f.time_budget,
                  "render whole passes until the next one would end after SECONDS (--spp, if given, still caps)");
