@@ -196,9 +196,13 @@ struct WorkerReport {  // sent to rank 0 at the end (bench)
 };
 
 void test_failure_hook(const Mpi& mpi) {
-  // Test hooks (tests/test_mpi.cpp): make one rank exit or stop answering after its first unit.
+  // Test hooks (tests/test_mpi.cpp): make one rank exit or stop answering after its first unit
+  // (or after TUILE_TEST_FAIL_AFTER units).
   const char* r = std::getenv("TUILE_TEST_FAIL_RANK");
   if (!r || std::atoi(r) != mpi.rank) return;
+  static int done = 1;
+  const char* after = std::getenv("TUILE_TEST_FAIL_AFTER");
+  if (after && done++ < std::atoi(after)) return;
   const char* mode = std::getenv("TUILE_TEST_FAIL_MODE");
   if (mode && std::string(mode) == "hang")
     for (;;) pause();
