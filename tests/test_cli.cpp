@@ -372,6 +372,13 @@ TEST(Cli, AnOutputNeverReplacesWhatTheSceneReads) {
   EXPECT_EQ(ok.code, 0) << ok.out;
 }
 
+// A command refused with exit status 1, its message saying `says`.
+void expect_refused(const std::string& args, const std::string& says) {
+  const CmdResult r = run(args);
+  EXPECT_EQ(r.code, 1) << args << "\n" << r.out;
+  EXPECT_NE(r.out.find(says), std::string::npos) << args << "\n" << r.out;
+}
+
 // What is written beside an output is checked before any work too: a directory in the PNG
 // preview's or the checkpoint's place (the EXR was written, then the preview failed), a
 // checkpoint that is a directory (an I/O library's message naming nothing), and envmap's
@@ -382,27 +389,17 @@ TEST(Cli, WhatIsWrittenBesideAnOutputIsCheckedFirst) {
   fs::remove_all(dir);
   fs::create_directories(dir + "/p.png");
   fs::create_directories(dir + "/c.exr.checkpoint");
-  CmdResult r = run("render --res 16x16 --spp 1 -o " + dir + "/p.exr");
-  EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("p.png: is a directory"), std::string::npos) << r.out;
+  expect_refused("render --res 16x16 --spp 1 -o " + dir + "/p.exr", "p.png: is a directory");
   EXPECT_FALSE(fs::exists(dir + "/p.exr"));
-  r = run("render --res 16x16 --spp 1 -o " + dir + "/c.exr");
-  EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("c.exr.checkpoint: is a directory"), std::string::npos) << r.out;
-  r = run("render --res 16x16 --spp 1 --resume -o " + dir + "/c.exr");
-  EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("c.exr.checkpoint"), std::string::npos) << r.out;
+  expect_refused("render --res 16x16 --spp 1 -o " + dir + "/c.exr", "c.exr.checkpoint: is a directory");
+  expect_refused("render --res 16x16 --spp 1 --resume -o " + dir + "/c.exr", "c.exr.checkpoint");
   std::vector<float> map(16 * 8 * 3, 1.f);
   tuile::write_exr(dir + "/in.exr", 16, 8, map);
   fs::create_directories(dir + "/out.exr");
-  r = run("envmap " + dir + "/in.exr " + dir + "/out.exr");
-  EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("out.exr: is a directory"), std::string::npos) << r.out;
+  expect_refused("envmap " + dir + "/in.exr " + dir + "/out.exr", "out.exr: is a directory");
   map[7] = -1.f;
   tuile::write_exr(dir + "/in.exr", 16, 8, map);
-  r = run("envmap " + dir + "/in.exr " + dir + "/neg.exr");
-  EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("negative"), std::string::npos) << r.out;
+  expect_refused("envmap " + dir + "/in.exr " + dir + "/neg.exr", "negative");
   EXPECT_FALSE(fs::exists(dir + "/neg.exr"));
 }
 
@@ -413,18 +410,10 @@ TEST(Cli, MeasuringCommandsCheckTheirOutputsFirst) {
   const std::string dir = tmp("cli_measure");
   fs::remove_all(dir);
   fs::create_directories(dir);
-  CmdResult r = run("converge built-in:two-panels --res 16x16 --csv " + dir + "/missing/deeper/c.csv");
-  EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("--csv"), std::string::npos) << r.out;
+  expect_refused("converge built-in:two-panels --res 16x16 --csv " + dir + "/missing/deeper/c.csv", "--csv");
   EXPECT_FALSE(fs::exists(dir + "/missing"));
-  r = run("bench built-in:cornell --res 16x16 --spp 1 --repeat 1 --json " + dir + "/missing/b.json");
-  EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("does not exist"), std::string::npos) << r.out;
-  r = run("profile built-in:cornell --res 16x16 --spp 1 --json " + dir + "/t.json --trace " + dir + "/./t.json");
-  EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("one file"), std::string::npos) << r.out;
+  expect_refused("bench built-in:cornell --res 16x16 --spp 1 --repeat 1 --json " + dir + "/missing/b.json", "does not exist");
+  expect_refused("profile built-in:cornell --res 16x16 --spp 1 --json " + dir + "/t.json --trace " + dir + "/./t.json", "one file");
   std::ofstream(dir + "/a-file") << "x";
-  r = run("figures --quick --out " + dir + "/a-file");
-  EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("not a folder"), std::string::npos) << r.out;
+  expect_refused("figures --quick --out " + dir + "/a-file", "not a folder");
 }
