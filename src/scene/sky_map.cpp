@@ -119,6 +119,9 @@ bool read_rgb_image(const std::string& path, RgbImage& out, std::string& reason)
   } else {
     int w = 0, h = 0, n = 0;
     if (!stbi_info(path.c_str(), &w, &h, &n)) {
+      // stbi_info tries every format and keeps the last one's complaint ("unknown image
+      // type"); the decoder of the file's own format says what is wrong with it
+      if (unsigned char* d = stbi_load(path.c_str(), &w, &h, &n, 3)) stbi_image_free(d);
       reason = stbi_failure_reason() ? stbi_failure_reason() : "cannot decode";
       return false;
     }
