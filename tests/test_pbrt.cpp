@@ -1110,6 +1110,35 @@ TEST(PbrtErrors, CutShortHdrAndExrWithoutColours) {
   for (float v : grey.rgb) EXPECT_FLOAT_EQ(v, 0.25f);
 }
 
+// A sphere that emits inwards (an emissive dome round the scene: ReverseOrientation) or from
+// both sides: its emission was dropped ("not supported as a light") and the scene rendered
+// black; it is now a mesh of the sphere's area whose triangles emit as any mesh's do.
+TEST(Pbrt, SpheresEmittingInwardsOrBothWaysAreMeshLights) {
+  for (const char* how : {"ReverseOrientation\nAreaLightSource \"diffuse\" \"rgb L\" [ 2 2 2 ]\n",
+                          "AreaLightSource \"diffuse\" \"rgb L\" [ 2 2 2 ] \"bool twosided\" true\n",
+                          "Scale -1 1 1\nAreaLightSource \"diffuse\" \"rgb L\" [ 2 2 2 ]\n"}) {
+    Scene s = world(std::string("AttributeBegin\n") + how + "Shape \"sphere\" \"float radius\" [ 10 ]\nAttributeEnd\n");
+    EXPECT_TRUE(s.spheres.empty()) << how;
+    ASSERT_EQ(s.meshes.size(), 1u) << how;
+    EXPECT_TRUE(has_warning(s, "sphere emitting")) << how;
+    finalize_scene(s);
+    double area = 0;
+    for (const Light& l : s.lights) {
+      EXPECT_EQ(l.radiance.g, 2.f);
+      area += l.area;
+    }
+    EXPECT_GT(s.lights.size(), 3000u) << how;
+    EXPECT_NEAR(area, 4 * M_PI * 100, 4 * M_PI * 100 * 1e-4) << how;  // the sphere's area: its power
+    for (const std::string& w : s.warnings) EXPECT_EQ(w.find("ignored"), std::string::npos) << w;
+    const bool two = std::string(how).find("twosided") != std::string::npos;
+    EXPECT_EQ(s.meshes[0].two_sided, two) << how;
+  }
+  // one emitting outwards stays the analytic sphere (its light sampled by its solid angle)
+  Scene out = world("AreaLightSource \"diffuse\" \"rgb L\" [ 2 2 2 ]\nShape \"sphere\" \"float radius\" [ 10 ]\n");
+  EXPECT_EQ(out.spheres.size(), 1u);
+  EXPECT_TRUE(out.meshes.empty());
+}
+
 TEST(PbrtErrors, IndexOutOfRange) {
   std::string t = "WorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ] \"integer indices\" [ 0 1 3 ]\n";
   expect_error(t, loc(t, "\"integer indices\""), "below the vertex count 3");

@@ -229,6 +229,16 @@ void Loader::sphere_shape(Lexer& lx, const Token& t, Params& ps, const std::stri
     partial_sphere(lx, t, r, zmin, zmax, phimax);
     return;
   }
+  // A sphere that emits inwards (a dome round the scene: ReverseOrientation, or a mirroring
+  // transform) or from both sides: the analytic sphere's light is sampled from outside only,
+  // so it is tessellated as a partial sphere is, and its triangles emit as any mesh's do
+  // (one-sided inwards, or two-sided; the same area, so the same power).
+  if (gs_.has_area && object_ < 0 && (gs_.area.two_sided || gs_.reverse != gs_.ctm.swaps_handedness())) {
+    warn("spheredome", where + ": a sphere emitting " + (gs_.area.two_sided ? "from both sides" : "inwards") +
+                           " is rendered as a mesh of about 4,000 triangles of the same area (its light sampled as a mesh's)");
+    partial_sphere(lx, t, r, -r, r, 2 * M_PI);
+    return;
+  }
   OwnedSphere os;
   os.object = object_;
   const Vec3d c = apply_point(gs_.ctm, {0, 0, 0});
@@ -255,7 +265,6 @@ void Loader::sphere_shape(Lexer& lx, const Token& t, Params& ps, const std::stri
         L = mul(L, float(gs_.area.power / ((gs_.area.two_sided ? 2 : 1) * M_PI * area * luminance(L))));
       }
       os.sphere.emission = L;
-      if (gs_.area.two_sided) warn("twosidedsphere", where + ": two-sided sphere lights emit outwards only");
     }
   }
   spheres_.push_back(os);
