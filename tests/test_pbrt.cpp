@@ -1139,6 +1139,18 @@ TEST(Pbrt, SpheresEmittingInwardsOrBothWaysAreMeshLights) {
   EXPECT_TRUE(out.meshes.empty());
 }
 
+// Material "none" and "" are pbrt-v4's deprecated names of "interface" (no material: rays
+// pass the shape): they were a grey diffuse wall.
+TEST(Pbrt, MaterialNoneIsAnInterface) {
+  for (const char* name : {"none", ""}) {
+    const Scene s = world(std::string("Material \"") + name + "\"\n" + tri);
+    ASSERT_FALSE(s.materials.empty());
+    EXPECT_TRUE(s.materials.back().interface) << name;
+    EXPECT_TRUE(s.meshes.empty()) << name << ": an interface between no media is left out of the geometry";
+    EXPECT_TRUE(has_warning(s, "deprecated")) << name;
+  }
+}
+
 TEST(PbrtErrors, IndexOutOfRange) {
   std::string t = "WorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0 0 0 1 0 ] \"integer indices\" [ 0 1 3 ]\n";
   expect_error(t, loc(t, "\"integer indices\""), "below the vertex count 3");

@@ -607,14 +607,19 @@ int Loader::make_material(Lexer& lx, const Token& t, const std::string& type, Pa
     surface();
   } else if (type == "hair") {
     make_hair(ps, where, m);
-  } else if (type == "interface") {
-    m.interface = true;  // (its shapes are left out of the geometry: Loader::flatten)
+  } else if (type == "interface" || type == "none" || type.empty()) {
+    // (pbrt-v4 makes no material for all three: rays pass its shapes, which only bound
+    // media; their shapes are left out of the geometry: Loader::flatten)
+    m.interface = true;
+    if (type != "interface")
+      warn("material:none", where + ": Material \"" + type + "\" is deprecated (pbrt-v4): read as \"interface\", whose shapes "
+                                    "rays pass");
   } else if (type == "mix") {
     make_mix(lx, t, ps, where, m, index);
   } else {
     const bool found = albedo("reflectance", SpectrumFix::reflectance, m.reflectance) ||
                        (ps.get("Kd", "rgb|spectrum|texture") && albedo("Kd", SpectrumFix::reflectance, m.reflectance));
-    m.approximated_from = type.empty() ? "none" : type;
+    m.approximated_from = type;
     ps.mark_all_used();
     warn("material:" + type, where + ": material \"" + type + "\" approximated as diffuse (" +
                                  (found ? "its reflectance" : "grey 0.5") + ")");
