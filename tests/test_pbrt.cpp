@@ -1112,8 +1112,9 @@ TEST(PbrtErrors, CutShortHdrAndExrWithoutColours) {
 
 // A sphere that emits inwards (an emissive dome round the scene: ReverseOrientation) or from
 // both sides: its emission was dropped ("not supported as a light") and the scene rendered
-// black; it is now a mesh of the sphere's area whose triangles emit as any mesh's do.
-TEST(Pbrt, SpheresEmittingInwardsOrBothWaysAreMeshLights) {
+// black; it is now a mesh of the sphere's area whose triangles emit as any mesh's do. And an
+// emissive sliver, dropped as a light, says so.
+TEST(Pbrt, DomeSpheresAreMeshLightsAndSliversSaySo) {
   for (const char* how : {"ReverseOrientation\nAreaLightSource \"diffuse\" \"rgb L\" [ 2 2 2 ]\n",
                           "AreaLightSource \"diffuse\" \"rgb L\" [ 2 2 2 ] \"bool twosided\" true\n",
                           "Scale -1 1 1\nAreaLightSource \"diffuse\" \"rgb L\" [ 2 2 2 ]\n"}) {
@@ -1133,6 +1134,13 @@ TEST(Pbrt, SpheresEmittingInwardsOrBothWaysAreMeshLights) {
     const bool two = std::string(how).find("twosided") != std::string::npos;
     EXPECT_EQ(s.meshes[0].two_sided, two) << how;
   }
+  // an emissive sliver (2 m long, 1 um wide: too thin to sample as a light) is dropped with a
+  // warning saying what is lost, not silently
+  Scene thin = world("AreaLightSource \"diffuse\" \"rgb L\" [ 1e7 1e7 1e7 ]\n"
+                     "Shape \"trianglemesh\" \"point3 P\" [ -1 1 0  1 1 0  0 1 1e-6 ]\n");
+  finalize_scene(thin);
+  EXPECT_TRUE(thin.lights.empty());
+  EXPECT_TRUE(has_warning(thin, "slivers")) << (thin.warnings.empty() ? "" : thin.warnings[0]);
   // one emitting outwards stays the analytic sphere (its light sampled by its solid angle)
   Scene out = world("AreaLightSource \"diffuse\" \"rgb L\" [ 2 2 2 ]\nShape \"sphere\" \"float radius\" [ 10 ]\n");
   EXPECT_EQ(out.spheres.size(), 1u);

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "light/dispatch.h"
@@ -376,6 +377,9 @@ void derive_lights(Scene& scene) {
       L = {L.r + l.radiance.r, L.g + l.radiance.g, L.b + l.radiance.b};
     }
   }
+  size_t slivers = 0;  // emissive triangles of some area, too thin to sample (dropped as lights)
+  double sliver_power = 0;
+  std::string sliver_mesh;
   for (size_t mi = 0; mi < scene.meshes.size(); ++mi) {
     Mesh& m = scene.meshes[mi];
     m.prim_light.clear();
@@ -396,7 +400,15 @@ void derive_lights(Scene& scene) {
         e1 = vertex(m, m.indices[3 * t + 1]) - p0;
         e2 = vertex(m, m.indices[3 * t + 2]) - p0;
       }
-      if (degenerate(e1, e2)) continue;  // a zero-area emitter emits nothing
+      if (degenerate(e1, e2)) {  // a zero-area emitter emits nothing
+        const float a2 = length_sq(cross(e1, e2));
+        if (a2 > 0.f && std::isfinite(a2)) {  // (not zero: a sliver, too thin to sample as a light)
+          ++slivers;
+          sliver_power += 0.5 * std::sqrt(double(a2)) * luminance(m.emission) * 3.14159265358979 * (m.two_sided ? 2 : 1);
+          if (sliver_mesh.empty()) sliver_mesh = m.name;
+        }
+        continue;
+      }
       l.type = quad ? LightKind::parallelogram : LightKind::triangle;
       if (sign < 0) std::swap(e1, e2);  // emission side follows cross(e1, e2)
       l.p0 = p0;
@@ -408,6 +420,13 @@ void derive_lights(Scene& scene) {
       lights.push_back(l);
       if (quad) ++t;
     }
+  }
+  if (slivers > 0) {
+    char power[32];
+    std::snprintf(power, sizeof(power), "%.3g", sliver_power);
+    scene.warnings.push_back(std::to_string(slivers) + " emissive triangle(s) (the first in " + sliver_mesh +
+                             ") are slivers, narrower than a millionth of their edges: too thin to sample as lights, "
+                             "they emit nothing (" + power + " W of the file's emission lost)");
   }
   for (size_t si = 0; si < scene.spheres.size(); ++si) {
     Sphere& s = scene.spheres[si];
