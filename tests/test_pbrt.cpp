@@ -478,6 +478,17 @@ TEST(Pbrt, PointSpotDistantLights) {
   EXPECT_EQ(d.type, LightKind::distant);
   EXPECT_NEAR(d.e1.z, -1, 1e-6);  // towards the light = from - to
   EXPECT_FLOAT_EQ(d.radiance.r, 3);
+  // what pbrt-v4 renders and tuile refused: a conedeltaangle above the cone (the falloff from
+  // |coneangle - conedeltaangle|, as pbrt-v4 takes its cosine) and a cone of 0 (no light)
+  const Scene odd = world("LightSource \"spot\" \"float coneangle\" 30 \"float conedeltaangle\" 40\n"
+                          "LightSource \"spot\" \"float coneangle\" 0 \"float conedeltaangle\" 0 \"rgb I\" [ 1 1 1 ]\n");
+  ASSERT_EQ(odd.lights.size(), 1u);
+  EXPECT_NEAR(odd.lights[0].e2.x, std::cos(10 * kPi / 180), 1e-6);
+  EXPECT_NEAR(odd.lights[0].e2.y, std::cos(30 * kPi / 180), 1e-6);
+  EXPECT_TRUE(has_warning(odd, "coneangle 0 emits nothing"));
+  EXPECT_FALSE(has_warning(odd, "not supported"));
+  expect_error("WorldBegin\nLightSource \"spot\" \"float coneangle\" 30 \"float conedeltaangle\" 61\n", "t.pbrt:2:1",
+               "2 coneangle");
 }
 
 // --- shapes -------------------------------------------------------------------------------

@@ -72,9 +72,19 @@ void Loader::light(Lexer& lx, const Token& t, const std::string& type, Params& p
   } else if (type == "spot") {
     l.type = LightKind::spot;
     const float cone = ps.one_float("coneangle", 30), delta = ps.one_float("conedeltaangle", 5);
-    if (!(cone > 0 && cone <= 180 && delta >= 0 && delta <= cone))
-      lx.fail(t, "spot light cone angles out of range", "0 < coneangle <= 180 and 0 <= conedeltaangle <= coneangle");
-    const float cos_end = std::cos(cone * float(M_PI) / 180), cos_start = std::cos((cone - delta) * float(M_PI) / 180);
+    // pbrt-v4 takes a falloff that starts at coneangle - conedeltaangle, whose cosine is its
+    // absolute value's: a conedeltaangle up to twice the cone is what pbrt-v4 renders
+    if (!(cone >= 0 && cone <= 180 && delta >= 0 && delta <= 2 * cone) || (cone == 0 && delta > 0))
+      lx.fail(t, "spot light cone angles out of range", "0 <= coneangle <= 180 and 0 <= conedeltaangle <= 2 coneangle");
+    if (cone == 0) {  // (a cone of no width: pbrt-v4's emits nothing)
+      warn("spot0:" + loc_str(lx, t), loc_str(lx, t) + ": a spot light of coneangle 0 emits nothing: left out");
+      ps.mark_all_used();
+      return;
+    }
+    if (delta > cone)
+      warn("spotdelta", loc_str(lx, t) + ": conedeltaangle above coneangle: its falloff starts at |coneangle - conedeltaangle|, "
+                                         "as pbrt-v4 reads it");
+    const float cos_end = std::cos(cone * float(M_PI) / 180), cos_start = std::cos(std::abs(cone - delta) * float(M_PI) / 180);
     const float k_e = 2 * float(M_PI) * ((1 - cos_start) + (cos_start - cos_end) / 2);
     const float power = ps.one_float("power", -1);
     l.radiance = mul(c, s * (power > 0 && lum > 0 && k_e > 0 ? power / (k_e * lum) : 1.f));
