@@ -1052,8 +1052,9 @@ TEST(PbrtErrors, OverflowsClampedOrNamed) {
   }
   t = "WorldBegin\nShape \"loopsubdiv\" \"integer levels\" [ 12 ] " + P + " ] " + idx + " ]\n";
   expect_error(t, "t.pbrt:2:1", "fewer levels");
-  if (double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE)) < 2.6e11)  // (else the 2^28 cap says so)
+  if (double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE)) < 2.6e11) {  // (else the 2^28 cap says so)
     EXPECT_NE(error_of(t).find("GB of memory"), std::string::npos) << error_of(t);
+  }
 }
 
 // Image files that decoders accept in part: a Radiance .hdr cut short (stb_image decoded
