@@ -349,14 +349,16 @@ py::object converge_py(PyScene& s, const py::object& strategies, const py::objec
   auto lk = s.claim();
   std::atomic<bool> cancel{false};
   ConvergeResult res;
-  const bool interrupted = run_interruptible(
-      [&] {
-        try {
-          res = converge(f, s.p->scene, *s.p->accel, std::move(ref), !f.render.quiet, &cancel);
-        } catch (const ConvergeCancelled&) {
-        }
-      },
-      cancel);
+  const bool interrupted = translating(where, [&] {  // (its messages in the keywords' names, not the flags')
+    return run_interruptible(
+        [&] {
+          try {
+            res = converge(f, s.p->scene, *s.p->accel, std::move(ref), !f.render.quiet, &cancel);
+          } catch (const ConvergeCancelled&) {
+          }
+        },
+        cancel);
+  });
   if (interrupted) throw py::error_already_set();
   py::list rows;
   for (const ConvergeRow& r : res.rows) {

@@ -153,6 +153,9 @@ def test_paths_numpy_numbers_and_strict_are_taken_as_given(cornell, tmp_path):
     with pytest.raises(ValueError, match="reference"):
         tuile.converge(cornell, strategies=["mis:power"], budget=0.1, reference=np.full(a.shape, np.nan, np.float32),
                        res="16x12", quiet=True)
+    with pytest.raises(ValueError, match=r"\(use res\)"):  # (the keyword's name, not the flag's: --res)
+        tuile.converge(cornell, strategies=["mis:power"], budget=0.1, reference=np.ones((5, 5, 3), np.float32),
+                       res="16x12", quiet=True)
 
 
 def test_info_is_what_tuile_info_prints(cornell):
