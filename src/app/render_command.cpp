@@ -101,7 +101,9 @@ RenderJob start_render_job(const RenderFlags& f, std::shared_ptr<Prepared> loade
   job.spp = opt.est.spp;
   job.pixels = static_cast<uint64_t>(scene.camera.width) * static_cast<uint64_t>(scene.camera.height);
   job.plan = f.target_error > 0 ? doubling_passes() : fixed_passes(job.pixels);
-  job.fingerprint = render_fingerprint(scene, opt, job.plan);
+  // (a CRC of the whole scene, its meshes and maps: made now only where a checkpoint is read
+  // or written as it renders; an interrupted render makes it on its way out)
+  if (f.resume || f.checkpoint_seconds > 0) job.fingerprint = render_fingerprint(scene, opt, job.plan);
   if (!job.out.empty()) job.ckpt = checkpoint_path(job.out);
   if (f.resume) {
     Checkpoint c = load_checkpoint(job.ckpt);
@@ -160,6 +162,7 @@ int finish_render_job(const RenderFlags& f, RenderJob& job, StopReason reason, c
   bool checkpoint_saved = false;
   if (interrupted || f.checkpoint_seconds > 0) {
     try {
+      if (job.fingerprint.empty()) job.fingerprint = render_fingerprint(job.p->scene, opt, job.plan);
       save_checkpoint(job.ckpt, job.fingerprint, job.plan, film);
       checkpoint_saved = true;
     } catch (const std::exception& e) {

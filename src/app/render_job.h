@@ -17,7 +17,8 @@ namespace tuile {
 
 struct RenderJob {
   std::shared_ptr<Prepared> p;  // shared with the Python module's scene, which renders it again
-  std::string out, ckpt, fingerprint;
+  std::string out, ckpt;
+  std::string fingerprint;  // made when a checkpoint is read or written (empty until then)
   PassPlan plan;
   Film film;
   uint32_t spp = 0;
