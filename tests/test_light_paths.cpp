@@ -233,8 +233,10 @@ TEST(LightPaths, RendersThePathTracersMeanThroughAGlassSlab) {
 // (lobes wide enough that the path tracer's image, the reference, is not all noise). With
 // `more`, a glass ball and an area light before the wall too (the light tracer picks
 // between the two kinds of source), and the metal plate rougher than the flag's bound (its
-// glints stay the path tracer's).
-Scene sun_wall(int res, bool more, bool sphere_sun = false) {
+// glints stay the path tracer's). With `coated_wall`, the wall a coated diffuse of alpha 0.3
+// (the camera's first vertex a coat: its glints from the sun are the light tracer's,
+// sun_traced_material, and an area light's caustics through the glass stay the path tracer's).
+Scene sun_wall(int res, bool more, bool sphere_sun = false, bool coated_wall = false) {
   Scene s;
   s.source = "test:sun-wall";
   s.materials.push_back(diffuse_material(Rgb{0.7f, 0.7f, 0.7f}));  // 0
@@ -260,8 +262,12 @@ Scene sun_wall(int res, bool more, bool sphere_sun = false) {
   s.materials.push_back(mix);  // 5
   s.materials.push_back(glass_material());  // 6
   s.materials.push_back(diffuse_material(Rgb{0.02f, 0.02f, 0.02f}));  // 7
+  Material wall_coat = coat;
+  wall_coat.reflectance = {0.7f, 0.7f, 0.7f};
+  wall_coat.alpha_u.value = wall_coat.alpha_v.value = 0.3f;
+  s.materials.push_back(wall_coat);  // 8
   add_named_quad(s, "ground", 7, {-3, 0, -2.5f}, {0, 0, 6}, {6, 0, 0});  // dark: the wall's light is the glints'
-  add_named_quad(s, "wall", 0, {-2, 0, -2.5f}, {4, 0, 0}, {0, 1.5f, 0});
+  add_named_quad(s, "wall", coated_wall ? 8 : 0, {-2, 0, -2.5f}, {4, 0, 0}, {0, 1.5f, 0});
   // facing (0, 0.48, -0.88): they throw the sun from behind the wall back onto its shaded face
   add_named_quad(s, "plate", 2, {-0.45f, 0.14f, 0.36f}, {0, 0.528f, 0.288f}, {0.9f, 0, 0});
   add_named_quad(s, "glazed", 5, {-1.7f, 0.1f, 0.2f}, {0, 0.44f, 0.24f}, {0.7f, 0, 0});
@@ -312,6 +318,15 @@ TEST(LightPaths, RendersThePathTracersMeanUnderASun) {
   // the light tracer ran (the scene has no area light): the same seed renders otherwise
   Accel accel(s);
   EXPECT_NE(render_mean(s, accel, options(true, 4, 3), 4), render_mean(s, accel, options(false, 4, 3), 4));
+}
+
+// A coated wall: the glints the sun throws on it are the light tracer's, joined to the camera
+// at the coat; with the glass ball and the area light too, whose caustics on the coat stay
+// the path tracer's (an area source's split takes rough first vertices alone).
+TEST(LightPaths, RendersThePathTracersMeanUnderASunOnACoatedWall) {
+  const Scene s = sun_wall(24, true, false, true);
+  const uint32_t spp = static_cast<uint32_t>(scaled(384));
+  expect_same_mean_over_seeds(s, options(true, spp, 0), options(false, spp, 0), 24, "sun, coated wall");
 }
 
 // --light-paths=glossy: the same wall lit by an area source in the sun's place, its light

@@ -190,7 +190,7 @@ inline void read_bounce_visibility(TileBuffers& tb) {
 
 // --light-paths (Estimator::light_paths), at a path's vertex 2 or later: the queued hits of
 // samples of a delta lobe on paths whose first vertex is of a kind the light tracer joins
-// to the camera (light_traced_kind: diffuse, a medium) are the light tracer's
+// to the camera (light_traced_kind: diffuse, a medium; first_rough 1) are the light tracer's
 // (src/render/light_paths.h: paths whose vertex next to the light is specular and whose
 // vertex next to the camera is rough): they count as not visible. A light sample never
 // makes such a path (a delta lobe has no value for it), so no MIS weight changes. Needs the
@@ -203,7 +203,7 @@ inline void drop_light_traced_hits(const GeomView& G, const LightView& L, TileBu
   const bool glossy = L.lt_glossy != nullptr && G.mat_lt_glossy != nullptr;
   for (int j = 0; j < tb.queue.count; ++j) {
     const int32_t k = tb.queue.point[j];
-    if (!(tb.path.first_rough[k] > 0.f)) continue;
+    if (!(tb.path.first_rough[k] >= 1.f)) continue;  // (the area sources' split: rough first vertices alone)
     if (Delta && tb.queue.delta[j]) tb.queue.vis[j] = 0.f;
     else if (glossy && L.lt_glossy[tb.queue.light[j]] != 0 && G.mat_lt_glossy[tb.points.mat[k]] != 0) tb.queue.vis[j] = 0.f;
   }

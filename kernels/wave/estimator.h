@@ -56,7 +56,8 @@ struct Estimator {
   float guide_alpha = 0.5f;
   // --light-paths (src/render/light_paths.h): the caustic paths, whose first vertex from the
   // camera is rough (light_traced_kind: diffuse, a medium) and whose vertex next to an area
-  // light scatters by a delta lobe, or next to a distant source is near-specular
+  // light scatters by a delta lobe, or whose first vertex is rough or a coated diffuse
+  // (sun_traced_material) and whose vertex next to a distant source is near-specular
   // (GeomView::mat_lt_glossy), are traced from the lights and joined to the camera; the path
   // tracer leaves them out (drop_light_traced_hits; the light stage, sample_lights.h).
   // Unbiased: the two estimators split path space.

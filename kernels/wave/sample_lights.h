@@ -224,13 +224,14 @@ TUILE_FLATTEN inline LightCandidate<T> light_candidate_lanes(const GeomView& G, 
   out.is_delta = s.is_delta;
   out.ok = active && s.valid && front && out.cos_x > T(0.f);
   // --light-paths: a flagged source's light at a near-specular vertex of a path whose first
-  // vertex is rough is the light tracer's (src/render/light_paths.h; the views are set only
-  // then, and first_rough only from the path's second vertex on)
+  // vertex is rough (a distant source's: or coated diffuse, first_rough 0.5) is the light
+  // tracer's (src/render/light_paths.h; the views are set only then, and first_rough only
+  // from the path's second vertex on; the flagged delta sources are distant ones)
   if constexpr ((Kinds & (kind_delta | kind_area)) != 0 && (Bsdfs & ~bsdf_diffuse) != 0)
     if (L.lt_glossy != nullptr && G.mat_lt_glossy != nullptr) {
       const auto traced = f_mask_from_i(gather(L.lt_glossy, light_idx) != i32_t<T>(0)) &&
                           f_mask_from_i(gather(G.mat_lt_glossy, load_i32<T>(tb.points.mat + k)) != i32_t<T>(0)) &&
-                          load<T>(tb.path.first_rough + k) > T(0.f);
+                          load<T>(tb.path.first_rough + k) >= sel(s.is_delta, T(0.5f), T(1.f));
       out.ok = out.ok && !traced;
     }
 

@@ -63,7 +63,8 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
   app.add_flag("--light-paths{on}", f.light_paths,
                "[=auto|on|glossy|off] light tracing for the caustics (unbiased): the paths whose first vertex from the "
                "camera is diffuse or in a medium and whose vertex next to an area light scatters by a delta lobe (a "
-               "mirror, smooth glass), or next to a distant source (a sun) by a glossy lobe of alpha 0.1 or less, are "
+               "mirror, smooth glass), or whose first vertex is diffuse or a coated diffuse (coat alpha 0.075 or more) and "
+               "whose vertex next to a distant source (a sun) scatters by a glossy lobe of alpha 0.1 or less, are "
                "traced from the lights and joined to the camera, and the path tracer leaves them out (it finds them only "
                "by chance); glossy: an area light's light off such a glossy lobe too (a small bright source's caustics "
                "off near-mirrors); the flag alone is on; default auto: on in scenes with a sun and such a glossy surface, or with "

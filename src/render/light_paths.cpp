@@ -12,6 +12,7 @@
 #include "sample/sampling.h"
 #include "wave/accumulate.h"
 #include "wave/media.h"
+#include "wave/path.h"
 #include "wave/surface_bsdf.h"
 #include "wave/surface_hits.h"
 
@@ -334,16 +335,17 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
     bool joinable = false;
     auto scatters = [&](int32_t m) {
       const size_t i = static_cast<size_t>(m);
-      return light_traced_kind(v.mat_kind[i]) && (v.mat_kind[i] != static_cast<int32_t>(MaterialKind::diffuse) ||
-                                                   v.mat_texture[i] >= 0 || v.mat_r[i] + v.mat_g[i] + v.mat_b[i] > 0.f);
+      return (any_distant ? sun_traced_material(G, m) : light_traced_kind(v.mat_kind[i])) &&
+             (v.mat_kind[i] != static_cast<int32_t>(MaterialKind::diffuse) || v.mat_texture[i] >= 0 ||
+              v.mat_r[i] + v.mat_g[i] + v.mat_b[i] > 0.f);
     };
     for (const int32_t m : v.geom_material) {
       const size_t i = static_cast<size_t>(m);
       joinable |= v.mat_mix0[i] >= 0 ? scatters(v.mat_mix0[i]) || scatters(v.mat_mix1[i]) : scatters(m);
     }
     if (!joinable) {
-      why_ = "no surface the light tracer joins to the camera (diffuse, diffuse transmission) scatters light, and "
-             "the scene has no medium";
+      why_ = "no surface the light tracer joins to the camera (diffuse, diffuse transmission; coated diffuse under a "
+             "distant source) scatters light, and the scene has no medium";
       lights_.clear();
       v.lt_glossy.clear();
       return;
@@ -741,7 +743,9 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           const Vec3<float> ns = G.shading_normals ? Vec3<float>(P.snx[k], P.sny[k], P.snz[k]) : ng;
           const Vec3<float> wo{P.wox[k], P.woy[k], P.woz[k]};  // towards the vertex before
           SurfaceBsdf<float, bsdf_all> bsdf = load_surface_bsdf<float, bsdf_all>(G, P, k, ns);
-          if (!light_traced_kind(bsdf.kind)) continue;  // (a glossy or coated vertex: the path tracer's)
+          // (a glossy or coated vertex: the path tracer's; but a distant source's light path
+          // joins coated diffuse too: sun_traced_material, the path tracer's first_rough 0.5)
+          if (!(tb.path.first_rough[k] > 0.f ? sun_traced_material(G, P.mat[k]) : light_traced_kind(bsdf.kind))) continue;
           const bool in_medium = bsdf.kind == static_cast<int32_t>(MaterialKind::phase);
           const float cg = dot(ng, w);
           double geo = 1;
