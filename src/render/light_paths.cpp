@@ -27,12 +27,18 @@ bool is_area(int32_t type) {
 
 bool is_distant(int32_t type) { return type == static_cast<int32_t>(LightKind::distant); }
 
-// The largest alpha of the glossy lobes whose light from a distant source the light tracer
-// takes (light_paths.h). Measured (bench/results.md, "Light paths"): at 0.03 (a coat of
-// roughness 0.01) dining-room's relMSE fell 1.3-2x, at 0.06 (its chrome too) and 0.1 (its
-// chairs, lamps and windows) more, and classroom's body (its desks' coats of 0.1) 2.3x;
-// 0.2 or 0.5 changed nothing more than the time.
+// The largest alpha of the glossy lobes whose light from an area source the light tracer
+// takes with --light-paths=glossy (light_paths.h), and of those auto's glossy choice counts.
 constexpr float light_traced_alpha = 0.1f;
+// The same for a distant source's light (where no area source's is taken: one flag per
+// material). Measured (bench/results.md, "Light paths"): at 0.03 (a coat of roughness 0.01)
+// dining-room's relMSE fell 1.3-2x, at 0.06 (its chrome too) and 0.1 (its chairs, lamps and
+// windows) more, and classroom's body (its desks' coats of 0.1) 2.3x; 0.2 or 0.5 changed
+// nothing more than the time then. Once coated first vertices joined the sun's light paths
+// (wave/path.h sun_traced_material), 0.25 (its black paint's and rubber's lobes of 0.2 too)
+// took dining-room's worst seed of five from 0.023 to 0.011 at 64 spp, for 5% more time;
+// 0.5 gave the same there ("Coated first vertices").
+constexpr float sun_glossy_alpha = 0.25f;
 
 bool any_used_material(const Scene& scene, const std::function<bool(const Material&)>& pred) {
   const size_t n = scene.materials.size();
@@ -254,7 +260,7 @@ LightPathsPay light_paths_pay(const Scene& scene, bool glossy_allowed) {
       any_used_material(scene, [&](const Material& m) {
         const float a = std::max(m.alpha_u.value, m.alpha_v.value);
         return microfacet_kind(static_cast<int32_t>(m.kind)) && constant_alpha(m) && a >= smooth_alpha &&
-               a <= light_traced_alpha;
+               a <= sun_glossy_alpha;
       }))
     return LightPathsPay::on;
   const bool scattering = std::any_of(scene.media.begin(), scene.media.end(),
@@ -461,7 +467,7 @@ void LightPaths::flag_glossy(const Scene& scene, SceneViews& v) {
     if (!microfacet_kind(v.mat_kind[m]) || v.mat_mix0[m] >= 0) continue;
     if (2 * m + 1 < v.mat_alpha_tex.size() && (v.mat_alpha_tex[2 * m] >= 0 || v.mat_alpha_tex[2 * m + 1] >= 0)) continue;
     const float a = std::max(G.mat_param[mp_ax][m], G.mat_param[mp_ay][m]);
-    flag[m] = a >= smooth_alpha && a <= light_traced_alpha ? 1 : 0;
+    flag[m] = a >= smooth_alpha && a <= (area_glossy_ ? light_traced_alpha : sun_glossy_alpha) ? 1 : 0;
   }
   for (size_t m = 0; m < nm && m < v.mat_reg.size(); ++m)  // (--regularize's twins: as their originals)
     if (v.mat_reg[m] != static_cast<int32_t>(m)) flag[static_cast<size_t>(v.mat_reg[m])] = flag[m];

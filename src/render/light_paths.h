@@ -16,7 +16,7 @@
 // by light samples); distant sources below.
 //
 // Distant sources (a sun). A path whose vertex next to a distant source is near-specular (a
-// microfacet lobe of alphas at most light_traced_alpha, constant: GeomView::mat_lt_glossy;
+// microfacet lobe of alphas at most sun_glossy_alpha, 0.25, constant: GeomView::mat_lt_glossy;
 // the light of a cup's coat of roughness 0.01, which the path tracer meets only when a BSDF
 // sample from the rough vertex before finds the highlight's direction) and whose first
 // vertex is rough or a coated diffuse of alphas coat_join_alpha or more (sun_traced_material,
@@ -33,7 +33,8 @@
 // from beyond the scene's bounds along the source's direction; its first vertex must be a
 // flagged material that scatters by a non-delta lobe (a delta lobe's light from a delta
 // source is no path of the path tracer's). Flagged: conductors, dielectrics and coats with
-// constant alphas in [smooth_alpha, light_traced_alpha], on meshes and spheres; not in
+// constant alphas in [smooth_alpha, sun_glossy_alpha] (light_traced_alpha, 0.1, where an
+// area source's light is taken too: one flag per material), on meshes and spheres; not in
 // scenes with media or instances (the disc bounds and the source's medium: the path
 // tracer keeps those paths).
 //
