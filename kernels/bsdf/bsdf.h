@@ -50,7 +50,6 @@ inline bool light_traced_kind(int32_t kind) noexcept {
          kind == static_cast<int32_t>(MaterialKind::phase);
 }
 
-
 // The kinds whose top lobe is a Trowbridge-Reitz microfacet lobe of alphas mp_ax, mp_ay
 // (regularization's twins, --light-paths' near-specular flags).
 inline bool microfacet_kind(int32_t kind) noexcept {

@@ -22,11 +22,10 @@
 // vertex is rough or a coated diffuse of alphas coat_join_alpha or more (sun_traced_material,
 // wave/path.h; the path tracer's first_rough 0.5 for a coat: the chairs of dining-room in the
 // glints off its cups, whose samples from the coat find a highlight narrower than the coat's
-// lobe by chance) belongs to the light tracer
-// too; its light paths from a distant source join coated diffuse vertices to the camera as
-// well as rough ones. The path tracer reaches such a path only
-// by the light sample at xk, so it drops exactly those light samples (sample_lights.h,
-// where LightView::lt_glossy and mat_lt_glossy are set). The light tracer emits from a
+// lobe by chance) belongs to the light tracer too; its light paths from a distant source
+// join coated diffuse vertices to the camera as well as rough ones. The path tracer reaches
+// such a path only by the light sample at xk, so it drops exactly those light samples
+// (sample_lights.h, where LightView::lt_glossy and mat_lt_glossy are set). The light tracer emits from a
 // distant source towards those surfaces alone: a point uniform on discs, one per surface
 // whose material is flagged (its bounding sphere seen along the source's direction), the
 // density at a point the number of discs holding it over their total area, the ray coming
