@@ -73,6 +73,40 @@ TEST(Cli, BadInputIsAClearErrorWithExitOne) {
   }
 }
 
+// --light-paths takes its optional value after a space as well as after '=' (CLI11 alone took
+// `--light-paths off` for a stray positional argument), and a word that is no mode stays the
+// argument it was; an option given twice says so plainly (CLI11: "At Most 1 required")
+TEST(Cli, LightPathsValueAfterASpaceAndAnOptionGivenTwice) {
+  const std::string base = "info built-in:cornell --max-depth 3 ";
+  for (const char* mode : {"on", "glossy", "off", "auto"}) {
+    const CmdResult spaced = run(base + "--light-paths " + mode);
+    const CmdResult joined = run(base + "--light-paths=" + mode);
+    ASSERT_EQ(spaced.code, 0) << mode << ": " << spaced.out;
+    ASSERT_EQ(joined.code, 0) << mode << ": " << joined.out;
+    const auto estimator = [](const std::string& out) {
+      const size_t at = out.find("estimator:");
+      return at == std::string::npos ? std::string() : out.substr(at, out.find('\n', at) - at);
+    };
+    EXPECT_FALSE(estimator(spaced.out).empty()) << spaced.out;
+    EXPECT_EQ(estimator(spaced.out), estimator(joined.out)) << mode;
+  }
+  EXPECT_NE(run(base + "--light-paths on").out.find("light-paths=on"), std::string::npos);
+  EXPECT_EQ(run(base + "--light-paths off").out.find("light-paths="), std::string::npos);
+  // the flag alone is on, the scene after it still the scene
+  const CmdResult alone = run("info --max-depth 3 --light-paths built-in:cornell");
+  ASSERT_EQ(alone.code, 0) << alone.out;
+  EXPECT_NE(alone.out.find("light-paths=on"), std::string::npos) << alone.out;
+  EXPECT_NE(alone.out.find("built-in:cornell"), std::string::npos) << alone.out;
+  // a word that is not a mode is not swallowed: a second positional, refused
+  EXPECT_EQ(run(base + "--light-paths maybe").code, 1);
+
+  const CmdResult twice = run("render built-in:cornell --res 8x8 --spp 2 --spp 4 --quiet -o " + tmp("cli_twice.exr"));
+  EXPECT_EQ(twice.code, 1) << twice.out;
+  EXPECT_NE(twice.out.find("--spp is given 2 times"), std::string::npos) << twice.out;
+  EXPECT_EQ(twice.out.find("At Most"), std::string::npos) << twice.out;
+  EXPECT_FALSE(fs::exists(tmp("cli_twice.exr")));
+}
+
 // --bvh chooses Embree's layout (the built-in scenes are small: auto is the fast one), and
 // the image does not depend on it
 TEST(Cli, BvhLayoutIsChosenAndLeavesTheImageAlone) {

@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "app/cli.h"
 #include "app/commands.h"
@@ -17,6 +19,22 @@
 #include "scene/scene.h"
 
 using namespace tuile;
+
+namespace {
+
+bool light_paths_mode(const std::string& w) { return w == "auto" || w == "on" || w == "glossy" || w == "off"; }
+
+// CLI11's message for an option given more than once ("--spp: At Most 1 required but
+// received 2"), said plainly; its other messages as they are
+std::string parse_error_message(const std::string& what) {
+  const std::string mid = ": At Most 1 required but received ";
+  const size_t at = what.find(mid);
+  if (at == std::string::npos || at == 0) return what;
+  return what.substr(0, at) + " is given " + what.substr(at + mid.size()) +
+         " times: give each option once (a flag, or one value)";
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"tuile: a SIMD tile renderer for Monte Carlo direct lighting with variance reduction"};
@@ -74,12 +92,23 @@ int main(int argc, char** argv) {
     }
     rf.command_line += (i ? " " : "") + a;
   }
+  // `--light-paths off`, its value after a space as every other option takes one, is read as
+  // `--light-paths=off`: the flag's value is optional, and CLI11 alone would take the word
+  // for a stray positional argument
+  std::vector<std::string> args(argv, argv + argc);
+  for (size_t i = 1; i + 1 < args.size(); ++i)
+    if (args[i] == "--light-paths" && light_paths_mode(args[i + 1])) {
+      args[i] += "=" + args[i + 1];
+      args.erase(args.begin() + static_cast<std::ptrdiff_t>(i) + 1);
+    }
+  std::vector<const char*> args_c;
+  for (const std::string& a : args) args_c.push_back(a.c_str());
   try {
-    app.parse(argc, argv);
+    app.parse(static_cast<int>(args_c.size()), args_c.data());
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
     if (launcher_rank() == 0)  // under mpirun every rank parses the same line: one message
-      std::cerr << "tuile: error: " << e.what() << "\nRun with --help for more information.\n";
+      std::cerr << "tuile: error: " << parse_error_message(e.what()) << "\nRun with --help for more information.\n";
     return 1;
   }
   try {
