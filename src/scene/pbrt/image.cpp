@@ -17,6 +17,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <vector>
 
 #include "scene/huge_pages.h"
@@ -117,10 +118,9 @@ static bool finite_texels(const Texture& t, std::string& reason) {
 
 // Whether a Radiance .hdr file holds all its scanlines: stb_image decodes one cut short as
 // if the rest were black (run-length encoded) or repeats its last texel (flat), silently.
-// Walks the header, the resolution line and each scanline's runs without decoding them.
-static bool hdr_complete(const std::string& path, std::string& reason) {
-  std::ifstream f(path, std::ios::binary);
-  const std::string d((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+// Walks the header, the resolution line and each scanline's runs (the file's bytes d)
+// without decoding them.
+static bool hdr_complete(const std::string& d, std::string& reason) {
   size_t at = 0;
   const auto line = [&](std::string& l) {
     const size_t e = d.find('\n', at);
@@ -180,8 +180,23 @@ bool load_image(const std::string& path, const std::string& encoding, Texture& o
   if (ends_with_ci(path, ".exr")) return load_exr(path, out, reason) && finite_texels(out, reason);
   int w = 0, h = 0, n = 0;
   if (ends_with_ci(path, ".hdr") || ends_with_ci(path, ".pfm")) {
-    if (ends_with_ci(path, ".hdr") && !hdr_complete(path, reason)) return false;
-    float* data = stbi_loadf(path.c_str(), &w, &h, &n, 3);
+    float* data = nullptr;
+    if (ends_with_ci(path, ".hdr")) {  // read once: checked whole, then decoded from memory
+      std::ifstream f(path, std::ios::binary);
+      const std::string d((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+      if (!f.good() && !f.eof()) {
+        reason = "cannot read the file";
+        return false;
+      }
+      if (d.size() > size_t(std::numeric_limits<int>::max())) {
+        reason = "the file is larger than 2 GB, more than the Radiance decoder reads";
+        return false;
+      }
+      if (!hdr_complete(d, reason)) return false;
+      data = stbi_loadf_from_memory(reinterpret_cast<const stbi_uc*>(d.data()), int(d.size()), &w, &h, &n, 3);
+    } else {
+      data = stbi_loadf(path.c_str(), &w, &h, &n, 3);
+    }
     if (!data) {
       reason = stbi_failure_reason() ? stbi_failure_reason() : "cannot decode";
       return false;
