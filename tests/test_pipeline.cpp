@@ -163,7 +163,10 @@ TEST(Pipeline, SpecialisedEqualsGeneral) {
 // Bounce rays traced against the emitters alone, then an occlusion ray to the emitter they
 // reached, give the image of bounce rays traced against the whole scene, bit for bit on
 // these scenes (no occluder lies within 2^-12 of an emitter's distance, where the two
-// visibility tests could differ): the same hits, distances and MIS weights.
+// visibility tests could differ): the same hits, distances and MIS weights. On paths (max
+// depth 4) the emitters alone see the last vertex's rays and, at the vertices before, the
+// rays of the paths that end there (Russian roulette decided before the trace); the others
+// their nearest hit in the scene, which their next vertex needs.
 TEST(Pipeline, BounceRaysAgainstEmittersEqualScene) {
   auto spheres = [] {
     Scene s = builtin_scene("cornell");
@@ -186,6 +189,7 @@ TEST(Pipeline, BounceRaysAgainstEmittersEqualScene) {
                         {"spheres", spheres},
                         {"materials", materials}};
   for (const Case& c : cases)
+    for (int depth : {1, 4})
     for (Strategy st : {Strategy::bsdf, Strategy::mis})
       for (MisMode mode : {MisMode::multi, MisMode::one}) {
         if (mode == MisMode::one && st != Strategy::mis) continue;
@@ -198,6 +202,7 @@ TEST(Pipeline, BounceRaysAgainstEmittersEqualScene) {
         o.est.mode = mode;
         o.est.spp = 8;
         o.est.seed = 5;
+        o.est.max_depth = depth;
         o.aov_mis_weight = true;
         Accel accel(s);
         RenderOptions oe = o;

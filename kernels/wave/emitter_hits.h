@@ -90,13 +90,15 @@ TUILE_FLATTEN inline void weight_lanes(const LightView& L, const Estimator& est,
 
 // Lanes [k, k + width) of the bounce packets: the rays that hit the front of an emitter
 // join the hit queue at nq, in lane order (compress stores; nq is advanced). vis: whether
-// the queue keeps what the visibility rays need (bounce rays traced against the emitters).
+// the queue keeps what the visibility rays need (bounce rays traced against the emitters):
+// every entry's (ends null), or those of the lanes ends marks (a path's continuation
+// sample, whose paths that end there were traced against the emitters alone).
 // Kinds with kind_rects: no source is a sphere. Delta: keep the samples' delta flags.
 // chosen_only: one-sample MIS on paths (sample_bsdf's continuation): only the points that
 // chose the BSDF technique count their hits.
 template <class T, unsigned Kinds = kind_all, bool Delta = false>
 TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView& L, TileBuffers& tb, int k, int& nq, bool vis,
-                                              bool chosen_only = false) {
+                                              bool chosen_only = false, const int32_t* ends = nullptr) {
   const RayHit16& r = tb.bounce[k / packet_width];
   const int l = k % packet_width;
   auto traced = f_mask_from_i(load_i32<T>(tb.tech.valid + k) != i32_t<T>(0));
@@ -131,19 +133,22 @@ TUILE_FLATTEN inline void queue_emitter_lanes(const GeomView& G, const LightView
     compress_store(tb.queue.oy + nq, o.y, keep);
     compress_store(tb.queue.oz + nq, o.z, keep);
     compress_store(tb.queue.t + nq, load<T>(r.ray.tfar + l), keep);
+    compress_store(tb.queue.needs_vis + nq, ends ? load_i32<T>(ends + k) : i32_t<T>(-1), keep);
   }
   nq += std::popcount(keep);
 }
 
 // Queues the bounce rays that hit the front of an emitter (tb.queue.count entries, all
-// visible until bounce_visibility says otherwise). T = float: the scalar reference. vis as
-// for queue_emitter_lanes.
+// visible until bounce_visibility says otherwise). T = float: the scalar reference. vis and
+// ends as for queue_emitter_lanes.
 template <class T = vfloat, unsigned Kinds = kind_all, bool Delta = false>
-inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers& tb, bool vis = true, bool chosen_only = false) {
+inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers& tb, bool vis = true, bool chosen_only = false,
+                              const int32_t* ends = nullptr) {
   int nq = 0;
   // padding lanes past points.count are never valid (sample_cosine)
   const int padded = packet_padded(tb.points.count);
-  for (int k = 0; k < padded; k += lane_traits<T>::width) queue_emitter_lanes<T, Kinds, Delta>(G, L, tb, k, nq, vis, chosen_only);
+  for (int k = 0; k < padded; k += lane_traits<T>::width)
+    queue_emitter_lanes<T, Kinds, Delta>(G, L, tb, k, nq, vis, chosen_only, ends);
   tb.queue.count = nq;
   const int qpadded = packet_padded(nq);
   for (int j = nq; j < qpadded; ++j) {  // padding: a valid light index, no contribution
@@ -158,6 +163,7 @@ inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers
     tb.queue.point[j] = 0;
     tb.queue.ox[j] = tb.queue.oy[j] = tb.queue.oz[j] = 0.f;
     tb.queue.t[j] = 1.f;
+    tb.queue.needs_vis[j] = 0;
   }
   std::fill_n(tb.queue.vis, qpadded, 1.f);
 }
@@ -166,8 +172,10 @@ inline void queue_bounce_hits(const GeomView& G, const LightView& L, TileBuffers
 // what it sees only if nothing of the scene lies in between: the visibility rays of the
 // queue (tb.shadow packets, tb.queue.valid), from the bounce ray's origin along its direction,
 // stopping 2^-12 of the distance short of the emitter as shadow rays do, so that both
-// techniques test visibility the same way. Returns the number of packets.
-inline int bounce_visibility_rays(TileBuffers& tb) {
+// techniques test visibility the same way; for the entries that need one (needs_vis: the
+// others' rays found their nearest hit in the whole scene). Returns the number of packets
+// (rays: the number of visibility rays).
+inline int bounce_visibility_rays(TileBuffers& tb, int& rays) {
   const int qpadded = packet_padded(tb.queue.count);
   for (int j = 0; j < qpadded; j += simd_width) {
     store_field(tb.shadow, &Ray16::org_x, j, load<vfloat>(tb.queue.ox + j));
@@ -177,15 +185,17 @@ inline int bounce_visibility_rays(TileBuffers& tb) {
     store_field(tb.shadow, &Ray16::dir_y, j, load<vfloat>(tb.queue.dy + j));
     store_field(tb.shadow, &Ray16::dir_z, j, load<vfloat>(tb.queue.dz + j));
     store_field(tb.shadow, &Ray16::tfar, j, load<vfloat>(tb.queue.t + j) * vfloat(1.f - 1.f / 4096.f));
-    store_valid(tb.queue.valid + j, (vfloat(static_cast<float>(j)) + lane_iota<vfloat>()) < vfloat(static_cast<float>(tb.queue.count)));
+    store_valid(tb.queue.valid + j, f_mask_from_i(load_i32<vfloat>(tb.queue.needs_vis + j) != vint(0)));
   }
+  rays = 0;
+  for (int j = 0; j < tb.queue.count; ++j) rays += tb.queue.needs_vis[j] != 0;
   return qpadded / packet_width;
 }
 
 // After the visibility query: occluded entries (Embree sets tfar = -inf) see nothing.
 inline void read_bounce_visibility(TileBuffers& tb) {
   for (int j = 0; j < tb.queue.count; ++j)
-    tb.queue.vis[j] = tb.shadow[j / packet_width].tfar[j % packet_width] == -INFINITY ? 0.f : 1.f;
+    if (tb.queue.needs_vis[j]) tb.queue.vis[j] = tb.shadow[j / packet_width].tfar[j % packet_width] == -INFINITY ? 0.f : 1.f;
 }
 
 // --light-paths (Estimator::light_paths), at a path's vertex 2 or later: the queued hits of

@@ -62,13 +62,18 @@ inline void add_vertex_radiance(TileBuffers& tb, bool first) {
 // whose throughput is 0 (a BSDF sample of no weight) or not finite end here (the latter
 // counted as rejected); they would add nothing, or only NaN. Materials: the point's
 // surface may transmit (else every sample reflects, eta scale stays).
+template <class T> struct PathStep {
+  T br, bg, bb, eta_scale;  // the throughput after the sample (and the roulette), the eta scale
+  mask_t<T> live, finite, go;
+};
 template <class T, bool Materials>
-TUILE_FLATTEN inline void continue_path_lanes(const GeomView& G, TileBuffers& tb, int k, bool roulette, float inv_t) {
-  const auto live = f_mask_from_i(load_i32<T>(tb.tech.valid + k) != i32_t<T>(0));
-  T br = load<T>(tb.path.throughput_r + k) * load<T>(tb.tech.beta_r + k);
-  T bg = load<T>(tb.path.throughput_g + k) * load<T>(tb.tech.beta_g + k);
-  T bb = load<T>(tb.path.throughput_b + k) * load<T>(tb.tech.beta_b + k);
-  T eta_scale = load<T>(tb.path.eta_scale + k);
+TUILE_FLATTEN inline PathStep<T> path_step_lanes(const GeomView& G, const TileBuffers& tb, int k, bool roulette, float inv_t) {
+  PathStep<T> p;
+  p.live = f_mask_from_i(load_i32<T>(tb.tech.valid + k) != i32_t<T>(0));
+  p.br = load<T>(tb.path.throughput_r + k) * load<T>(tb.tech.beta_r + k);
+  p.bg = load<T>(tb.path.throughput_g + k) * load<T>(tb.tech.beta_g + k);
+  p.bb = load<T>(tb.path.throughput_b + k) * load<T>(tb.tech.beta_b + k);
+  p.eta_scale = load<T>(tb.path.eta_scale + k);
   if constexpr (Materials) {
     const RayHit16& r = tb.bounce[k / packet_width];
     const int l = k % packet_width;
@@ -77,37 +82,42 @@ TUILE_FLATTEN inline void continue_path_lanes(const GeomView& G, TileBuffers& tb
     const i32_t<T> mat = load_i32<T>(tb.points.mat + k);
     const i32_t<T> kind = gather(G.mat_kind, mat);
     const auto dielectric = f_mask_from_i(kind == i32_t<T>(static_cast<int32_t>(MaterialKind::dielectric)));
-    const auto through = live && dielectric && dot(wi, n) < T(0.f);  // n faces the viewer
+    const auto through = p.live && dielectric && dot(wi, n) < T(0.f);  // n faces the viewer
     if (any(through)) {
       const T eta = gather(G.mat_param[mp_eta], mat);
       const T etap = sel(load<T>(tb.points.side + k) > T(0.f), eta, T(1.f) / eta);
-      eta_scale = sel(through, eta_scale * etap * etap, eta_scale);
+      p.eta_scale = sel(through, p.eta_scale * etap * etap, p.eta_scale);
     }
   }
-  const auto finite = is_finite(br) && is_finite(bg) && is_finite(bb);
-  tb.stats.rejected_bsdf += static_cast<uint64_t>(std::popcount(lane_bits(live && !finite)));
-  const T m = max(max(br, bg), bb);
-  auto go = live && finite && m > T(0.f);
+  p.finite = is_finite(p.br) && is_finite(p.bg) && is_finite(p.bb);
+  const T m = max(max(p.br, p.bg), p.bb);
+  p.go = p.live && p.finite && m > T(0.f);
   if (roulette) {
-    const T rr = m * eta_scale * T(inv_t);
+    const T rr = m * p.eta_scale * T(inv_t);
     const auto play = rr < T(1.f);
     const T q = max(T(0.f), T(1.f) - rr);
-    go = go && (!play || load<T>(tb.tech.u3 + k) >= q);
+    p.go = p.go && (!play || load<T>(tb.tech.u3 + k) >= q);
     const T scale = sel(play, T(1.f) / (T(1.f) - q), T(1.f));
-    br = br * scale;
-    bg = bg * scale;
-    bb = bb * scale;
+    p.br = p.br * scale;
+    p.bg = p.bg * scale;
+    p.bb = p.bb * scale;
   }
+  return p;
+}
+template <class T, bool Materials>
+TUILE_FLATTEN inline void continue_path_lanes(const GeomView& G, TileBuffers& tb, int k, bool roulette, float inv_t) {
+  const PathStep<T> p = path_step_lanes<T, Materials>(G, tb, k, roulette, inv_t);
+  tb.stats.rejected_bsdf += static_cast<uint64_t>(std::popcount(lane_bits(p.live && !p.finite)));
   // an ended path keeps throughput 0 (never read again; and the same bits in every lane
   // whatever a NaN did to max above)
-  store(tb.path.throughput_r + k, sel(go, br, T(0.f)));
-  store(tb.path.throughput_g + k, sel(go, bg, T(0.f)));
-  store(tb.path.throughput_b + k, sel(go, bb, T(0.f)));
-  store(tb.path.eta_scale + k, eta_scale);
+  store(tb.path.throughput_r + k, sel(p.go, p.br, T(0.f)));
+  store(tb.path.throughput_g + k, sel(p.go, p.bg, T(0.f)));
+  store(tb.path.throughput_b + k, sel(p.go, p.bb, T(0.f)));
+  store(tb.path.eta_scale + k, p.eta_scale);
   // (a diffuse pipeline's samples are never specular; its paths are never regularized)
   const auto specular = f_mask_from_i(load_i32<T>(tb.tech.delta + k) != i32_t<T>(0));
   store(tb.path.rough + k, sel(specular, load<T>(tb.path.rough + k), T(1.f)));
-  store_valid(tb.tech.valid + k, go);
+  store_valid(tb.tech.valid + k, p.go);
 }
 
 // The materials a distant source's light paths join to the camera (src/render/light_paths.h):
@@ -131,6 +141,24 @@ inline bool sun_traced_material(const GeomView& G, int32_t m) noexcept {
 // 0 otherwise.
 inline float first_vertex_class(const GeomView& G, int32_t m) noexcept {
   return light_traced_kind(G.mat_kind[m]) ? 1.f : sun_traced_material(G, m) ? 0.5f : 0.f;
+}
+
+// Before the continuation sample's bounce rays are traced (bounce rays against the
+// emitters, src/render/tile_run.h): which paths end at this vertex (TechniqueSample::ends,
+// -1), by the same rule and random numbers continue_paths applies after the trace (the
+// decision reads the sample, never its hit). Their rays need only the emitters, and an
+// occlusion ray to one they reach; the others' need their nearest hit in the scene.
+template <bool Materials, class T = vfloat>
+inline void mark_path_ends(const GeomView& G, const Estimator& est, uint32_t sample, uint32_t rr_pair, int vertex,
+                           TileBuffers& tb) {
+  const int padded = packet_padded(tb.points.count);
+  const bool roulette = vertex > est.rr_depth;
+  if (roulette) point_pairs(est, tb, sample, rr_pair, padded, tb.tech.u3, nullptr);
+  const float inv_t = 1.f / est.rr_threshold;
+  for (int k = 0; k < padded; k += lane_traits<T>::width) {
+    const PathStep<T> p = path_step_lanes<T, Materials>(G, tb, k, roulette, inv_t);
+    store_valid(tb.tech.ends + k, p.live && !p.go);
+  }
 }
 
 // The whole step for the shading points of vertex `vertex` (1: the camera's hits), whose

@@ -137,6 +137,9 @@ struct TechniqueSample {
   alignas(64) float u0[lane_array], u1[lane_array], u2[lane_array], u3[lane_array];
   alignas(64) float cr[lane_array], cg[lane_array], cb[lane_array];  // contribution
   alignas(64) int32_t valid[lane_array];                             // the lane traces a ray
+  // a path's continuation sample, bounce rays against the emitters: the path ends at this
+  // vertex (-1; wave/path.h mark_path_ends), so its ray looks for the emitters alone
+  alignas(64) int32_t ends[lane_array];
   alignas(64) float beta_r[lane_array], beta_g[lane_array], beta_b[lane_array];  // BSDF sample: f cos / pdf
   alignas(64) float pdf[lane_array];                                             // BSDF sample: its pdf
   alignas(64) int32_t delta[lane_array];                                         // BSDF sample: a specular lobe
@@ -162,6 +165,7 @@ struct EmitterHitQueue {
   // the bounce ray's origin and its distance to the emitter (for the visibility ray when
   // bounce rays see only the emitters), and 1 / 0 for a visible / occluded emitter
   alignas(64) float ox[lane_array], oy[lane_array], oz[lane_array], t[lane_array];
+  alignas(64) int32_t needs_vis[lane_array];  // -1: its ray was traced against the emitters alone
   alignas(64) float vis[lane_array];
   alignas(64) int32_t valid[lane_array];
 };

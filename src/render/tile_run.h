@@ -162,6 +162,31 @@ inline void trace_bounce(const TileContext& c, TileBuffers& tb, StageTimer& time
   }
 }
 
+// A path's continuation rays, bounce rays against the emitters: those of the paths that go
+// on against the whole scene (their next vertex), those of the paths that end at this vertex
+// (tb.tech.ends) against the emitters alone, since only the emitter they reach counts.
+inline void trace_bounce_split(const TileContext& c, TileBuffers& tb, StageTimer& timer, int packets, bool rec,
+                               ThreadProfile* tp) {
+  clear_high_vector_registers();
+  for (int p = 0; p < packets; ++p) {
+    const int32_t* valid = tb.tech.valid + p * packet_width;
+    const int32_t* ends = tb.tech.ends + p * packet_width;
+    alignas(64) int32_t on[packet_width], off[packet_width];
+    int n_on = 0, n_off = 0;
+    for (int l = 0; l < packet_width; ++l) {
+      on[l] = valid[l] && !ends[l] ? -1 : 0;
+      off[l] = valid[l] && ends[l] ? -1 : 0;
+      n_on += on[l] != 0;
+      n_off += off[l] != 0;
+    }
+    if (n_on + n_off == 0) continue;
+    if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
+    if (n_on) c.accel.intersect16(on, tb.bounce[p], false, Bvh::scene);
+    if (n_off) c.accel.intersect16(off, tb.bounce[p], false, Bvh::emitters);
+    tb.stats.rays_bounce += static_cast<uint64_t>(n_on + n_off);
+  }
+}
+
 // --guide while it learns (render/guide.h): each path's vertices of this sample, kept per
 // tile lane (GuidePathLanes), then, once the sample is done, the light that reached each
 // guided vertex along the direction its path went on (the light the later vertices added,
@@ -481,8 +506,13 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
       } else {
         sample_bsdf<F.bsdfs>(v.geom, e, s, pair, lobe_pair, tb, only_delta, continuation);
       }
+      // (bounce rays against the emitters: a path's continuation rays against the whole scene
+      // only for the paths that go on)
+      const bool split = continuation && c.bounce_against_emitters;
+      if (split) mark_path_ends<F.bsdfs != bsdf_diffuse>(v.geom, e, s, layout.russian_roulette(d), static_cast<int>(d) + 1, tb);
       timer.lap(Stage::sample_bsdf);
-      trace_bounce(c, tb, timer, packets, rec, tp, against_emitters ? Bvh::emitters : Bvh::scene);
+      if (split) trace_bounce_split(c, tb, timer, packets, rec, tp);
+      else trace_bounce(c, tb, timer, packets, rec, tp, against_emitters ? Bvh::emitters : Bvh::scene);
       timer.lap(Stage::intersect_bounce);
       if (!against_emitters) prefetch_hits(v.geom, tb.bounce, tb.tech.valid, tb.points.count);  // for the emitters' queue and the next hits
       if (v.geom.has_media) {
@@ -492,16 +522,19 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
       constexpr bool delta = (F.bsdfs & bsdf_delta_capable) != 0;
       const bool optimal = optimal_mis(e);
       if (optimal) optimal_bsdf_clear(tb);
-      queue_bounce_hits<vfloat, F.kinds, delta>(v.geom, v.lights, tb, against_emitters, continuation && e.one_sample());
-      if (against_emitters && tb.queue.count > 0) {
-        const int qpackets = bounce_visibility_rays(tb);
+      queue_bounce_hits<vfloat, F.kinds, delta>(v.geom, v.lights, tb, against_emitters || split,
+                                                continuation && e.one_sample(), split ? tb.tech.ends : nullptr);
+      int vis_rays = 0;
+      const int qpackets = (against_emitters || split) && tb.queue.count > 0 ? bounce_visibility_rays(tb, vis_rays) : 0;
+      if (vis_rays > 0) {
         timer.lap(Stage::mis_weight);
         clear_high_vector_registers();
         for (int p = 0; p < qpackets; ++p) {
+          if (!active_lanes(tb.queue.valid + p * packet_width)) continue;  // (split: the entries whose rays saw the scene)
           if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], tb.queue.valid + p * packet_width); });
           c.accel.occluded16(tb.queue.valid + p * packet_width, tb.shadow[p], false);
         }
-        tb.stats.rays_bounce_visibility += static_cast<uint64_t>(tb.queue.count);
+        tb.stats.rays_bounce_visibility += static_cast<uint64_t>(vis_rays);
         timer.lap(Stage::intersect_bounce);
         read_bounce_visibility(tb);
       }
