@@ -100,8 +100,10 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                  "auto (specialised to the scene's features) | general (every stage, the reference)")
       ->capture_default_str();
   app.add_option("--bounce-rays", f.bounce_rays,
-                 "scene (nearest hit in the whole scene) | emitters (nearest emitter, then an occlusion ray to it) | "
-                 "auto (emitters when they are at most half of the primitives)")
+                 "scene (nearest hit in the whole scene) | emitters (the rays that end their path, the last vertex's "
+                 "and those of the paths Russian roulette ends there, find their nearest emitter, then an occlusion ray "
+                 "to it; the others their nearest hit in the whole scene) | auto (emitters when they are at most half of "
+                 "the primitives)")
       ->capture_default_str();
   app.add_option("--bvh", f.bvh,
                  "Embree's layout: auto (compact from 2^23 stored triangles on) | fast (triangles copied into the "

@@ -220,9 +220,12 @@ std::string info_text(const Prepared& p) {
     }
     if (opt.est.max_depth > 1)
       say("paths: up to %d vertices, Russian roulette after vertex %d below throughput %g (pbrt-v4's rule: 1); "
-                  "bounce rays against the whole scene, the last vertex's against the %s\n",
+                  "bounce rays against the whole scene, %s\n",
                   opt.est.max_depth, opt.est.rr_depth + 1, static_cast<double>(opt.est.rr_threshold),
-                  r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
+                  r.bounce_against_emitters()
+                      ? "those of the paths that end at a vertex (Russian roulette) and the last vertex's against the "
+                        "emitters, then occlusion rays"
+                      : "the last vertex's against the whole scene");
     else
       say("bounce rays: against the %s\n", r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
     // --light-paths: what runs, and the figure auto's glossy choice rests on
