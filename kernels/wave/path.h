@@ -61,7 +61,9 @@ inline void add_vertex_radiance(TileBuffers& tb, bool first) {
 // the 1 / etap^2 of radiance's transport must not decide whether a path lives). Paths
 // whose throughput is 0 (a BSDF sample of no weight) or not finite end here (the latter
 // counted as rejected); they would add nothing, or only NaN. Materials: the point's
-// surface may transmit (else every sample reflects, eta scale stays).
+// surface may transmit (else every sample reflects, eta scale stays). path_step_lanes
+// computes the step (mark_path_ends reads its outcome before the trace), continue_path_lanes
+// stores it.
 template <class T> struct PathStep {
   T br, bg, bb, eta_scale;  // the throughput after the sample (and the roulette), the eta scale
   mask_t<T> live, finite, go;
@@ -143,6 +145,18 @@ inline float first_vertex_class(const GeomView& G, int32_t m) noexcept {
   return light_traced_kind(G.mat_kind[m]) ? 1.f : sun_traced_material(G, m) ? 0.5f : 0.f;
 }
 
+// Russian roulette's numbers of vertex `vertex` (where it plays; rr_pair: its dimension
+// pair, SampleLayout::russian_roulette), then f(k, roulette, inv_t) for the shading points
+// [k, k + width) of each batch.
+template <class T, class F>
+inline void path_step_batches(const Estimator& est, uint32_t sample, uint32_t rr_pair, int vertex, TileBuffers& tb, F&& f) {
+  const int padded = packet_padded(tb.points.count);
+  const bool roulette = vertex > est.rr_depth;
+  if (roulette) point_pairs(est, tb, sample, rr_pair, padded, tb.tech.u3, nullptr);
+  const float inv_t = 1.f / est.rr_threshold;
+  for (int k = 0; k < padded; k += lane_traits<T>::width) f(k, roulette, inv_t);
+}
+
 // Before the continuation sample's bounce rays are traced (bounce rays against the
 // emitters, src/render/tile_run.h): which paths end at this vertex (TechniqueSample::ends,
 // -1), by the same rule and random numbers continue_paths applies after the trace (the
@@ -151,14 +165,10 @@ inline float first_vertex_class(const GeomView& G, int32_t m) noexcept {
 template <bool Materials, class T = vfloat>
 inline void mark_path_ends(const GeomView& G, const Estimator& est, uint32_t sample, uint32_t rr_pair, int vertex,
                            TileBuffers& tb) {
-  const int padded = packet_padded(tb.points.count);
-  const bool roulette = vertex > est.rr_depth;
-  if (roulette) point_pairs(est, tb, sample, rr_pair, padded, tb.tech.u3, nullptr);
-  const float inv_t = 1.f / est.rr_threshold;
-  for (int k = 0; k < padded; k += lane_traits<T>::width) {
+  path_step_batches<T>(est, sample, rr_pair, vertex, tb, [&](int k, bool roulette, float inv_t) {
     const PathStep<T> p = path_step_lanes<T, Materials>(G, tb, k, roulette, inv_t);
     store_valid(tb.tech.ends + k, p.live && !p.go);
-  }
+  });
 }
 
 // The whole step for the shading points of vertex `vertex` (1: the camera's hits), whose
@@ -167,13 +177,11 @@ inline void mark_path_ends(const GeomView& G, const Estimator& est, uint32_t sam
 template <bool Materials, class T = vfloat>
 inline void continue_paths(const GeomView& G, const Estimator& est, uint32_t sample, uint32_t rr_pair, int vertex,
                            TileBuffers& tb) {
-  const int padded = packet_padded(tb.points.count);
-  const bool roulette = vertex > est.rr_depth;
-  if (roulette) point_pairs(est, tb, sample, rr_pair, padded, tb.tech.u3, nullptr);
-  const float inv_t = 1.f / est.rr_threshold;
-  for (int k = 0; k < padded; k += lane_traits<T>::width) continue_path_lanes<T, Materials>(G, tb, k, roulette, inv_t);
+  path_step_batches<T>(est, sample, rr_pair, vertex, tb, [&](int k, bool roulette, float inv_t) {
+    continue_path_lanes<T, Materials>(G, tb, k, roulette, inv_t);
+  });
   if (vertex == 1 && est.light_paths) {  // (the first vertex's kind: drop_light_traced_hits)
-    for (int k = 0; k < padded; ++k)
+    for (int k = 0; k < packet_padded(tb.points.count); ++k)
       tb.path.first_rough[k] = !Materials ? 1.f : first_vertex_class(G, tb.points.mat[k]);
   }
 }
