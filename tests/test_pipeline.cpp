@@ -9,6 +9,7 @@
 #include <string>
 
 #include "render/tile_pipeline.h"
+#include "media_util.h"
 #include "render_util.h"
 
 using namespace tuile;
@@ -224,6 +225,127 @@ TEST(Pipeline, BounceRaysAgainstEmittersEqualScene) {
         // scene here: the images differ if occluded emitters count)
         EXPECT_GT(se.rays_bounce_visibility, 0u) << c.name;
       }
+}
+
+namespace {
+
+// An open court (a floor and two walls, diffuse) with a sphere lamp, a block casting
+// shadows and a glass box holding a medium that scatters and absorbs, with a lamp of its own
+// inside; under a sky (sky), the box's medium (which emits) there or not (medium). The camera
+// is in vacuum; no surface is an interface.
+Scene court(bool sky, bool medium) {
+  Scene s;
+  s.source = "test:court";
+  s.materials.push_back(diffuse_material(Rgb{0.6f, 0.5f, 0.4f}));
+  s.materials.push_back(glass_material(1.5f));
+  add_named_quad(s, "floor", 0, {-4, 0, -4}, {0, 0, 8}, {8, 0, 0});
+  add_named_quad(s, "back", 0, {-4, 0, 3}, {8, 0, 0}, {0, 3, 0});
+  add_named_quad(s, "left", 0, {-3, 0, -4}, {0, 3, 0}, {0, 0, 8});
+  add_named_quad(s, "inner lamp", 0, {-0.2f, 0.5f, 0.8f}, {0.4f, 0, 0}, {0, 0, 0.4f}, 6.f);
+  s.meshes.back().two_sided = true;
+  Mesh block = media_box({0.8f, 0, 0.2f}, {1.2f, 0.8f, 0.6f});
+  block.material = 0;
+  s.meshes.push_back(block);
+  Mesh box = media_box({-0.5f, 0, 0.5f}, {0.5f, 1, 1.5f});
+  box.material = 1;
+  if (medium) {
+    s.media.push_back(homogeneous({0.3f, 0.6f, 0.9f}, {0.8f, 0.6f, 0.4f}, 0.2f, {0.5f, 0.3f, 0.2f}));
+    box.medium_inside = 0;
+  }
+  s.meshes.push_back(box);
+  Sphere lamp;
+  lamp.center = {1.5f, 1.6f, 0.f};
+  lamp.radius = 0.15f;
+  lamp.material = 0;
+  lamp.emission = {20, 16, 12};
+  s.spheres.push_back(lamp);
+  if (sky) {
+    Light l;
+    l.type = LightKind::infinite;
+    l.radiance = {0.4f, 0.6f, 1.f};
+    s.lights.push_back(l);
+  }
+  s.camera.width = 48;
+  s.camera.height = 32;
+  s.camera.fov_deg = 60;
+  camera_look_at(s.camera, {0.5f, 1.8f, -2.5f}, {0, 0.5f, 1}, {0, 1, 0});
+  finalize_scene(s);
+  return s;
+}
+
+}  // namespace
+
+// Bounce rays against the emitters where a scene has a sky or media (no interfaces): the
+// rays of the paths that end (and the last vertex's) that start in vacuum look for the
+// emitters alone, then an occlusion ray to the emitter reached or, where there is a sky, to
+// infinity; the rays that start in a medium look for their nearest hit in the scene. The
+// same image, MIS-weight AOV and bounce rays as against the whole scene, bit for bit (an
+// escaped ray that counted without its occlusion ray, or a ray in the medium traced against
+// the emitters, whose flight would then gather the medium's emission and draw its segment
+// light samples up to the emitter instead of its nearest hit, would change it).
+TEST(Pipeline, BounceRaysAgainstEmittersSkyAndMedia) {
+  for (int variant = 0; variant < 3; ++variant) {
+    const bool sky = variant != 1, medium = variant != 0;
+    const Scene s = court(sky, medium);
+    Accel accel(s);
+    for (int depth : {1, 5})
+      for (Strategy st : {Strategy::bsdf, Strategy::mis})
+        for (MisMode mode : {MisMode::multi, MisMode::one}) {
+          if (mode == MisMode::one && st != Strategy::mis) continue;
+          RenderOptions o;
+          o.est.strategy = st;
+          o.est.mode = mode;
+          o.est.spp = 8;
+          o.est.seed = 3;
+          o.est.max_depth = depth;
+          o.aov_mis_weight = true;
+          // (segment light samples: their segment ends at the ray's nearest hit)
+          o.est.equiangular = medium && st == Strategy::mis && mode == MisMode::multi;
+          RenderOptions oe = o;
+          o.bounce = BounceTrace::scene;
+          oe.bounce = BounceTrace::emitters;
+          Renderer rs(s, accel, o), re(s, accel, oe), ra(s, accel, RenderOptions{});
+          ASSERT_FALSE(rs.bounce_against_emitters());
+          ASSERT_TRUE(re.bounce_against_emitters());
+          EXPECT_TRUE(ra.bounce_against_emitters());  // (auto: 3 emitting primitives of 33)
+          Film a, b;
+          const RenderStats ss = rs.render(a, 0, o.est.spp);
+          const RenderStats se = re.render(b, 0, o.est.spp);
+          const std::vector<float> ma = a.mean(), mb = b.mean();
+          const std::string what = std::string(sky ? "sky " : "") + (medium ? "medium " : "") + describe(o.est);
+          ASSERT_EQ(std::memcmp(ma.data(), mb.data(), ma.size() * sizeof(float)), 0) << what;
+          ASSERT_EQ(a.w_sum, b.w_sum) << what;
+          ASSERT_EQ(a.w_cnt, b.w_cnt) << what;
+          EXPECT_EQ(ss.rays_bounce, se.rays_bounce) << what;
+          EXPECT_EQ(ss.rays_bounce_visibility, 0u) << what;
+          EXPECT_GT(se.rays_bounce_visibility, 0u) << what;
+          double sum = 0;
+          for (float v : ma) sum += v;
+          EXPECT_GT(sum, 0.0) << what;
+        }
+  }
+}
+
+// Where a surface is an "interface" between media, a ray may pass it into a medium on its
+// way to an emitter: every bounce ray looks for its nearest hit in the scene, and asking
+// for the emitters is an error that says why. The same slab in glass: the emitters.
+TEST(Pipeline, BounceRaysWithInterfaces) {
+  const Medium md = homogeneous({0.2f, 0.2f, 0.2f}, {0.3f, 0.3f, 0.3f});
+  const Scene s = slab_scene(md, 1.f, {2, 2, 2});
+  Accel accel(s);
+  RenderOptions o;
+  EXPECT_FALSE(Renderer(s, accel, o).bounce_against_emitters());
+  o.bounce = BounceTrace::emitters;
+  try {
+    Renderer bad(s, accel, o);
+    ADD_FAILURE() << "--bounce-rays emitters with interfaces was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("interface"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--bounce-rays scene"), std::string::npos) << e.what();
+  }
+  const Scene g = slab_scene(md, 1.f, {2, 2, 2}, glass_material());
+  Accel ga(g);
+  EXPECT_TRUE(Renderer(g, ga, o).bounce_against_emitters());
 }
 
 // auto traces against the emitters only where they are at most half of the primitives

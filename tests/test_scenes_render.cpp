@@ -150,15 +150,16 @@ TEST(SceneRender, ProjectScenesBounceRaysAgainstEmitters) {
 }
 
 // The shared scenes with their bounce rays traced against the emitters alone (then an
-// occlusion ray to the emitter) and against the whole scene: the same image. Where an
+// occlusion ray to the emitter, or to infinity under a sky; the rays in a medium against
+// the whole scene) and against the whole scene: the same image. Where an
 // occluder lies within 2^-12 of an emitter's distance the two visibility tests may
 // differ, so the test allows a pixel value in 10^4 to differ; the images' means agree
 // to 1e-4 relative.
 TEST(SceneRender, SharedScenesBounceRaysAgainstEmitters) {
   const fs::path dir = TUILE_SHARED_SCENES;
   if (!fs::exists(dir)) GTEST_SKIP() << "../shared/scenes is absent: shared-scene renders skipped";
-  // (staircase2 has a medium: its rays all look for their nearest hit, tests/test_media_render.cpp)
-  for (const char* name : {"cornell-box", "veach-mis", "kitchen"}) {
+  // (staircase2 and living-room-3: media inside glass; dining-room: a sky and a sun)
+  for (const char* name : {"cornell-box", "veach-mis", "kitchen", "staircase2", "living-room-3", "dining-room"}) {
     const fs::path f = dir / name / "scene-v4.pbrt";
     if (!fs::exists(f)) continue;
     SCOPED_TRACE(f.string());

@@ -115,8 +115,11 @@ inline uint32_t escaped_bounce_lanes(const LightView& L, const Estimator& est, f
                                      int k, bool chosen_only) {
   const RayHit16& r = tb.bounce[k / packet_width];
   const int l = k % packet_width;
+  // (a ray traced against the emitters alone whose occlusion ray to infinity was blocked:
+  // tfar -inf, src/render/tile_run.h escape_rays)
   auto escaped = f_mask_from_i(load_i32<T>(tb.tech.valid + k) != i32_t<T>(0) &&
-                               load_i32<T>(reinterpret_cast<const int32_t*>(r.geomID + l)) < i32_t<T>(0));
+                               load_i32<T>(reinterpret_cast<const int32_t*>(r.geomID + l)) < i32_t<T>(0)) &&
+                 load<T>(r.ray.tfar + l) > T(-INFINITY);
   if (chosen_only) escaped = escaped && load<T>(tb.points.choose_light + k) < T(0.5f);
   const uint32_t bits = lane_bits(escaped);
   if (!bits) return 0;

@@ -164,6 +164,24 @@ inline void first_flights_simd(const GeomView& G, RayHit16& r, int l0, int k0, i
 
 }  // namespace media_detail
 
+// The medium a bounce ray of shading point k starts in (-1: vacuum): that of the side of
+// the point it leaves by.
+inline int32_t bounce_ray_medium(const TileBuffers& tb, int k) {
+  const RayHit16& r = tb.bounce[k / packet_width];
+  const int l = k % packet_width;
+  const float side = tb.points.nx[k] * r.ray.dir_x[l] + tb.points.ny[k] * r.ray.dir_y[l] + tb.points.nz[k] * r.ray.dir_z[l];
+  return side >= 0.f ? tb.points.medf[k] : tb.points.medb[k];
+}
+
+// Bounce rays against the emitters in a scene with media and no "interface" surfaces: of
+// the rays of paths that end (TechniqueSample::ends), those that start in a medium need
+// their nearest hit in the scene (their flight decides what they reach) and are unmarked;
+// a ray that starts in vacuum meets a surface before any medium.
+inline void ends_in_vacuum(TileBuffers& tb) {
+  for (int k = 0; k < tb.points.count; ++k)
+    if (tb.tech.ends[k] && bounce_ray_medium(tb, k) >= 0) tb.tech.ends[k] = 0;
+}
+
 // The flights of rays [0, count) of the packets (valid[k] != 0: traced), each in medium
 // ml.med[k] at its origin, with ml.u0 / ml.u1 its random numbers. Afterwards each traced
 // ray's hit is where its path goes on: a surface (interfaces passed), a scattering point

@@ -171,6 +171,12 @@ inline void mark_path_ends(const GeomView& G, const Estimator& est, uint32_t sam
   });
 }
 
+// The last vertex's BSDF samples, bounce rays against the emitters where a scene decides
+// per ray (src/render/tile_run.h): every traced ray ends its path (TechniqueSample::ends).
+inline void mark_all_ends(TileBuffers& tb) {
+  for (int k = 0; k < packet_padded(tb.points.count); ++k) tb.tech.ends[k] = tb.tech.valid[k] ? -1 : 0;
+}
+
 // The whole step for the shading points of vertex `vertex` (1: the camera's hits), whose
 // last BSDF sample (tech, bounce packets) continues the path. rr_pair: the Russian
 // roulette's dimension pair of this vertex (SampleLayout::russian_roulette).

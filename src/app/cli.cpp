@@ -102,8 +102,9 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
   app.add_option("--bounce-rays", f.bounce_rays,
                  "scene (nearest hit in the whole scene) | emitters (the rays that end their path, the last vertex's "
                  "and those of the paths Russian roulette ends there, find their nearest emitter, then an occlusion ray "
-                 "to it; the others their nearest hit in the whole scene) | auto (emitters when they are at most half of "
-                 "the primitives)")
+                 "to it, or to infinity under a sky where they find none; the others, and those that start in a medium, "
+                 "their nearest hit in the whole scene) | auto (emitters when they are at most half of the primitives, "
+                 "unless the scene has \"interface\" surfaces between media)")
       ->capture_default_str();
   app.add_option("--bvh", f.bvh,
                  "Embree's layout: auto (compact from 2^23 stored triangles on) | fast (triangles copied into the "

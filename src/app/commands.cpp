@@ -218,16 +218,21 @@ std::string info_text(const Prepared& p) {
         say("\n");
       }
     }
+    // (under a sky the rays that find no emitter take an occlusion ray to infinity; in a
+    // medium the rays see the whole scene)
+    const bool emitters = r.bounce_against_emitters();
+    const std::string per_ray = std::string(emitters && (scene.features & feat_sky) ? ", to infinity where they find none" : "") +
+                                (emitters && (scene.features & feat_media) ? " (but the rays that start in a medium)" : "");
     if (opt.est.max_depth > 1)
       say("paths: up to %d vertices, Russian roulette after vertex %d below throughput %g (pbrt-v4's rule: 1); "
-                  "bounce rays against the whole scene, %s\n",
+                  "bounce rays against the whole scene, %s%s\n",
                   opt.est.max_depth, opt.est.rr_depth + 1, static_cast<double>(opt.est.rr_threshold),
-                  r.bounce_against_emitters()
-                      ? "those of the paths that end at a vertex (Russian roulette) and the last vertex's against the "
-                        "emitters, then occlusion rays"
-                      : "the last vertex's against the whole scene");
+                  emitters ? "those of the paths that end at a vertex (Russian roulette) and the last vertex's against the "
+                             "emitters, then occlusion rays"
+                           : "the last vertex's against the whole scene",
+                  per_ray.c_str());
     else
-      say("bounce rays: against the %s\n", r.bounce_against_emitters() ? "emitters, then occlusion rays" : "whole scene");
+      say("bounce rays: against the %s%s\n", emitters ? "emitters, then occlusion rays" : "whole scene", per_ray.c_str());
     // --light-paths: what runs, and the figure auto's glossy choice rests on
     if (opt.est.light_paths)
       say("light paths: %s, %s\n", opt.est.light_paths_glossy ? "glossy" : "on",

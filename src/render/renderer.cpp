@@ -48,18 +48,16 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
     throw std::invalid_argument("--heuristic optimal: the scene has " + std::to_string(views_->lights.sky_count) +
                                 " skies (LightSource \"infinite\" with different maps); it handles one");
   views_->camera.filter = build_filter(opt_.filter, views_->filter_table);  // the pixel filter's tables, once
-  // a bounce ray traced against the emitters alone cannot tell the sky from the rest of the
-  // scene: where there is a sky, every bounce ray looks for its nearest hit in the scene
-  const bool sky = (scene.features & feat_sky) != 0;
-  if (sky && opt_.bounce == BounceTrace::emitters)
-    throw std::invalid_argument("--bounce-rays emitters: the scene has a sky (LightSource \"infinite\"), which only rays "
-                                "traced against the whole scene can find; use --bounce-rays scene or auto");
-  // nor a ray that may scatter in a medium or pass an interface on its way
-  const bool media = (scene.features & feat_media) != 0;
-  if (media && opt_.bounce == BounceTrace::emitters)
-    throw std::invalid_argument("--bounce-rays emitters: the scene has participating media, through which only rays "
-                                "traced against the whole scene find their way; use --bounce-rays scene or auto");
-  if (sky || media) {
+  // Bounce rays against the emitters alone (then an occlusion ray to the emitter a ray
+  // reaches, or, where there is a sky, to infinity for a ray that reaches none): a ray
+  // that starts in a medium, or that may pass an "interface" surface into one, needs its
+  // nearest hit in the scene (its flight decides what it reaches). In a scene with media
+  // but no interfaces, a ray that starts in vacuum meets no medium before a surface.
+  const bool interfaces = (scene.features & feat_media) != 0 && views_->geom.media.has_interfaces;
+  if (interfaces && opt_.bounce == BounceTrace::emitters)
+    throw std::invalid_argument("--bounce-rays emitters: the scene has \"interface\" surfaces between media, which only rays "
+                                "traced against the whole scene pass; use --bounce-rays scene or auto");
+  if (interfaces) {
     bounce_against_emitters_ = false;
   } else if (opt_.bounce == BounceTrace::automatic) {
     size_t all = scene.spheres.size() + scene.instanced_triangle_count(), emitting = 0;

@@ -187,6 +187,42 @@ inline void trace_bounce_split(const TileContext& c, TileBuffers& tb, StageTimer
   }
 }
 
+// A scene with a sky, bounce rays against the emitters: the rays of the paths that end
+// (tb.tech.ends) that reached no emitter leave the scene only if nothing of it lies in their
+// way. Their occlusion rays to infinity, gathered into whole packets (tb.shadow, free
+// between the light samples and the emitter hits' visibility rays); a ray blocked gets
+// tfar -inf in its bounce packet (Embree's mark), which escaped_bounce reads as not
+// escaped.
+inline void escape_rays(const TileContext& c, TileBuffers& tb, StageTimer& timer, bool rec, ThreadProfile* tp) {
+  alignas(64) int32_t from[max_tile_lanes], on[max_tile_lanes];
+  int n = 0;
+  for (int k = 0; k < tb.points.count; ++k)
+    if (tb.tech.valid[k] && tb.tech.ends[k] && tb.bounce[k / packet_width].geomID[k % packet_width] == invalid_id) from[n++] = k;
+  if (n == 0) return;
+  for (int j = 0; j < packet_padded(n); ++j) {
+    Ray16& q = tb.shadow[j / packet_width];
+    const int l = j % packet_width;
+    on[j] = j < n ? -1 : 0;
+    if (j >= n) continue;
+    const Ray16& r = tb.bounce[from[j] / packet_width].ray;
+    const int i = from[j] % packet_width;
+    q.org_x[l] = r.org_x[i];
+    q.org_y[l] = r.org_y[i];
+    q.org_z[l] = r.org_z[i];
+    q.dir_x[l] = r.dir_x[i];
+    q.dir_y[l] = r.dir_y[i];
+    q.dir_z[l] = r.dir_z[i];
+    q.tfar[l] = r.tfar[i];
+  }
+  for (int p = 0; p < packets_for(n); ++p) {
+    if (rec) timer.untimed([&] { record(tp->rays.shadow, tb.shadow[p], on + p * packet_width); });
+    c.accel.occluded16(on + p * packet_width, tb.shadow[p], false);
+  }
+  for (int j = 0; j < n; ++j)
+    if (tb.shadow[j / packet_width].tfar[j % packet_width] == -INFINITY) tb.bounce[from[j] / packet_width].ray.tfar[from[j] % packet_width] = -INFINITY;
+  tb.stats.rays_bounce_visibility += static_cast<uint64_t>(n);
+}
+
 // --guide while it learns (render/guide.h): each path's vertices of this sample, kept per
 // tile lane (GuidePathLanes), then, once the sample is done, the light that reached each
 // guided vertex along the direction its path went on (the light the later vertices added,
@@ -404,12 +440,7 @@ inline void bounce_media(const TileContext& c, TileBuffers& tb, const Estimator&
   const GeomView& G = c.v.geom;
   MediumLanes& ml = tb.media;
   const int n = tb.points.count, padded = packet_padded(n);
-  for (int k = 0; k < padded; ++k) {
-    const RayHit16& r = tb.bounce[k / packet_width];
-    const int l = k % packet_width;
-    const float side = tb.points.nx[k] * r.ray.dir_x[l] + tb.points.ny[k] * r.ray.dir_y[l] + tb.points.nz[k] * r.ray.dir_z[l];
-    ml.med[k] = side >= 0.f ? tb.points.medf[k] : tb.points.medb[k];
-  }
+  for (int k = 0; k < padded; ++k) ml.med[k] = bounce_ray_medium(tb, k);
   point_pairs(e, tb, s, c.layout.medium_flight(m, d), padded, ml.u0, ml.u1);
   medium_flights(G, tb.bounce, tb.tech.valid, n, ml, tb.stats.rejected_bsdf,
                  [&](const int32_t* valid, RayHit16& p) { c.accel.intersect16(valid, p, false, Bvh::scene); });
@@ -491,7 +522,12 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
   if (tb.points.count > 0) {
     // the last vertex's bounce rays may look for the emitters alone (then a visibility
     // ray); a path's other bounce rays need their nearest hit in the scene
-    const bool against_emitters = last && c.bounce_against_emitters;
+    // (where a scene decides per ray, the last vertex's rays are split as a path's
+    // continuation is, every one of them ending there: a scene with media, whose rays that
+    // start in a medium need the scene, or a sky, to which the rays that reach no emitter
+    // need an occlusion ray)
+    const bool per_ray = v.geom.has_media || v.lights.sky_count > 0;
+    const bool against_emitters = last && c.bounce_against_emitters && !per_ray;
     // resampled importance sampling took its BSDF candidates (run_ris): what is left is
     // the last BSDF sample, for the path's continuation and the delta lobes
     const bool ris = e.strategy == Strategy::ris;
@@ -508,11 +544,17 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
       }
       // (bounce rays against the emitters: a path's continuation rays against the whole scene
       // only for the paths that go on)
-      const bool split = continuation && c.bounce_against_emitters;
-      if (split) mark_path_ends<F.bsdfs != bsdf_diffuse>(v.geom, e, s, layout.russian_roulette(d), static_cast<int>(d) + 1, tb);
+      const bool split = c.bounce_against_emitters && (continuation || (last && per_ray));
+      if (split) {
+        if (continuation) mark_path_ends<F.bsdfs != bsdf_diffuse>(v.geom, e, s, layout.russian_roulette(d), static_cast<int>(d) + 1, tb);
+        else mark_all_ends(tb);
+        if (v.geom.has_media) ends_in_vacuum(tb);
+      }
       timer.lap(Stage::sample_bsdf);
       if (split) trace_bounce_split(c, tb, timer, packets, rec, tp);
       else trace_bounce(c, tb, timer, packets, rec, tp, against_emitters ? Bvh::emitters : Bvh::scene);
+      if constexpr ((F.kinds & kind_sky) != 0)
+        if (split && v.lights.sky_count > 0) escape_rays(c, tb, timer, rec, tp);
       timer.lap(Stage::intersect_bounce);
       if (!against_emitters) prefetch_hits(v.geom, tb.bounce, tb.tech.valid, tb.points.count);  // for the emitters' queue and the next hits
       if (v.geom.has_media) {
@@ -541,8 +583,8 @@ void run_bsdf_samples(const TileContext& c, TileBuffers& tb, StageTimer& timer, 
       if (e.light_paths && d >= 1 && (delta || v.lights.lt_glossy != nullptr))
         drop_light_traced_hits<delta>(v.geom, v.lights, tb);
       weight_queue<F.kinds, delta>(v.lights, e, c.rate_light, c.rate_bsdf, tb);
-      // the rays that left the scene see the sky (traced against the whole scene: a scene
-      // with a sky never traces its bounce rays against the emitters alone)
+      // the rays that left the scene see the sky (those traced against the emitters alone:
+      // where their occlusion ray to infinity met nothing, escape_rays)
       if constexpr ((F.kinds & kind_sky) != 0)
         escaped_bounce<vfloat, delta>(v.lights, e, c.rate_light, c.rate_bsdf, tb, continuation && e.one_sample());
       if (optimal) optimal_bsdf_pass(tb, e, c.rate_light, c.rate_bsdf, delta, e.aov_mis_weight);
