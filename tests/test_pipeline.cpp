@@ -161,6 +161,48 @@ TEST(Pipeline, SpecialisedEqualsGeneral) {
   EXPECT_GE(distinct_pipelines, 4);
 }
 
+namespace {
+
+// Options for the tests of the emitters' BVH below: 8 spp, the MIS-weight AOV.
+RenderOptions bounce_options(Strategy st, MisMode mode, int depth, uint32_t seed) {
+  RenderOptions o;
+  o.est.strategy = st;
+  o.est.mode = mode;
+  o.est.spp = 8;
+  o.est.seed = seed;
+  o.est.max_depth = depth;
+  o.aov_mis_weight = true;
+  return o;
+}
+
+// The scene rendered with o, its bounce rays traced against the whole scene and against the
+// emitters (o.bounce set to each): the same image and MIS-weight AOV, bit for bit, and the
+// same bounce rays; only the second takes visibility rays, and some.
+void expect_bounce_modes_agree(const Scene& s, const Accel& accel, RenderOptions o, const std::string& name) {
+  RenderOptions oe = o;
+  o.bounce = BounceTrace::scene;
+  oe.bounce = BounceTrace::emitters;
+  Renderer rs(s, accel, o), re(s, accel, oe);
+  ASSERT_FALSE(rs.bounce_against_emitters());
+  ASSERT_TRUE(re.bounce_against_emitters());
+  Film a, b;
+  const RenderStats ss = rs.render(a, 0, o.est.spp);
+  const RenderStats se = re.render(b, 0, o.est.spp);
+  const std::vector<float> ma = a.mean(), mb = b.mean();
+  const std::string what = name + " " + describe(o.est);
+  ASSERT_EQ(std::memcmp(ma.data(), mb.data(), ma.size() * sizeof(float)), 0) << what;
+  ASSERT_EQ(a.w_sum, b.w_sum) << what;
+  ASSERT_EQ(a.w_cnt, b.w_cnt) << what;
+  EXPECT_EQ(ss.rays_bounce, se.rays_bounce) << what;
+  EXPECT_EQ(ss.rays_bounce_visibility, 0u) << what;
+  EXPECT_GT(se.rays_bounce_visibility, 0u) << what;
+  double sum = 0;
+  for (float v : ma) sum += v;
+  EXPECT_GT(sum, 0.0) << what;
+}
+
+}  // namespace
+
 // Bounce rays traced against the emitters alone, then an occlusion ray to the emitter they
 // reached, give the image of bounce rays traced against the whole scene, bit for bit on
 // these scenes (no occluder lies within 2^-12 of an emitter's distance, where the two
@@ -198,32 +240,10 @@ TEST(Pipeline, BounceRaysAgainstEmittersEqualScene) {
         s.camera.width = 48;
         s.camera.height = 32;
         finalize_scene(s);
-        RenderOptions o;
-        o.est.strategy = st;
-        o.est.mode = mode;
-        o.est.spp = 8;
-        o.est.seed = 5;
-        o.est.max_depth = depth;
-        o.aov_mis_weight = true;
         Accel accel(s);
-        RenderOptions oe = o;
-        o.bounce = BounceTrace::scene;
-        oe.bounce = BounceTrace::emitters;
-        Renderer rs(s, accel, o), re(s, accel, oe);
-        ASSERT_FALSE(rs.bounce_against_emitters());
-        ASSERT_TRUE(re.bounce_against_emitters());
-        Film a, b;
-        const RenderStats ss = rs.render(a, 0, o.est.spp);
-        const RenderStats se = re.render(b, 0, o.est.spp);
-        const std::vector<float> ma = a.mean(), mb = b.mean();
-        ASSERT_EQ(std::memcmp(ma.data(), mb.data(), ma.size() * sizeof(float)), 0) << c.name << " " << describe(o.est);
-        ASSERT_EQ(a.w_sum, b.w_sum) << c.name << " " << describe(o.est);
-        ASSERT_EQ(a.w_cnt, b.w_cnt) << c.name << " " << describe(o.est);
-        EXPECT_EQ(ss.rays_bounce, se.rays_bounce);
-        EXPECT_EQ(ss.rays_bounce_visibility, 0u);
         // some bounce rays reached an emitter (and some of those are occluded in every
         // scene here: the images differ if occluded emitters count)
-        EXPECT_GT(se.rays_bounce_visibility, 0u) << c.name;
+        expect_bounce_modes_agree(s, accel, bounce_options(st, mode, depth, 5), c.name);
       }
 }
 
@@ -292,36 +312,11 @@ TEST(Pipeline, BounceRaysAgainstEmittersSkyAndMedia) {
       for (Strategy st : {Strategy::bsdf, Strategy::mis})
         for (MisMode mode : {MisMode::multi, MisMode::one}) {
           if (mode == MisMode::one && st != Strategy::mis) continue;
-          RenderOptions o;
-          o.est.strategy = st;
-          o.est.mode = mode;
-          o.est.spp = 8;
-          o.est.seed = 3;
-          o.est.max_depth = depth;
-          o.aov_mis_weight = true;
+          RenderOptions o = bounce_options(st, mode, depth, 3);
           // (segment light samples: their segment ends at the ray's nearest hit)
           o.est.equiangular = medium && st == Strategy::mis && mode == MisMode::multi;
-          RenderOptions oe = o;
-          o.bounce = BounceTrace::scene;
-          oe.bounce = BounceTrace::emitters;
-          Renderer rs(s, accel, o), re(s, accel, oe), ra(s, accel, RenderOptions{});
-          ASSERT_FALSE(rs.bounce_against_emitters());
-          ASSERT_TRUE(re.bounce_against_emitters());
-          EXPECT_TRUE(ra.bounce_against_emitters());  // (auto: 3 emitting primitives of 33)
-          Film a, b;
-          const RenderStats ss = rs.render(a, 0, o.est.spp);
-          const RenderStats se = re.render(b, 0, o.est.spp);
-          const std::vector<float> ma = a.mean(), mb = b.mean();
-          const std::string what = std::string(sky ? "sky " : "") + (medium ? "medium " : "") + describe(o.est);
-          ASSERT_EQ(std::memcmp(ma.data(), mb.data(), ma.size() * sizeof(float)), 0) << what;
-          ASSERT_EQ(a.w_sum, b.w_sum) << what;
-          ASSERT_EQ(a.w_cnt, b.w_cnt) << what;
-          EXPECT_EQ(ss.rays_bounce, se.rays_bounce) << what;
-          EXPECT_EQ(ss.rays_bounce_visibility, 0u) << what;
-          EXPECT_GT(se.rays_bounce_visibility, 0u) << what;
-          double sum = 0;
-          for (float v : ma) sum += v;
-          EXPECT_GT(sum, 0.0) << what;
+          EXPECT_TRUE(Renderer(s, accel, RenderOptions{}).bounce_against_emitters());  // (auto: 3 emitting of 33)
+          expect_bounce_modes_agree(s, accel, o, std::string(sky ? "sky " : "") + (medium ? "medium" : ""));
         }
   }
 }
