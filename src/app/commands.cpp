@@ -222,7 +222,7 @@ std::string info_text(const Prepared& p) {
     // medium the rays see the whole scene)
     const bool emitters = r.bounce_against_emitters();
     const std::string per_ray = std::string(emitters && (scene.features & feat_sky) ? ", to infinity where they find none" : "") +
-                                (emitters && (scene.features & feat_media) ? " (but the rays that start in a medium)" : "");
+                                (emitters && (scene.features & feat_media) ? "; those that start in a medium against the whole scene" : "");
     if (opt.est.max_depth > 1)
       say("paths: up to %d vertices, Russian roulette after vertex %d below throughput %g (pbrt-v4's rule: 1); "
                   "bounce rays against the whole scene, %s%s\n",
