@@ -528,10 +528,10 @@ int run_profile(const ProfileFlags& f, std::string* json) {
     say("packets vs streams: the pass's rays take %.2f ms as 16-wide packets (tuile's layout), %.2f ms as "
                 "rtcIntersectNp/rtcOccludedNp streams of one tile (medians of 3)\n",
                 median(t) * 1e3, median(ts) * 1e3);
-    say("roofline: Embree alone on one pass's %zu camera, %zu shadow, %zu bounce packets: %.4g samples/s; "
-                "tuile %.4g samples/s = %.1f%% of that bound\n",
-                prof.rays.camera.size(), prof.rays.shadow.size(), prof.rays.bounce.size(), bound, ours,
-                100.0 * ours / bound);
+    say("roofline: Embree alone on one pass's %zu camera, %zu shadow, %zu bounce packets (and %zu against the "
+                "emitters alone): %.4g samples/s; tuile %.4g samples/s = %.1f%% of that bound\n",
+                prof.rays.camera.size(), prof.rays.shadow.size(), prof.rays.bounce.size(),
+                prof.rays.bounce_emitters.size(), bound, ours, 100.0 * ours / bound);
     js << ",\n  \"roofline\": {\"packets_ms\": " << median(t) * 1e3 << ", \"streams_ms\": " << median(ts) * 1e3
        << ", \"bound_samples_per_second\": " << bound << ", \"samples_per_second\": " << ours
        << ", \"fraction_of_bound\": " << ours / bound << "}";

@@ -29,14 +29,14 @@ template <class P> inline void copy_packet(P& dst, const P& src) noexcept {
 // replay's own ticks-per-second), not the copies of the recorded packets and valid masks
 // into local (cached) memory: the sum over threads divided by the thread count.
 double replay_rays(const Accel& accel, const RayRecord& rays, int threads) {
-  const size_t nc = rays.camera.size(), ns = rays.shadow.size(), nb = rays.bounce.size();
+  const size_t nc = rays.camera.size(), ns = rays.shadow.size(), nb = rays.bounce.size(), ne = rays.bounce_emitters.size();
   const int n_threads = threads > 0 ? threads : tbb::this_task_arena::max_concurrency();
   tbb::enumerable_thread_specific<uint64_t> call_ticks(0);
   const auto t0 = clock_type::now();
   const uint64_t ticks0 = __rdtsc();
   tbb::task_arena arena(n_threads);
   arena.execute([&] {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, nc + ns + nb, 16), [&](const tbb::blocked_range<size_t>& r) {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, nc + ns + nb + ne, 16), [&](const tbb::blocked_range<size_t>& r) {
       RayHit16 hit;
       Ray16 ray;
       alignas(64) int32_t valid[packet_width];
@@ -53,10 +53,8 @@ double replay_rays(const Accel& accel, const RayRecord& rays, int threads) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
         if (i < nc) timed(hit, rays.camera[i], [&] { accel.intersect16(valid, hit, true); });
         else if (i < nc + ns) timed(ray, rays.shadow[i - nc], [&] { accel.occluded16(valid, ray, false); });
-        else
-          timed(hit, rays.bounce[i - nc - ns], [&] {
-            accel.intersect16(valid, hit, false, rays.bounce_against_emitters ? Bvh::emitters : Bvh::scene);
-          });
+        else if (i < nc + ns + nb) timed(hit, rays.bounce[i - nc - ns], [&] { accel.intersect16(valid, hit, false); });
+        else timed(hit, rays.bounce_emitters[i - nc - ns - nb], [&] { accel.intersect16(valid, hit, false, Bvh::emitters); });
       }
     });
   });
@@ -108,7 +106,8 @@ double replay_rays_stream(const Accel& accel, const RayRecord& rays, int threads
   };
   build(rays.camera, false, true, Bvh::scene);
   build(rays.shadow, true, false, Bvh::scene);
-  build(rays.bounce, false, false, rays.bounce_against_emitters ? Bvh::emitters : Bvh::scene);
+  build(rays.bounce, false, false, Bvh::scene);
+  build(rays.bounce_emitters, false, false, Bvh::emitters);
   const auto t0 = clock_type::now();
   tbb::task_arena arena(threads > 0 ? threads : tbb::this_task_arena::max_concurrency());
   arena.execute([&] {

@@ -42,8 +42,8 @@ template <class P> struct RecordedPacket {
 // The packets one pass traces, in order (profile --roofline).
 struct RayRecord {
   std::vector<RecordedPacket<RayHit16>> camera, bounce;
-  std::vector<RecordedPacket<Ray16>> shadow;  // shadow rays and bounce visibility rays
-  bool bounce_against_emitters = false;               // bounce rays were traced against the emitters
+  std::vector<RecordedPacket<RayHit16>> bounce_emitters;  // bounce rays traced against the emitters alone
+  std::vector<RecordedPacket<Ray16>> shadow;  // shadow rays, bounce visibility rays and escape rays
 };
 
 // Filled by Renderer::render when given: time per stage summed over threads, and

@@ -421,7 +421,7 @@ RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Pro
       append(profile->rays.camera, tp.rays.camera);
       append(profile->rays.shadow, tp.rays.shadow);
       append(profile->rays.bounce, tp.rays.bounce);
-      profile->rays.bounce_against_emitters = bounce_against_emitters_;
+      append(profile->rays.bounce_emitters, tp.rays.bounce_emitters);
       ++tid;
     }
   }

@@ -156,7 +156,7 @@ inline void trace_bounce(const TileContext& c, TileBuffers& tb, StageTimer& time
     const int32_t* valid = tb.tech.valid + p * packet_width;
     const int active = active_lanes(valid);
     if (!active) continue;
-    if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
+    if (rec) timer.untimed([&] { record(bvh == Bvh::emitters ? tp->rays.bounce_emitters : tp->rays.bounce, tb.bounce[p], valid); });
     c.accel.intersect16(valid, tb.bounce[p], false, bvh);
     tb.stats.rays_bounce += static_cast<uint64_t>(active);
   }
@@ -180,7 +180,10 @@ inline void trace_bounce_split(const TileContext& c, TileBuffers& tb, StageTimer
       n_off += off[l] != 0;
     }
     if (n_on + n_off == 0) continue;
-    if (rec) timer.untimed([&] { record(tp->rays.bounce, tb.bounce[p], valid); });
+    if (rec) timer.untimed([&] {
+      if (n_on) record(tp->rays.bounce, tb.bounce[p], on);
+      if (n_off) record(tp->rays.bounce_emitters, tb.bounce[p], off);
+    });
     if (n_on) c.accel.intersect16(on, tb.bounce[p], false, Bvh::scene);
     if (n_off) c.accel.intersect16(off, tb.bounce[p], false, Bvh::emitters);
     tb.stats.rays_bounce += static_cast<uint64_t>(n_on + n_off);
