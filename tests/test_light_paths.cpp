@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -551,12 +552,12 @@ TEST(LightPaths, AutoIsGlossyUnderASmallLampOverANearMirror) {
   EXPECT_EQ(resolved(glint_room(0.01f, 0.01f)), "glossy");
   EXPECT_EQ(resolved(glint_room(0.01f, 0.01f), "light"), "glossy");
   EXPECT_EQ(resolved(glint_room(0.01f, 0.01f), "ris"), "off");  // (--light-paths=glossy refuses ris)
-  // a larger lamp (solid angle 0.014 sr), a rougher mirror (a lobe of 0.03 sr), a smooth one
-  // (a delta lobe: the light tracer's caustics, which on surfaces alone stay the path
-  // tracer's), or a mirror that catches a thousandth of the light: the path tracer's
+  // a larger lamp (solid angle 0.014 sr), a rougher mirror (a lobe of 0.03 sr), or a mirror
+  // that catches a thousandth of the light: the path tracer's; a smooth one (a delta lobe):
+  // the light tracer's caustics, on (AutoIsOnForASmallLampsCausticsOnSurfaces)
   EXPECT_EQ(resolved(glint_room(0.1f, 0.01f)), "off");
   EXPECT_EQ(resolved(glint_room(0.01f, 0.05f)), "off");
-  EXPECT_EQ(resolved(glint_room(0.01f, 5e-4f)), "off");
+  EXPECT_EQ(resolved(glint_room(0.01f, 5e-4f)), "on");
   EXPECT_EQ(resolved(glint_room(0.01f, 0.01f, 0.15f)), "off");
   // the share itself: a mirror of area A straight under a lamp at distance d receives
   // A / (4 pi d^2) of a sphere's power, A / (pi d^2) of a small square facing it
@@ -580,6 +581,48 @@ TEST(LightPaths, AutoIsGlossyUnderASmallLampOverANearMirror) {
   finalize_scene(dark);
   EXPECT_EQ(area_glint_share(dark), 0);
   EXPECT_EQ(resolved(dark), "on");  // (the sun's glints)
+}
+
+// auto's caustics onto surfaces: on where at least 0.3% of the area sources' power falls
+// on smooth glass or mirrors from a source that looks small from them (veach-bidir's spot
+// lamp over its glass egg), off where the sources look large from them (staircase2's panels
+// behind their panes, the rooms' windows and mirrors).
+TEST(LightPaths, AutoIsOnForASmallLampsCausticsOnSurfaces) {
+  auto resolved = [](Scene s) {
+    RenderFlags f;
+    f.max_depth = 5;
+    f.max_depth_given = true;
+    const RenderOptions o = resolve_options(f, s);
+    return o.est.light_paths_glossy ? std::string("glossy") : o.est.light_paths ? std::string("on") : std::string("off");
+  };
+  // the share: a smooth mirror of area A straight under a sphere lamp at distance d
+  // receives A / (4 pi d^2) of its power; near-specular lobes are the glints' share, not this
+  const double pi = 3.14159265358979323846;
+  const double A = 0.1 * 0.1, d2 = 1.5 * 1.5;
+  EXPECT_NEAR(area_caustic_share(glint_room(0.01f, 5e-4f, 0.1f)), A / (4 * pi * d2), 0.01 * A / (4 * pi * d2));
+  EXPECT_EQ(area_glint_share(glint_room(0.01f, 5e-4f, 0.1f)), 0);
+  EXPECT_EQ(area_caustic_share(glint_room(0.01f, 0.01f, 0.1f)), 0);
+  EXPECT_EQ(area_caustic_share(glint_room(0.1f, 5e-4f)), 0);  // (the lamp not small: 0.014 sr)
+  // a 2 x 2 mirror takes 0.14 of the power: on; a larger lamp, or a mirror of 0.15 x 0.15
+  // (8e-4 of it): off
+  EXPECT_EQ(resolved(glint_room(0.01f, 5e-4f)), "on");
+  EXPECT_EQ(resolved(glint_room(0.1f, 5e-4f)), "off");
+  EXPECT_EQ(resolved(glint_room(0.01f, 5e-4f, 0.15f)), "off");
+  // thin glass is a delta lobe too; a rough conductor is not
+  Scene pane = glint_room(0.01f, 5e-4f);
+  pane.materials[1] = Material{};
+  pane.materials[1].kind = MaterialKind::thin_dielectric;
+  EXPECT_NEAR(area_caustic_share(pane), area_caustic_share(glint_room(0.01f, 5e-4f)), 1e-9);
+  EXPECT_EQ(resolved(pane), "on");
+  // the caustic room's large lamp over its glass, mirror and smooth coat: the path tracer's
+  EXPECT_LT(area_caustic_share(caustic_room(16)), 0.003);
+  EXPECT_EQ(resolved(caustic_room(16)), "off");
+  // where something refuses the light tracer (direct light alone), auto stays off
+  RenderFlags direct;
+  direct.max_depth = 1;
+  direct.max_depth_given = true;
+  Scene small = glint_room(0.01f, 5e-4f);
+  EXPECT_FALSE(resolve_options(direct, small).est.light_paths);
 }
 
 // `tuile info` says what auto chose and the figure it rests on: veach-mis's layout in a
@@ -609,4 +652,16 @@ TEST(LightPaths, InfoSaysGlossyAndTheGlintShare) {
   ASSERT_EQ(off.code, 0) << off.out;
   EXPECT_EQ(off.out.find("light paths:"), std::string::npos) << off.out;
   EXPECT_NE(off.out.find("glints: 0.1"), std::string::npos) << off.out;
+  // the same mirror smooth: the caustics' share, and on
+  std::ifstream in(scene);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  text.replace(text.find("\"float roughness\" [ 0.01 ]"), std::string("\"float roughness\" [ 0.01 ]").size(),
+               "\"float roughness\" [ 0 ]");
+  const std::string smooth = dir / "caustic.pbrt";
+  std::ofstream(smooth) << text;
+  const CmdResult c = run_command(TUILE_BINARY, "info " + smooth);
+  ASSERT_EQ(c.code, 0) << c.out;
+  EXPECT_NE(c.out.find("light-paths=on"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("caustics: 0.1"), std::string::npos) << c.out;
+  EXPECT_EQ(c.out.find("glints:"), std::string::npos) << c.out;
 }

@@ -243,6 +243,11 @@ std::string info_text(const Prepared& p) {
       say("glints: %.3g of the area sources' power falls on near-specular surfaces from a source that looks small "
           "from them (--light-paths auto takes glossy from 0.01)\n",
           glints);
+    const double caustics = area_caustic_share(scene);
+    if (caustics > 0)
+      say("caustics: %.3g of the area sources' power falls on smooth glass or mirrors from a source that looks small "
+          "from them (--light-paths auto takes on from 0.003)\n",
+          caustics);
   }
   for (const std::string& w : scene.warnings) say("approximation: %s\n", w.c_str());
   for (const std::string& w : scene.notes) say("note: %s\n", w.c_str());

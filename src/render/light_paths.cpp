@@ -69,13 +69,28 @@ constexpr double glint_share_min = 0.01;
 // the path tracer's paths through it (a rough point's direction towards the surface, then a
 // light sample or a BSDF sample there) find the source's reflection only by chance (sr).
 constexpr double glint_solid_angle_max = 3e-3;
+// --light-paths auto's caustics onto surfaces: the share of the area sources' power that
+// falls on smooth glass or mirrors from a source that looks small from them (below
+// glint_solid_angle_max), from which on. Measured on the corpus (bench/results.md, "An area
+// light's caustics onto surfaces"): veach-bidir 0.016 (its spot lamp over the glass egg;
+// 2.2x the efficiency with light paths), staircase2 1.3e-4 (0.68x), the other scenes with
+// glass or mirrors and area sources 0 (kitchen 0.91x, bathroom 0.90x, living-room-3 0.94x).
+constexpr double caustic_share_min = 0.003;
 // At most this many (surface triangle, source) pairs are visited; larger scenes stride
 // through their triangles.
 constexpr double glint_pairs_max = 1 << 22;
 
 }  // namespace
 
-double area_glint_share(const Scene& scene) {
+namespace {
+
+// The share of the area sources' power that falls on the surfaces whose top lobe `lobe_of`
+// takes (its weight: the share of light that lobe reflects or transmits, and its alpha),
+// from a source whose highlight there, its solid angle plus the lobe's, is below
+// glint_solid_angle_max: area_glint_share's near-specular lobes, area_caustic_share's delta
+// ones.
+template <class LobeOf>
+double small_source_share(const Scene& scene, LobeOf&& lobe_of) {
   constexpr double pi = 3.14159265358979323846;
   // the sources, one per emitting mesh or sphere: a sphere round them, their power, and for a
   // flat one its normal (the triangles' summed normals, as long as their summed lengths)
@@ -129,13 +144,7 @@ double area_glint_share(const Scene& scene) {
   // transmits (a coat: its Fresnel reflectance at normal incidence)
   auto glint = [&](int mi, double& alpha) -> double {
     if (mi < 0 || static_cast<size_t>(mi) >= scene.materials.size()) return 0;
-    const Material& m = scene.materials[static_cast<size_t>(mi)];
-    if (!microfacet_kind(static_cast<int32_t>(m.kind)) || m.alpha_u.texture >= 0 || m.alpha_v.texture >= 0) return 0;
-    alpha = std::max(m.alpha_u.value, m.alpha_v.value);
-    if (!(alpha >= smooth_alpha && alpha <= light_traced_alpha)) return 0;
-    if (m.kind != MaterialKind::coated_diffuse) return 1;
-    const double f = (m.eta - 1.0) / (m.eta + 1.0);
-    return f * f;
+    return lobe_of(scene.materials[static_cast<size_t>(mi)], alpha);
   };
   double share = 0;
   // the light a point x of normal n and area A receives from each source, where the
@@ -204,6 +213,35 @@ double area_glint_share(const Scene& scene) {
   return share;
 }
 
+// A coat's share of the light: its Fresnel reflectance at normal incidence; other lobes all
+// of it.
+double top_lobe_weight(const Material& m) {
+  if (m.kind != MaterialKind::coated_diffuse) return 1;
+  const double f = (m.eta - 1.0) / (m.eta + 1.0);
+  return f * f;
+}
+
+}  // namespace
+
+double area_glint_share(const Scene& scene) {
+  return small_source_share(scene, [](const Material& m, double& alpha) -> double {
+    if (!microfacet_kind(static_cast<int32_t>(m.kind)) || m.alpha_u.texture >= 0 || m.alpha_v.texture >= 0) return 0;
+    alpha = std::max(m.alpha_u.value, m.alpha_v.value);
+    if (!(alpha >= smooth_alpha && alpha <= light_traced_alpha)) return 0;
+    return top_lobe_weight(m);
+  });
+}
+
+double area_caustic_share(const Scene& scene) {
+  return small_source_share(scene, [](const Material& m, double& alpha) -> double {
+    alpha = 0;
+    if (m.kind == MaterialKind::thin_dielectric) return 1;
+    if (!microfacet_kind(static_cast<int32_t>(m.kind)) || m.alpha_u.texture >= 0 || m.alpha_v.texture >= 0) return 0;
+    if (!(std::max(m.alpha_u.value, m.alpha_v.value) < smooth_alpha)) return 0;
+    return top_lobe_weight(m);
+  });
+}
+
 namespace {
 
 // Lane i's ray (a light path's next segment) from org along the unit d, traced to the
@@ -263,6 +301,8 @@ LightPathsPay light_paths_pay(const Scene& scene, bool glossy_allowed) {
                a <= sun_glossy_alpha;
       }))
     return LightPathsPay::on;
+  // caustics onto surfaces from small sources: a spot lamp's through a glass egg
+  if (area && area_caustic_share(scene) >= caustic_share_min) return LightPathsPay::on;
   const bool scattering = std::any_of(scene.media.begin(), scene.media.end(),
                                       [](const Medium& m) { return m.supported && m.sigma_s.any_positive(); });
   const bool caustics = area && media && scattering && any_used_material(scene, [&](const Material& m) {

@@ -105,11 +105,16 @@ struct LightPathSplat {
 // - on, volumetric caustics: an area light, a surface with a delta lobe (constant alphas
 //   below smooth_alpha, or thin glass) and a medium that scatters (a caustic in a fog,
 //   which a light sample never reaches).
-// An area light's caustics through glass onto surfaces alone are not enough: there the
-// path tracer's own samples of them cost less (staircase2: 0.82x the efficiency with
-// light paths), nor are its glints off rougher lobes or from larger sources (kitchen
-// 0.90x, bathroom 0.87x, staircase2 0.70x with --light-paths=glossy). Scene-level facts
-// only (no views), so that the flags can resolve it.
+// - on, caustics onto surfaces from small sources: at least 0.3% of the area sources' power
+//   falling on smooth glass or mirrors (area_caustic_share) from a source that looks small
+//   from them (below 0.003 sr; veach-bidir's spot lamp over its glass egg: 0.016).
+// An area light's caustics through glass onto surfaces from large sources are not enough:
+// there the path tracer's own samples of them cost less (staircase2, 1.3e-4: 0.68x the
+// efficiency with light paths; kitchen 0.91x, bathroom 0.90x, living-room-3 0.94x, whose
+// glass and mirrors see only large sources), nor are its glints off rougher lobes or from
+// larger sources (kitchen 0.90x, bathroom 0.87x, staircase2 0.70x with
+// --light-paths=glossy). Scene-level facts only (no views), so that the flags can resolve
+// it.
 enum class LightPathsPay { no, on, glossy };
 LightPathsPay light_paths_pay(const Scene& scene, bool glossy_allowed);
 // The share of the area sources' power that falls on near-specular surfaces from a source
@@ -117,6 +122,10 @@ LightPathsPay light_paths_pay(const Scene& scene, bool glossy_allowed);
 // sphere's six points') light from each source taken as from a point of its power and
 // normal, without occlusion; 0 without area sources.
 double area_glint_share(const Scene& scene);
+// The same for the delta lobes (constant alphas below smooth_alpha, thin glass): the share
+// of the area sources' power that falls on smooth glass and mirrors from a source that looks
+// small from them (light_paths_pay's caustics onto surfaces).
+double area_caustic_share(const Scene& scene);
 // An emitter with an alpha cut-out (a mesh's alpha or a sphere's below 1), which the light
 // tracer refuses.
 bool alpha_cut_emitter(const Scene& scene);
