@@ -69,7 +69,9 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                "traced from the lights and joined to the camera, and the path tracer leaves them out (it finds them only "
                "by chance); glossy: an area light's light off such a glossy lobe too (a small bright source's caustics "
                "off near-mirrors); the flag alone is on (a value follows after '=' or a space); default auto: on in scenes with a sun and such a glossy surface, or with "
-               "an area light, smooth glass or a mirror and a medium that scatters (volumetric caustics); glossy where 1% "
+               "an area light, smooth glass or a mirror and a medium that scatters (volumetric caustics), or where 0.3% of "
+               "the area lights' power or more falls on smooth glass or a mirror from a light that looks small from it "
+               "(a lamp's caustics through glass onto surfaces); glossy where 1% "
                "of the area lights' power or more falls on such a surface from a light that looks small from it; unless "
                "--max-depth 1, --aov variance, --target-error or an emitter with an alpha cut-out");
   app.add_option("--equiangular", f.equiangular,
