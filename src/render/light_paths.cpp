@@ -71,10 +71,10 @@ constexpr double glint_share_min = 0.01;
 constexpr double glint_solid_angle_max = 3e-3;
 // --light-paths auto's caustics onto surfaces: the share of the area sources' power that
 // falls on smooth glass or mirrors from a source that looks small from them (below
-// glint_solid_angle_max), from which on. Measured on the corpus (bench/results.md, "An area
-// light's caustics onto surfaces"): veach-bidir 0.016 (its spot lamp over the glass egg;
-// 2.2x the efficiency with light paths), staircase2 1.3e-4 (0.68x), the other scenes with
-// glass or mirrors and area sources 0 (kitchen 0.91x, bathroom 0.90x, living-room-3 0.94x).
+// glint_solid_angle_max), from which on. Measured on the corpus (bench/results.md, "Auto's
+// caustics onto surfaces"): veach-bidir 0.016 (its spot lamp over the glass egg; 2.2x the
+// efficiency with light paths), staircase2 1.3e-4 (0.68x), the other scenes with glass or
+// mirrors and area sources 0 (kitchen 0.89x, bathroom 0.89x, living-room-3 0.94x).
 constexpr double caustic_share_min = 0.003;
 // At most this many (surface triangle, source) pairs are visited; larger scenes stride
 // through their triangles.
@@ -213,9 +213,12 @@ double small_source_share(const Scene& scene, LobeOf&& lobe_of) {
   return share;
 }
 
-// A coat's share of the light: its Fresnel reflectance at normal incidence; other lobes all
-// of it.
-double top_lobe_weight(const Material& m) {
+// A microfacet top lobe of constant alphas: its larger alpha in `alpha` and its share of the
+// light (a coat: its Fresnel reflectance at normal incidence; other lobes all of it); 0 for
+// other materials.
+double top_lobe_weight(const Material& m, double& alpha) {
+  if (!microfacet_kind(static_cast<int32_t>(m.kind)) || m.alpha_u.texture >= 0 || m.alpha_v.texture >= 0) return 0;
+  alpha = std::max(m.alpha_u.value, m.alpha_v.value);
   if (m.kind != MaterialKind::coated_diffuse) return 1;
   const double f = (m.eta - 1.0) / (m.eta + 1.0);
   return f * f;
@@ -225,20 +228,22 @@ double top_lobe_weight(const Material& m) {
 
 double area_glint_share(const Scene& scene) {
   return small_source_share(scene, [](const Material& m, double& alpha) -> double {
-    if (!microfacet_kind(static_cast<int32_t>(m.kind)) || m.alpha_u.texture >= 0 || m.alpha_v.texture >= 0) return 0;
-    alpha = std::max(m.alpha_u.value, m.alpha_v.value);
-    if (!(alpha >= smooth_alpha && alpha <= light_traced_alpha)) return 0;
-    return top_lobe_weight(m);
+    const double w = top_lobe_weight(m, alpha);
+    return alpha >= smooth_alpha && alpha <= light_traced_alpha ? w : 0;
   });
 }
 
 double area_caustic_share(const Scene& scene) {
   return small_source_share(scene, [](const Material& m, double& alpha) -> double {
-    alpha = 0;
-    if (m.kind == MaterialKind::thin_dielectric) return 1;
-    if (!microfacet_kind(static_cast<int32_t>(m.kind)) || m.alpha_u.texture >= 0 || m.alpha_v.texture >= 0) return 0;
-    if (!(std::max(m.alpha_u.value, m.alpha_v.value) < smooth_alpha)) return 0;
-    return top_lobe_weight(m);
+    if (m.kind == MaterialKind::thin_dielectric) {
+      alpha = 0;
+      return 1;
+    }
+    alpha = 1;
+    const double w = top_lobe_weight(m, alpha);
+    if (!(alpha < smooth_alpha)) return 0;
+    alpha = 0;  // (a delta lobe: no spread)
+    return w;
   });
 }
 

@@ -110,7 +110,7 @@ struct LightPathSplat {
 //   from them (below 0.003 sr; veach-bidir's spot lamp over its glass egg: 0.016).
 // An area light's caustics through glass onto surfaces from large sources are not enough:
 // there the path tracer's own samples of them cost less (staircase2, 1.3e-4: 0.68x the
-// efficiency with light paths; kitchen 0.91x, bathroom 0.90x, living-room-3 0.94x, whose
+// efficiency with light paths; kitchen 0.89x, bathroom 0.89x, living-room-3 0.94x, whose
 // glass and mirrors see only large sources), nor are its glints off rougher lobes or from
 // larger sources (kitchen 0.90x, bathroom 0.87x, staircase2 0.70x with
 // --light-paths=glossy). Scene-level facts only (no views), so that the flags can resolve
