@@ -393,6 +393,28 @@ vec3f nested_point(std::mt19937& rng) {
   return p;
 }
 
+// nested_boxes() with media that only absorb and no interface: the boxes' walls are diffuse
+// surfaces that separate the media (every ray stops at them), the sheet left out.
+Scene absorbing_boxes() {
+  Scene s;
+  s.source = "test:absorbing-boxes";
+  s.media.push_back(homogeneous({0.7f, 1.3f, 0.f}, {0, 0, 0}));
+  s.media.push_back(homogeneous({2.0f, 0.4f, 1.0f}, {0, 0, 0}));
+  s.materials.push_back(diffuse_material(Rgb{0.5f, 0.5f, 0.5f}));
+  Mesh a = media_box({-1, -1, -1}, {1, 1, 1});
+  a.medium_inside = 0;
+  s.meshes.push_back(a);
+  Mesh b = media_box({-0.3f, -0.3f, -0.3f}, {0.3f, 0.3f, 0.3f});
+  b.medium_inside = 1;
+  b.medium_outside = 0;
+  s.meshes.push_back(b);
+  Mesh block = media_box({0.4f, -0.9f, -0.9f}, {0.6f, 0.9f, 0.9f});
+  block.medium_inside = block.medium_outside = 0;
+  s.meshes.push_back(block);
+  finalize_scene(s);
+  return s;
+}
+
 }  // namespace
 
 // Shadow rays in a scene with interfaces (wave/media.h shadow_media): an occlusion query in
@@ -550,5 +572,73 @@ TEST(MediaRender, FirstFlightsInSimdGiveTheScalarBits) {
   std::printf("[ flights ] collisions %d, surfaces %d, nowhere %d\n", collisions, surfaces, nowhere);
   EXPECT_GT(collisions, 200);
   EXPECT_GT(surfaces, 100);
+  EXPECT_GT(nowhere, 100);
+}
+
+// Media that only absorb, without interfaces (MediumView::absorb_only: wave/media.h
+// absorbing_flights, in SIMD and without random numbers) against the scalar rounds
+// (medium_flights<false>), lane by lane, every output bit, for rays from inside both boxes
+// and from outside them (a channel that does not absorb, rays that meet nothing, lanes not
+// traced). Each kind of ray must occur.
+TEST(MediaRender, AbsorbingFlightsInSimdGiveTheScalarBits) {
+  const Scene s = absorbing_boxes();
+  const Accel accel(s);
+  const SceneViews views = build_views(s, LightPick::power);
+  ASSERT_TRUE(views.geom.media.absorb_only);
+  ASSERT_FALSE(build_views(nested_boxes(), LightPick::power).geom.media.absorb_only);
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  std::normal_distribution<float> N;
+  int inside = 0, outside = 0, nowhere = 0;
+  const auto trace = [&](const int32_t* v, RayHit16& q) { accel.intersect16(v, q, false, Bvh::scene); };
+  for (int round = 0; round < 20; ++round) {
+    const int n = 16 * 8 - 5;
+    auto a = std::make_unique<TileBuffers>();
+    for (int k = 0; k < n; ++k) {
+      const vec3f p = nested_point(rng);
+      const vec3f d = normalize(vec3f{N(rng), N(rng), N(rng)});
+      RayHit16& r = a->bounce[k / packet_width];
+      const int l = k % packet_width;
+      r.ray.org_x[l] = p.x, r.ray.org_y[l] = p.y, r.ray.org_z[l] = p.z;
+      r.ray.dir_x[l] = d.x, r.ray.dir_y[l] = d.y, r.ray.dir_z[l] = d.z;
+      r.ray.tnear[l] = 0;
+      r.ray.tfar[l] = 3.0e38f;
+      r.ray.mask[l] = ~0u;
+      r.ray.time[l] = 0;
+      r.geomID[l] = invalid_id;
+      r.instID[0][l] = invalid_id;
+      a->tech.valid[k] = k % 9 == 4 ? 0 : -1;
+      a->media.med[k] = nested_medium_at(p);
+      a->media.u0[k] = U(rng);
+      a->media.u1[k] = U(rng);
+    }
+    for (int k = n; k < max_tile_lanes; ++k) a->tech.valid[k] = 0;
+    for (int p = 0; p < packets_for(n); ++p) accel.intersect16(a->tech.valid + p * packet_width, a->bounce[p], false);
+    auto b = std::make_unique<TileBuffers>(*a);
+    uint64_t rej_a = 0, rej_b = 0;
+    medium_flights<true>(views.geom, a->bounce, a->tech.valid, n, a->media, rej_a, trace);
+    medium_flights<false>(views.geom, b->bounce, b->tech.valid, n, b->media, rej_b, trace);
+    EXPECT_EQ(rej_a, rej_b);
+    for (int k = 0; k < n; ++k) {
+      const int p = k / packet_width, l = k % packet_width;
+      ASSERT_EQ(a->tech.valid[k], b->tech.valid[k]) << k;
+      const MediumLanes &x = a->media, &y = b->media;
+      for (const auto& [u, v] : {std::pair{x.wr[k], y.wr[k]}, {x.wg[k], y.wg[k]}, {x.wb[k], y.wb[k]}, {x.er[k], y.er[k]},
+                                 {x.eg[k], y.eg[k]}, {x.eb[k], y.eb[k]}})
+        ASSERT_EQ(std::memcmp(&u, &v, sizeof(float)), 0) << "round " << round << " lane " << k << ": " << u << " vs " << v;
+      ASSERT_EQ(x.med[k], y.med[k]) << k;
+      ASSERT_EQ(x.eq_med[k], y.eq_med[k]) << k;
+      if (!a->tech.valid[k]) continue;
+      const RayHit16 &ra = a->bounce[p], &rb = b->bounce[p];
+      ASSERT_EQ(ra.geomID[l], rb.geomID[l]) << k;
+      ASSERT_EQ(std::memcmp(&ra.ray.tfar[l], &rb.ray.tfar[l], sizeof(float)), 0) << k;
+      if (ra.geomID[l] == invalid_id) ++nowhere;
+      else if (x.med[k] >= 0) ++inside;
+      else ++outside;
+    }
+  }
+  std::printf("[ absorbing flights ] inside %d, outside %d, nowhere %d\n", inside, outside, nowhere);
+  EXPECT_GT(inside, 300);
+  EXPECT_GT(outside, 100);
   EXPECT_GT(nowhere, 100);
 }

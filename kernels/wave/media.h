@@ -86,6 +86,43 @@ inline void cross_interface(const GeomView& G, RayHit16& r, int l, float t, int3
   r.geomID[l] = invalid_id;
 }
 
+// medium_flights where the media only absorb and no surface is an interface
+// (MediumView::absorb_only): every ray stops at its hit, its weight its origin medium's
+// transmittance to it (none: the weight of a flight through no medium). The scalar rounds'
+// operations for such a ray (the absorbing branch with nothing before it, then the weight
+// of a flight that passed), in SIMD: the same bits; lanes not traced, or past count, get
+// the weight 1 as there.
+inline void absorbing_flights(const MediumView& M, const RayHit16* packets, const int32_t* valid, int count, MediumLanes& ml) {
+  using T = vfloat;
+  using I = vint;
+  const float e0 = expn(-0.f);
+  const float pass0 = (e0 + e0 + e0) * (1.f / 3.f);
+  const float inv0 = pass0 > 0.f ? 1.f / pass0 : 0.f;
+  const float w0 = e0 * inv0;  // no medium
+  float* w[3] = {ml.wr, ml.wg, ml.wb};
+  float* e[3] = {ml.er, ml.eg, ml.eb};
+  for (int p = 0; p < packets_for(count); ++p) {
+    const RayHit16& r = packets[p];
+    for (int l0 = 0; l0 < packet_width; l0 += simd_width) {
+      const int k = p * packet_width + l0;
+      const vmask traced = f_mask_from_i((load_i32<T>(valid + k) != I(0)) && (lane_iota_i32<T>() + I(k) < I(count)));
+      const I m = load_i32<T>(ml.med + k);
+      const vmask in = traced && f_mask_from_i(m >= I(0));
+      const vmask hit = f_mask_from_i(load_i32<T>(reinterpret_cast<const int32_t*>(r.geomID) + l0) != I(static_cast<int32_t>(invalid_id)));
+      const T t = sel(hit, load<T>(r.ray.tfar + l0), T(INFINITY));
+      const I ms = sel(i_mask_from_f(in), m, I(0));
+      for (int c = 0; c < 3; ++c) {
+        const T st = gather(M.sigma_t[c], ms);
+        const T tr = sel(st > T(0.f), lane_math::exp_nonpositive(-st * t), T(1.f));
+        store(w[c] + k, sel(in, T(1.f) * tr * T(e0) * T(inv0), sel(traced, T(w0), T(1.f))));
+        store(e[c] + k, T(0.f));
+      }
+      store(ml.eq_med + k, I(-1));
+      store(ml.pending + k, I(0));
+    }
+  }
+}
+
 // The first round of medium_flights for the lanes [l0, l0 + simd_width) of packet r (tile
 // lanes from k0) that start in a medium that scatters and whose hit, if any, is not an
 // interface (pending and ml.med >= 0 on entry; count bounds the lanes): each flight ends in
@@ -196,6 +233,8 @@ inline void medium_flights(const GeomView& G, RayHit16* packets, int32_t* valid,
                            uint64_t& rejected, Trace&& trace) {
   using namespace media_detail;
   const MediumView& M = G.media;
+  if constexpr (Simd)
+    if (M.absorb_only) return absorbing_flights(M, packets, valid, count, ml);
   // the weight of a flight that met no medium (the general rule below with no optical
   // depth: the same bits), for the rays that start in none and stop at their first hit
   const float pass0 = (expn(-0.f) + expn(-0.f) + expn(-0.f)) * (1.f / 3.f);

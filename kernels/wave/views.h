@@ -57,6 +57,9 @@ struct MediumView {
   const int32_t* geom_out = nullptr;
   const int32_t* geom_interface = nullptr;
   bool has_interfaces = false;                 // some geomID is an interface (else every surface occludes shadow rays)
+  // no medium scatters or emits and no surface is an interface: a ray's flight is its
+  // origin medium's transmittance to its hit (medium_flights' SIMD route, no random numbers)
+  bool absorb_only = false;
   int32_t camera = -1;                         // the camera's medium
 };
 

@@ -403,7 +403,8 @@ inline void camera_media(const TileContext& c, TileBuffers& tb, uint32_t s, int 
   MediumLanes& ml = tb.media;
   const int padded = packet_padded(lanes);
   std::fill_n(ml.med, padded, G.media.camera);
-  lane_pairs(c.est, tb, s, c.layout.medium_flight(c.layout.bsdf_samples, 0), padded, ml.u0, ml.u1);
+  if (!G.media.absorb_only)  // (absorbing flights draw nothing)
+    lane_pairs(c.est, tb, s, c.layout.medium_flight(c.layout.bsdf_samples, 0), padded, ml.u0, ml.u1);
   medium_flights(G, tb.cam, tb.lanes.cam_valid, lanes, ml, tb.stats.rejected_camera,
                  [&](const int32_t* valid, RayHit16& p) { c.accel.intersect16(valid, p, false, Bvh::scene); });
   std::copy_n(ml.wr, padded, ml.cwr);
@@ -444,7 +445,7 @@ inline void bounce_media(const TileContext& c, TileBuffers& tb, const Estimator&
   MediumLanes& ml = tb.media;
   const int n = tb.points.count, padded = packet_padded(n);
   for (int k = 0; k < padded; ++k) ml.med[k] = bounce_ray_medium(tb, k);
-  point_pairs(e, tb, s, c.layout.medium_flight(m, d), padded, ml.u0, ml.u1);
+  if (!G.media.absorb_only) point_pairs(e, tb, s, c.layout.medium_flight(m, d), padded, ml.u0, ml.u1);
   medium_flights(G, tb.bounce, tb.tech.valid, n, ml, tb.stats.rejected_bsdf,
                  [&](const int32_t* valid, RayHit16& p) { c.accel.intersect16(valid, p, false, Bvh::scene); });
   // --equiangular: the continuation's segment light samples, from the throughput at the

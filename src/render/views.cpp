@@ -528,6 +528,8 @@ void build_media_table(SceneViews& v, const Scene& scene) {
   M.geom_interface = v.med_geom_interface.data();
   M.has_interfaces = std::any_of(v.med_geom_interface.begin(), v.med_geom_interface.end(), [](int32_t i) { return i != 0; });
   M.camera = rendered_medium(scene, scene.camera_medium);
+  M.absorb_only = !M.has_interfaces && std::none_of(v.med_scatters.begin(), v.med_scatters.end(), [](int32_t x) { return x != 0; }) &&
+                  std::none_of(v.med_emits.begin(), v.med_emits.end(), [](int32_t x) { return x != 0; });
   point_tables(v);  // the tables grew: their views again
 }
 
