@@ -13,6 +13,7 @@
 #include <memory>
 #include <random>
 
+#include "bsdf/coated.h"
 #include "render/checkpoint.h"
 #include "render/passes.h"
 #include "render/views.h"
@@ -179,6 +180,40 @@ void expect_same(const int32_t* a, const int32_t* b, int n, const std::string& w
 
 // Both sampling stages with a surface of every kind in one batch: vfloat, vfloat2 and
 // vfloat4 give the scalar reference's bits in every lane.
+// The material table's coat internal reflectance (mp_ri_*, computed once per material) is
+// coat_internal_reflectance_rgb of the row's own eta, thickness and albedo, bit for bit, for
+// every coated diffuse material (their thickness and albedo varied here); other kinds hold 0.
+TEST(MaterialStages, CoatInternalReflectanceIsTheRowsOwn) {
+  Scene s = every_surface();
+  int coated = 0;
+  for (Material& m : s.materials)
+    if (m.kind == MaterialKind::coated_diffuse) {
+      m.thickness = 0.05f * static_cast<float>(++coated);
+      m.albedo = {0.1f * static_cast<float>(coated), 0.f, 0.5f};
+      m.eta = 1.2f + 0.3f * static_cast<float>(coated);
+    }
+  ASSERT_GE(coated, 2);
+  const SceneViews v = build_views(s, LightPick::power);
+  const GeomView& G = v.geom;
+  int checked = 0;
+  for (size_t m = 0; m < v.mat_kind.size(); ++m) {
+    const float* p[mp_count];
+    for (int i = 0; i < mp_count; ++i) p[i] = G.mat_param[i] + m;
+    if (v.mat_kind[m] != static_cast<int32_t>(MaterialKind::coated_diffuse)) {
+      EXPECT_EQ(*p[mp_ri_r] + *p[mp_ri_g] + *p[mp_ri_b], 0.f) << m;
+      continue;
+    }
+    const Rgb3<float> want = coat_internal_reflectance_rgb(*p[mp_eta], *p[mp_thickness], Rgb3<float>{*p[mp_alb_r], *p[mp_alb_g], *p[mp_alb_b]});
+    EXPECT_EQ(std::memcmp(&want.r, p[mp_ri_r], 4), 0) << m;
+    EXPECT_EQ(std::memcmp(&want.g, p[mp_ri_g], 4), 0) << m;
+    EXPECT_EQ(std::memcmp(&want.b, p[mp_ri_b], 4), 0) << m;
+    EXPECT_GT(want.r, 0.f);
+    EXPECT_NE(want.r, want.b) << "the albedo's channels differ";
+    ++checked;
+  }
+  EXPECT_GE(checked, coated);  // (and regularization's twins)
+}
+
 TEST(MaterialStages, LanesEqualScalar) {
   Scene s = every_surface();
   // and a medium (a sphere of it, off the floor), so that some points are a medium's: the

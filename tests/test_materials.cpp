@@ -20,6 +20,7 @@
 #include <functional>
 #include <random>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "bsdf/coated.h"
@@ -769,9 +770,23 @@ struct MakeCoatedClear {  // albedo 0 everywhere: the shared-R_i path
     return {T(1.f) + p[2], p[0], p[1], {p[3], p[4], p[5]}, p[6] * T(0.1f), {T(0.f), T(0.f), T(0.f)}};
   }
 };
+// The coat's internal reflectance given (as the material table holds it: mp_ri_*), computed
+// in SIMD from the same parameters, against the scalar reference computing it at each
+// evaluation: the same bits, so the table changes no image.
+struct MakeCoatedGiven {
+  template <class T> CoatedDiffuseBsdf<T> operator()(const T* p) const {
+    const T eta = sel(p[2] == T(0.f), T(1.f), T(1.f) + p[2]);
+    const T thickness = p[6] * sel(p[7] < T(0.3f), T(0.f), sel(p[7] < T(0.6f), T(0.1f), T(50.f)));
+    const Rgb3<T> albedo{sel(p[7] < T(0.5f), T(0.f), p[5]), T(0.f), p[7]};
+    if constexpr (std::is_same_v<T, float>) return {eta, p[0], p[1], {p[3], p[4], p[5]}, thickness, albedo};
+    else return {eta, p[0], p[1], {p[3], p[4], p[5]}, thickness, albedo, coat_internal_reflectance_rgb(eta, thickness, albedo)};
+  }
+};
 }  // namespace
 
 TEST(MaterialBsdf, EveryLaneEqualsScalar) {
+  lanes_equal_scalar<vfloat>(MakeCoatedGiven{}, 15);
+  lanes_equal_scalar<vfloat2>(MakeCoatedGiven{}, 16);
   lanes_equal_scalar<vfloat>(MakeConductor{}, 1);
   lanes_equal_scalar<vfloat2>(MakeConductor{}, 2);
   lanes_equal_scalar<vfloat>(MakeDielectric{}, 3);

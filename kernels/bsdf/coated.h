@@ -30,7 +30,9 @@
 // it anyway, so the slab attenuates by its absorption sigma = 1 - albedo only (exact for
 // albedo 0; conserves energy; ignores light the medium scatters back out before reaching
 // the base and the medium's own angular spread).
-// R_i by Gauss-Legendre quadrature per evaluation: 8 nodes on [0, mu_c] (total internal
+// R_i by Gauss-Legendre quadrature, once per material (the material table's mp_ri_*,
+// coat_internal_reflectance_rgb; it depends on eta, thickness and albedo alone), or at each
+// evaluation where the caller gives none: 8 nodes on [0, mu_c] (total internal
 // reflection, integrand 2 mu exp(-a / mu)) and 8 nodes on [mu_c, 1] in s with
 // mu = mu_c + (1 - mu_c) s^2 (which removes F_int's square-root kink at mu_c).
 // Sampling: the coat lobe with probability p_c = F(mu_o) / (F(mu_o) + (1 - F(mu_o)) max(rho))
@@ -130,6 +132,27 @@ template <class T> inline T coat_internal_reflectance(const CoatNodes<T>& c, con
   return sum;
 }
 
+// sigma thickness per channel, sigma = 1 - albedo (see the header comment).
+template <class T> inline Rgb3<T> slab_depth(const Rgb3<T>& albedo, const T& thickness) noexcept {
+  return {(T(1.f) - albedo.r) * thickness, (T(1.f) - albedo.g) * thickness, (T(1.f) - albedo.b) * thickness};
+}
+
+// R_i per channel for a coat of index eta over a slab of that thickness and albedo.
+template <class T> inline Rgb3<T> coat_internal_reflectance_rgb(const T& eta, const T& thickness, const Rgb3<T>& albedo) noexcept {
+  const Rgb3<T> sigma_d = slab_depth(albedo, thickness);
+  const CoatNodes<T> nodes = coat_internal_nodes(eta);
+  Rgb3<T> Ri;
+  Ri.r = coat_internal_reflectance(nodes, T(2.f) * sigma_d.r);
+  if (all(albedo.r == T(0.f) && albedo.g == T(0.f) && albedo.b == T(0.f))) {
+    Ri.g = Ri.r;
+    Ri.b = Ri.r;
+  } else {
+    Ri.g = coat_internal_reflectance(nodes, T(2.f) * sigma_d.g);
+    Ri.b = coat_internal_reflectance(nodes, T(2.f) * sigma_d.b);
+  }
+  return Ri;
+}
+
 // cos of the refracted direction inside the coat for an outside cosine mu >= 0.
 template <class T> inline T refracted_cos(const T& mu, const T& inv_eta) noexcept {
   const T sin2_t = ((T(1.f) - mu) * (T(1.f) + mu)) * (inv_eta * inv_eta);
@@ -145,11 +168,6 @@ template <class T> inline T layer_tr(const T& sd, const T& mu) noexcept {
 template <class T> inline Rgb3<T> layer_tr(const Rgb3<T>& sd, const T& mu) noexcept {
   return {layer_tr(sd.r, mu), layer_tr(sd.g, mu), layer_tr(sd.b, mu)};
 }
-// sigma thickness per channel, sigma = 1 - albedo (see the header comment).
-template <class T> inline Rgb3<T> slab_depth(const Rgb3<T>& albedo, const T& thickness) noexcept {
-  return {(T(1.f) - albedo.r) * thickness, (T(1.f) - albedo.g) * thickness, (T(1.f) - albedo.b) * thickness};
-}
-
 // What the coated BSDFs share about their top interface, per lane, in the frame mirrored
 // so that wo.z >= 0.
 template <class T> struct CoatTop {
@@ -190,6 +208,9 @@ inline Vec3<T> coat_sample_dir(const TrowbridgeReitz<T>& d, const CoatTop<T>& c,
 }
 
 }  // namespace bsdf_detail
+
+// (the material table computes R_i once per material: mp_ri_*)
+using bsdf_detail::coat_internal_reflectance_rgb;
 
 // A dielectric coat (index eta, Trowbridge-Reitz alpha_x, alpha_y) over a base layer,
 // separated by a slab of thickness `thickness` and single-scattering albedo `albedo`: the
@@ -293,6 +314,10 @@ template <class T, class Base> struct CoatedBsdf {
 // of the header comment).
 template <class T> struct DiffuseBase {
   Rgb3<T> rho;
+  // R_i when the caller has it (the material table's, coat_internal_reflectance_rgb of the
+  // same parameters: the same bits), else computed at each setup
+  bool ri_given = false;
+  Rgb3<T> ri{T(0.f), T(0.f), T(0.f)};
 
   struct Setup {
     Rgb3<T> k;  // (1 - F(mu_o)) Tr(mu_o') rho / (pi eta^2 (1 - rho R_i)) per channel
@@ -301,17 +326,7 @@ template <class T> struct DiffuseBase {
   Setup setup(const Coat& coat, const bsdf_detail::CoatTop<T>& top, const Rgb3<T>& sigma_d) const noexcept {
     using namespace bsdf_detail;
     Setup s;
-    const CoatNodes<T> nodes = coat_internal_nodes(coat.eta);
-    Rgb3<T> Ri;
-    Ri.r = coat_internal_reflectance(nodes, T(2.f) * sigma_d.r);
-    const Rgb3<T>& albedo = coat.albedo;
-    if (all(albedo.r == T(0.f) && albedo.g == T(0.f) && albedo.b == T(0.f))) {
-      Ri.g = Ri.r;
-      Ri.b = Ri.r;
-    } else {
-      Ri.g = coat_internal_reflectance(nodes, T(2.f) * sigma_d.g);
-      Ri.b = coat_internal_reflectance(nodes, T(2.f) * sigma_d.b);
-    }
+    const Rgb3<T> Ri = ri_given ? ri : coat_internal_reflectance_rgb(coat.eta, coat.thickness, coat.albedo);
     const T inv_eta = T(1.f) / coat.eta;
     const T mo = refracted_cos(top.o.z, inv_eta);
     const T c = (T(1.f) - top.Fo) * (T(inv_pi_f) * inv_eta * inv_eta);
@@ -472,6 +487,10 @@ template <class T> struct ConductorBase {
 template <class T> struct CoatedDiffuseBsdf : CoatedBsdf<T, DiffuseBase<T>> {
   CoatedDiffuseBsdf(T eta, T alpha_x, T alpha_y, Rgb3<T> rho, T thickness, Rgb3<T> albedo) noexcept
       : CoatedBsdf<T, DiffuseBase<T>>{eta, alpha_x, alpha_y, DiffuseBase<T>{rho}, thickness, albedo} {}
+  // ... with the coat's internal reflectance given (coat_internal_reflectance_rgb(eta,
+  // thickness, albedo), e.g. the material table's mp_ri_*)
+  CoatedDiffuseBsdf(T eta, T alpha_x, T alpha_y, Rgb3<T> rho, T thickness, Rgb3<T> albedo, Rgb3<T> ri) noexcept
+      : CoatedBsdf<T, DiffuseBase<T>>{eta, alpha_x, alpha_y, DiffuseBase<T>{rho, true, ri}, thickness, albedo} {}
 };
 template <class T> struct CoatedConductorBsdf : CoatedBsdf<T, ConductorBase<T>> {
   CoatedConductorBsdf(T eta, T alpha_x, T alpha_y, Rgb3<T> conductor_eta, Rgb3<T> conductor_k, T base_alpha_x,

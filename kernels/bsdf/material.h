@@ -126,7 +126,7 @@ template <class T, unsigned Bsdfs> struct SurfaceBsdf {
     if constexpr ((Bsdfs & bsdf_coated_diffuse) != 0) {
       const auto m = is(MaterialKind::coated_diffuse);
       if (any(m))
-        f(CoatedDiffuseBsdf<T>{param(mp_eta), ax, ay, rho, param(mp_thickness), param3(mp_alb_r)}, m);
+        f(CoatedDiffuseBsdf<T>{param(mp_eta), ax, ay, rho, param(mp_thickness), param3(mp_alb_r), param3(mp_ri_r)}, m);
     }
     if constexpr ((Bsdfs & bsdf_coated_conductor) != 0) {
       const auto m = is(MaterialKind::coated_conductor);

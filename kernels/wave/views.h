@@ -29,6 +29,10 @@ enum MatParam : int {
   mp_hair_sin0, mp_hair_sin1, mp_hair_sin2,
   mp_hair_cos0, mp_hair_cos1, mp_hair_cos2,
   mp_hg_g,                       // phase (a medium's points): Henyey-Greenstein's asymmetry
+  // coated diffuse: the coat's internal reflectance R_i per channel (bsdf/coated.h), which
+  // depends on eta, thickness and albedo alone: computed once per material
+  // (coat_internal_reflectance_rgb) instead of at every evaluation
+  mp_ri_r, mp_ri_g, mp_ri_b,
   mp_count
 };
 

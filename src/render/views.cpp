@@ -1,6 +1,7 @@
 // build_views: the scene as the kernels read it (SoA light table with its pick
 // distribution and alias table, flattened triangles, per-geometry lookups, camera).
 #include "render/views.h"
+#include "bsdf/coated.h"
 #include "bsdf/hair.h"
 #include "bsdf/microfacet.h"
 #include "scene/sky_map.h"
@@ -367,6 +368,9 @@ void build_material_table(SceneViews& v, const Scene& scene) {
     v.mat_texture.push_back(m.texture);
     v.mat_kind.push_back(static_cast<int32_t>(m.kind));
     const HairConstants h = hair_constants(m.beta_m, m.beta_n, m.hair_alpha);
+    const Rgb3<float> ri = m.kind == MaterialKind::coated_diffuse
+                               ? coat_internal_reflectance_rgb(m.eta, m.thickness, Rgb3<float>{m.albedo.r, m.albedo.g, m.albedo.b})
+                               : Rgb3<float>{0.f, 0.f, 0.f};
     const float p[mp_count] = {m.transmittance.r, m.transmittance.g, m.transmittance.b, m.eta_rgb.r, m.eta_rgb.g,
                                m.eta_rgb.b,       m.k_rgb.r,         m.k_rgb.g,         m.k_rgb.b,   m.eta,
                                m.alpha_u.value,   m.alpha_v.value,   m.base_alpha_u.value, m.base_alpha_v.value,
@@ -379,7 +383,7 @@ void build_material_table(SceneViews& v, const Scene& scene) {
                                h.s,               h.e_pi_s,
                                h.sin2k[0],        h.sin2k[1],        h.sin2k[2],
                                h.cos2k[0],        h.cos2k[1],        h.cos2k[2],
-                               0.f};
+                               0.f,               ri.r,              ri.g,              ri.b};
     for (int i = 0; i < mp_count; ++i) v.mat_param[i].push_back(p[i]);
     v.mat_alpha_tex.push_back(m.alpha_u.texture);
     v.mat_alpha_tex.push_back(m.alpha_v.texture);
