@@ -504,6 +504,49 @@ TEST(MediaRender, ShadowRaysWalkOnlyWhereTheyMeetAnInterface) {
   EXPECT_GT(occluded, 100);
 }
 
+namespace {
+
+// n random rays from points of nested_boxes()' three regions (every ninth lane not traced),
+// traced in accel, with random hero channels and distances; then their flights in SIMD
+// (a) and by the scalar rounds alone (b), the same rejected counts.
+struct FlightPair {
+  std::unique_ptr<TileBuffers> a, b;
+};
+FlightPair random_flights(const Accel& accel, const SceneViews& views, std::mt19937& rng, int n) {
+  std::uniform_real_distribution<float> U(0.f, 1.f);
+  std::normal_distribution<float> N;
+  auto a = std::make_unique<TileBuffers>();
+  for (int k = 0; k < n; ++k) {
+    const vec3f p = nested_point(rng);
+    const vec3f d = normalize(vec3f{N(rng), N(rng), N(rng)});
+    RayHit16& r = a->bounce[k / packet_width];
+    const int l = k % packet_width;
+    r.ray.org_x[l] = p.x, r.ray.org_y[l] = p.y, r.ray.org_z[l] = p.z;
+    r.ray.dir_x[l] = d.x, r.ray.dir_y[l] = d.y, r.ray.dir_z[l] = d.z;
+    r.ray.tnear[l] = 0;
+    r.ray.tfar[l] = 3.0e38f;
+    r.ray.mask[l] = ~0u;
+    r.ray.time[l] = 0;
+    r.geomID[l] = invalid_id;
+    r.instID[0][l] = invalid_id;
+    a->tech.valid[k] = k % 9 == 4 ? 0 : -1;
+    a->media.med[k] = nested_medium_at(p);
+    a->media.u0[k] = U(rng);
+    a->media.u1[k] = U(rng);
+  }
+  for (int k = n; k < max_tile_lanes; ++k) a->tech.valid[k] = 0;
+  for (int p = 0; p < packets_for(n); ++p) accel.intersect16(a->tech.valid + p * packet_width, a->bounce[p], false);
+  auto b = std::make_unique<TileBuffers>(*a);
+  const auto trace = [&](const int32_t* v, RayHit16& q) { accel.intersect16(v, q, false, Bvh::scene); };
+  uint64_t rej_a = 0, rej_b = 0;
+  medium_flights<true>(views.geom, a->bounce, a->tech.valid, n, a->media, rej_a, trace);
+  medium_flights<false>(views.geom, b->bounce, b->tech.valid, n, b->media, rej_b, trace);
+  EXPECT_EQ(rej_a, rej_b);
+  return {std::move(a), std::move(b)};
+}
+
+}  // namespace
+
 // The free flights' first round in SIMD (wave/media.h first_flights_simd) against the
 // scalar rounds alone (medium_flights<false>), lane by lane, every output bit: the
 // weights, the emission, the medium at the hit, the hits (collisions as the medium's row)
@@ -516,38 +559,10 @@ TEST(MediaRender, FirstFlightsInSimdGiveTheScalarBits) {
   const Accel accel(s);
   const SceneViews views = build_views(s, LightPick::power);
   std::mt19937 rng(11);
-  std::uniform_real_distribution<float> U(0.f, 1.f);
-  std::normal_distribution<float> N;
   int collisions = 0, surfaces = 0, nowhere = 0;
-  const auto trace = [&](const int32_t* v, RayHit16& q) { accel.intersect16(v, q, false, Bvh::scene); };
   for (int round = 0; round < 30; ++round) {
     const int n = 16 * 8 - 5;
-    auto a = std::make_unique<TileBuffers>();
-    for (int k = 0; k < n; ++k) {
-      const vec3f p = nested_point(rng);
-      const vec3f d = normalize(vec3f{N(rng), N(rng), N(rng)});
-      RayHit16& r = a->bounce[k / packet_width];
-      const int l = k % packet_width;
-      r.ray.org_x[l] = p.x, r.ray.org_y[l] = p.y, r.ray.org_z[l] = p.z;
-      r.ray.dir_x[l] = d.x, r.ray.dir_y[l] = d.y, r.ray.dir_z[l] = d.z;
-      r.ray.tnear[l] = 0;
-      r.ray.tfar[l] = 3.0e38f;
-      r.ray.mask[l] = ~0u;
-      r.ray.time[l] = 0;
-      r.geomID[l] = invalid_id;
-      r.instID[0][l] = invalid_id;
-      a->tech.valid[k] = k % 9 == 4 ? 0 : -1;
-      a->media.med[k] = nested_medium_at(p);
-      a->media.u0[k] = U(rng);
-      a->media.u1[k] = U(rng);
-    }
-    for (int k = n; k < max_tile_lanes; ++k) a->tech.valid[k] = 0;
-    for (int p = 0; p < packets_for(n); ++p) accel.intersect16(a->tech.valid + p * packet_width, a->bounce[p], false);
-    auto b = std::make_unique<TileBuffers>(*a);
-    uint64_t rej_a = 0, rej_b = 0;
-    medium_flights<true>(views.geom, a->bounce, a->tech.valid, n, a->media, rej_a, trace);
-    medium_flights<false>(views.geom, b->bounce, b->tech.valid, n, b->media, rej_b, trace);
-    EXPECT_EQ(rej_a, rej_b);
+    const auto [a, b] = random_flights(accel, views, rng, n);
     for (int k = 0; k < n; ++k) {
       const int p = k / packet_width, l = k % packet_width;
       ASSERT_EQ(a->tech.valid[k], b->tech.valid[k]) << k;
@@ -587,38 +602,10 @@ TEST(MediaRender, AbsorbingFlightsInSimdGiveTheScalarBits) {
   ASSERT_TRUE(views.geom.media.absorb_only);
   ASSERT_FALSE(build_views(nested_boxes(), LightPick::power).geom.media.absorb_only);
   std::mt19937 rng(12);
-  std::uniform_real_distribution<float> U(0.f, 1.f);
-  std::normal_distribution<float> N;
   int inside = 0, outside = 0, nowhere = 0;
-  const auto trace = [&](const int32_t* v, RayHit16& q) { accel.intersect16(v, q, false, Bvh::scene); };
   for (int round = 0; round < 20; ++round) {
     const int n = 16 * 8 - 5;
-    auto a = std::make_unique<TileBuffers>();
-    for (int k = 0; k < n; ++k) {
-      const vec3f p = nested_point(rng);
-      const vec3f d = normalize(vec3f{N(rng), N(rng), N(rng)});
-      RayHit16& r = a->bounce[k / packet_width];
-      const int l = k % packet_width;
-      r.ray.org_x[l] = p.x, r.ray.org_y[l] = p.y, r.ray.org_z[l] = p.z;
-      r.ray.dir_x[l] = d.x, r.ray.dir_y[l] = d.y, r.ray.dir_z[l] = d.z;
-      r.ray.tnear[l] = 0;
-      r.ray.tfar[l] = 3.0e38f;
-      r.ray.mask[l] = ~0u;
-      r.ray.time[l] = 0;
-      r.geomID[l] = invalid_id;
-      r.instID[0][l] = invalid_id;
-      a->tech.valid[k] = k % 9 == 4 ? 0 : -1;
-      a->media.med[k] = nested_medium_at(p);
-      a->media.u0[k] = U(rng);
-      a->media.u1[k] = U(rng);
-    }
-    for (int k = n; k < max_tile_lanes; ++k) a->tech.valid[k] = 0;
-    for (int p = 0; p < packets_for(n); ++p) accel.intersect16(a->tech.valid + p * packet_width, a->bounce[p], false);
-    auto b = std::make_unique<TileBuffers>(*a);
-    uint64_t rej_a = 0, rej_b = 0;
-    medium_flights<true>(views.geom, a->bounce, a->tech.valid, n, a->media, rej_a, trace);
-    medium_flights<false>(views.geom, b->bounce, b->tech.valid, n, b->media, rej_b, trace);
-    EXPECT_EQ(rej_a, rej_b);
+    const auto [a, b] = random_flights(accel, views, rng, n);
     for (int k = 0; k < n; ++k) {
       const int p = k / packet_width, l = k % packet_width;
       ASSERT_EQ(a->tech.valid[k], b->tech.valid[k]) << k;
