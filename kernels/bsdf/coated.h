@@ -168,6 +168,15 @@ template <class T> inline T layer_tr(const T& sd, const T& mu) noexcept {
 template <class T> inline Rgb3<T> layer_tr(const Rgb3<T>& sd, const T& mu) noexcept {
   return {layer_tr(sd.r, mu), layer_tr(sd.g, mu), layer_tr(sd.b, mu)};
 }
+// The same, one exponential where every lane's three depths are equal (albedo 0, a grey
+// albedo, or no slab: the usual case): the same bits.
+template <class T> inline Rgb3<T> layer_tr_rgb(const Rgb3<T>& sd, const T& mu) noexcept {
+  if (all(sd.r == sd.g && sd.g == sd.b)) {
+    const T t = layer_tr(sd.r, mu);
+    return {t, t, t};
+  }
+  return layer_tr(sd, mu);
+}
 // What the coated BSDFs share about their top interface, per lane, in the frame mirrored
 // so that wo.z >= 0.
 template <class T> struct CoatTop {
@@ -330,10 +339,11 @@ template <class T> struct DiffuseBase {
     const T inv_eta = T(1.f) / coat.eta;
     const T mo = refracted_cos(top.o.z, inv_eta);
     const T c = (T(1.f) - top.Fo) * (T(inv_pi_f) * inv_eta * inv_eta);
-    auto chan = [&](const T& rh, const T& sd, const T& ri) {
-      return sel(mo > T(0.f), c * rh * layer_tr(sd, mo) / max(T(1.f) - rh * ri, T(1e-6f)), T(0.f));
+    const Rgb3<T> tr = layer_tr_rgb(sigma_d, mo);
+    auto chan = [&](const T& rh, const T& t, const T& ri) {
+      return sel(mo > T(0.f), c * rh * t / max(T(1.f) - rh * ri, T(1e-6f)), T(0.f));
     };
-    s.k = {chan(rho.r, sigma_d.r, Ri.r), chan(rho.g, sigma_d.g, Ri.g), chan(rho.b, sigma_d.b, Ri.b)};
+    s.k = {chan(rho.r, tr.r, Ri.r), chan(rho.g, tr.g, Ri.g), chan(rho.b, tr.b, Ri.b)};
     return s;
   }
   T weight(const Setup&, const bsdf_detail::CoatTop<T>& top) const noexcept {
@@ -348,9 +358,10 @@ template <class T> struct DiffuseBase {
     const T Fi = fresnel_dielectric(i.z, coat.eta);
     const T ti = (T(1.f) - Fi);
     const mask_t<T> base_on = up && mi > T(0.f);
-    f.r = sel(base_on, s.k.r * ti * layer_tr(sigma_d.r, mi), T(0.f));
-    f.g = sel(base_on, s.k.g * ti * layer_tr(sigma_d.g, mi), T(0.f));
-    f.b = sel(base_on, s.k.b * ti * layer_tr(sigma_d.b, mi), T(0.f));
+    const Rgb3<T> tr = layer_tr_rgb(sigma_d, mi);
+    f.r = sel(base_on, s.k.r * ti * tr.r, T(0.f));
+    f.g = sel(base_on, s.k.g * ti * tr.g, T(0.f));
+    f.b = sel(base_on, s.k.b * ti * tr.b, T(0.f));
     pdf = i.z * T(inv_pi_f);  // cosine-weighted (read where up)
   }
   static T mixture_pdf(const T& p_coat, const mask_t<T>& up, const Vec3<T>&, const T& pb, const T& pc) noexcept {
@@ -420,7 +431,7 @@ template <class T> struct ConductorBase {
     s.ceta = scale(conductor_eta, s.inv_eta);
     s.ck = scale(conductor_k, s.inv_eta);
     const Rgb3<T> Fc = fresnel_complex(mo, s.ceta, s.ck);
-    const Rgb3<T> tr = layer_tr(sigma_d, mo);
+    const Rgb3<T> tr = layer_tr_rgb(sigma_d, mo);
     const T c = s.inv_eta * s.inv_eta;
     const mask_t<T> in = mo > T(0.f);
     T h, B;
@@ -442,7 +453,7 @@ template <class T> struct ConductorBase {
     const Vec3<T> ip{i.x * s.inv_eta, i.y * s.inv_eta, mi};
     const T Fi = fresnel_dielectric(i.z, coat.eta);
     const Rgb3<T> Fci = fresnel_complex(mi, s.ceta, s.ck);
-    const Rgb3<T> tri = layer_tr(sigma_d, mi);
+    const Rgb3<T> tri = layer_tr_rgb(sigma_d, mi);
     const ReflectionTerms<T> t = reflection_terms(s.base, s.op, ip);
     const mask_t<T> base_on = up && mi > T(0.f) && s.op.z > T(0.f) && t.ok && !s.base_smooth;
     const Rgb3<T> Fm = fresnel_complex(t.dot_o, s.ceta, s.ck);
