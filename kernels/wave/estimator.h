@@ -62,6 +62,9 @@ struct Estimator {
   // tracer leaves them out (drop_light_traced_hits; the light stage, sample_lights.h).
   // Unbiased: the two estimators split path space.
   bool light_paths = false;
+  // --bdpt (src/render/bdpt.h): bidirectional path tracing replaces the path tracer and its
+  // techniques (every strategy of a light and a camera subpath, balance heuristic).
+  bool bdpt = false;
   // --light-paths=glossy: also an area light's light at a near-specular vertex (the same
   // bound as a distant source's) after a rough first one: the light tracer's, both of the
   // path tracer's techniques there left out (veach-mis's caustics of its small bright

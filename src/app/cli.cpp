@@ -60,6 +60,11 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                "from the first --guide-learn samples' paths, drawn from at diffuse points and in media with "
                "probability --guide-alpha and mixed with BSDF sampling (MIS sees the mixture's density); over MPI the "
                "ranks learn together (the single process's image)");
+  app.add_flag("--bdpt", f.bdpt,
+               "bidirectional path tracing (Veach; pbrt-v4's bdpt, unbiased) instead of the path tracer: a camera and a "
+               "light subpath per pixel and sample, every join of a prefix of each weighted by the balance heuristic "
+               "(the paths off a small or hidden lamp that light samples rarely reach: veach-bidir); area sources only, "
+               "no media or curves yet");
   app.add_flag("--light-paths{on}", f.light_paths,
                "[=auto|on|glossy|off] light tracing for the caustics (unbiased): the paths whose first vertex from the "
                "camera is diffuse or in a medium and whose vertex next to an area light scatters by a delta lobe (a "
@@ -178,11 +183,15 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   e.max_depth = f.max_depth_given ? f.max_depth : scene.file_max_depth > 0 ? scene.file_max_depth : 1;
   e.rr_depth = f.rr_depth;
   e.rr_threshold = f.rr_threshold;
-  if (f.regularize.empty()) e.regularize = scene.file_regularize;
+  if (f.regularize.empty()) e.regularize = scene.file_regularize && !f.bdpt;
   else if (f.regularize == "on") e.regularize = true;
   else if (f.regularize == "off") e.regularize = false;
   else throw std::invalid_argument("--regularize: '" + f.regularize + "' is not on or off");
   e.guide = f.guide;
+  e.bdpt = f.bdpt;
+  if (e.bdpt && f.target_error > 0)
+    throw std::invalid_argument("--bdpt: --target-error reads the camera samples' variance, which bdpt's splats do not "
+                                "give; render a fixed --spp");
   e.guide_learn = f.guide_learn;
   e.guide_alpha = f.guide_alpha;
   if (f.spp_given && f.spp < 1) throw std::invalid_argument("--spp must be >= 1");
@@ -233,13 +242,14 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   if (f.equiangular == "on") e.equiangular = true;
   else if (f.equiangular == "off") e.equiangular = false;
   else if (f.equiangular.empty() || f.equiangular == "auto")
-    e.equiangular = equiangular_combines(e) && std::any_of(scene.media.begin(), scene.media.end(), [](const Medium& m) {
+    e.equiangular = !e.bdpt && equiangular_combines(e) && std::any_of(scene.media.begin(), scene.media.end(), [](const Medium& m) {
                       return m.supported && m.sigma_s.any_positive();
                     });
   else throw std::invalid_argument("--equiangular: '" + f.equiangular + "' is not auto, on or off");
   // --light-paths: auto is on where the scene holds paths only the light tracer finds at a
   // steady rate (light_paths_pay) and nothing refuses it
-  if (f.light_paths == "on" || f.light_paths == "true") e.light_paths = true;
+  if (e.bdpt && (f.light_paths.empty() || f.light_paths == "auto")) e.light_paths = false;  // (bdpt has them all)
+  else if (f.light_paths == "on" || f.light_paths == "true") e.light_paths = true;
   else if (f.light_paths == "glossy") e.light_paths = e.light_paths_glossy = true;
   else if (f.light_paths == "off" || f.light_paths == "false") e.light_paths = false;
   else if (f.light_paths.empty() || f.light_paths == "auto") {

@@ -276,16 +276,6 @@ void emit(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<float>& d, 
   tb.media.med[i] = med;
 }
 
-// The integral of one axis of a tabulated filter (midpoint rule, fine enough for the
-// smooth filters it is used for).
-double axis_integral(const FilterView& f, const FilterAxis& a) {
-  const int n = 1 << 14;
-  const double h = 2.0 * a.r / n;
-  double s = 0;
-  for (int i = 0; i < n; ++i) s += filter_value_1d<float>(f, a, static_cast<float>(-a.r + (i + 0.5) * h));
-  return s * h;
-}
-
 }  // namespace
 
 LightPathsPay light_paths_pay(const Scene& scene, bool glossy_allowed) {
@@ -458,44 +448,7 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
       medium_in_[static_cast<size_t>(i)] = normal_out ? in : out;
     }
   }
-  // the camera: world_from_camera M, its inverse, |det M|, the screen window at distance 1
-  const CameraView& c = v.camera;
-  for (int r = 0; r < 3; ++r) {
-    o_[r] = c.m[r][3];
-    for (int k = 0; k < 3; ++k) m_[r][k] = c.m[r][k];
-  }
-  const double(&a)[3][3] = m_;
-  const double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
-                     a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
-  if (!(std::abs(det) > 0) || !std::isfinite(det))
-    throw std::invalid_argument("--light-paths: the camera's transform is singular");
-  det_ = std::abs(det);
-  inv_[0][0] = (a[1][1] * a[2][2] - a[1][2] * a[2][1]) / det;
-  inv_[0][1] = (a[0][2] * a[2][1] - a[0][1] * a[2][2]) / det;
-  inv_[0][2] = (a[0][1] * a[1][2] - a[0][2] * a[1][1]) / det;
-  inv_[1][0] = (a[1][2] * a[2][0] - a[1][0] * a[2][2]) / det;
-  inv_[1][1] = (a[0][0] * a[2][2] - a[0][2] * a[2][0]) / det;
-  inv_[1][2] = (a[0][2] * a[1][0] - a[0][0] * a[1][2]) / det;
-  inv_[2][0] = (a[1][0] * a[2][1] - a[1][1] * a[2][0]) / det;
-  inv_[2][1] = (a[0][1] * a[2][0] - a[0][0] * a[2][1]) / det;
-  inv_[2][2] = (a[0][0] * a[1][1] - a[0][1] * a[1][0]) / det;
-  const double t = c.tan_half;
-  area_ = std::abs((static_cast<double>(c.sx1) - c.sx0) * (static_cast<double>(c.sy1) - c.sy0)) * t * t;
-  // the pixel filter, normalised
-  const FilterView& f = c.filter;
-  if (f.kind == FilterKind::box) {
-    rx_ = 0.5 * f.box_b[0];
-    ry_ = 0.5 * f.box_b[1];
-    inv_norm_ = 1.0 / (4.0 * rx_ * ry_);
-  } else if (f.kind == FilterKind::triangle) {
-    rx_ = f.axis[0].r;
-    ry_ = f.axis[1].r;
-    inv_norm_ = 1.0 / (rx_ * rx_ * ry_ * ry_);
-  } else {
-    rx_ = f.axis[0].r;
-    ry_ = f.axis[1].r;
-    inv_norm_ = 1.0 / (axis_integral(f, f.axis[0]) * axis_integral(f, f.axis[1]));
-  }
+  cam_.emplace(v.camera, width_, height_, "--light-paths");
   active_ = true;
 }
 
@@ -620,30 +573,6 @@ void LightPaths::emit_distant(int32_t l, float pmf, float u, float u2, float u3,
   const float back = dot(c - p, w) + scene_r_ * 1.01f + 1e-3f * (scene_r_ + 1.f);
   emit(tb, i, p + w * back, -w, br, bg, bb, m0, -1);
   tb.path.first_rough[i] = 1.f;
-}
-
-// A contribution at raster position (rx, ry) into the pixels whose filter covers it.
-void LightPaths::splat(double rx, double ry, const float c[3], std::vector<LightPathSplat>& out) const {
-  const FilterView& f = v_.camera.filter;
-  if (f.kind == FilterKind::box && rx_ == 0.5 && ry_ == 0.5) {  // the pixel it falls in (as the camera's samples)
-    const double px = std::floor(rx), py = std::floor(ry);
-    if (px < 0 || py < 0 || px >= width_ || py >= height_) return;
-    const float w = static_cast<float>(inv_norm_);
-    out.push_back({static_cast<uint32_t>(py) * static_cast<uint32_t>(width_) + static_cast<uint32_t>(px), c[0] * w, c[1] * w,
-                   c[2] * w});
-    return;
-  }
-  const int x0 = std::max(0, static_cast<int>(std::ceil(rx - 0.5 - rx_)));
-  const int x1 = std::min(width_ - 1, static_cast<int>(std::floor(rx - 0.5 + rx_)));
-  const int y0 = std::max(0, static_cast<int>(std::ceil(ry - 0.5 - ry_)));
-  const int y1 = std::min(height_ - 1, static_cast<int>(std::floor(ry - 0.5 + ry_)));
-  for (int y = y0; y <= y1; ++y)
-    for (int x = x0; x <= x1; ++x) {
-      const float w = static_cast<float>(filter_value(f, rx - (x + 0.5), ry - (y + 0.5)) * inv_norm_);
-      if (w == 0.f) continue;
-      out.push_back({static_cast<uint32_t>(y) * static_cast<uint32_t>(width_) + static_cast<uint32_t>(x), c[0] * w, c[1] * w,
-                     c[2] * w});
-    }
 }
 
 void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_size, int tiles_x, uint32_t begin,
@@ -771,25 +700,12 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           tb.tech.valid[k] = 0;
           if (k >= n) continue;
           const Vec3<float> x{P.px[k], P.py[k], P.pz[k]};
-          const double vx = o_[0] - x.x, vy = o_[1] - x.y, vz = o_[2] - x.z;
-          const double cz = inv_[2][0] * -vx + inv_[2][1] * -vy + inv_[2][2] * -vz;
-          if (!(cz > 0)) continue;  // behind the camera
-          const double cx = inv_[0][0] * -vx + inv_[0][1] * -vy + inv_[0][2] * -vz;
-          const double cy = inv_[1][0] * -vx + inv_[1][1] * -vy + inv_[1][2] * -vz;
-          const CameraView& c = v_.camera;
-          const double qx = cx / cz, qy = cy / cz;
-          const double sx = qx / c.tan_half, sy = qy / c.tan_half;
-          const double rxk = (sx - c.sx0) / (static_cast<double>(c.sx1) - c.sx0) * width_;
-          const double ryk = (static_cast<double>(c.sy1) - sy) / (static_cast<double>(c.sy1) - c.sy0) * height_;
-          if (rxk < -rx_ || ryk < -ry_ || rxk > width_ + rx_ || ryk > height_ + ry_) continue;
-          const double d2 = vx * vx + vy * vy + vz * vz;
+          double rxk, ryk, vv[3], d2, density;
+          if (!cam_->see(x, rxk, ryk, vv, d2, density)) continue;  // behind the camera, or outside the image
           const double dist = std::sqrt(d2);
-          const Vec3<float> w{static_cast<float>(vx / dist), static_cast<float>(vy / dist), static_cast<float>(vz / dist)};
+          const Vec3<float> w{static_cast<float>(vv[0] / dist), static_cast<float>(vv[1] / dist), static_cast<float>(vv[2] / dist)};
           // the camera's importance per unit solid angle, per pixel: |M q|^3 / (A |det M|)
-          const double mq0 = m_[0][0] * qx + m_[0][1] * qy + m_[0][2], mq1 = m_[1][0] * qx + m_[1][1] * qy + m_[1][2],
-                       mq2 = m_[2][0] * qx + m_[2][1] * qy + m_[2][2];
-          const double mq = std::sqrt(mq0 * mq0 + mq1 * mq1 + mq2 * mq2);
-          const double importance = mq * mq * mq / (area_ * det_) / d2;
+          const double importance = density / d2;
           const Vec3<float> ng{P.nx[k], P.ny[k], P.nz[k]};
           const Vec3<float> ns = G.shading_normals ? Vec3<float>(P.snx[k], P.sny[k], P.snz[k]) : ng;
           const Vec3<float> wo{P.wox[k], P.woy[k], P.woz[k]};  // towards the vertex before
@@ -846,7 +762,7 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           for (int k = 0; k < n; ++k) {
             if (!tb.tech.valid[k] || tb.shadow[k / packet_width].tfar[k % packet_width] == -INFINITY) continue;
             const float cc[3] = {tb.tech.cr[k], tb.tech.cg[k], tb.tech.cb[k]};
-            splat(rx[k], ry[k], cc, out);
+            cam_->splat(rx[k], ry[k], cc, out);
           }
         }
       }

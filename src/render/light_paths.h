@@ -74,20 +74,17 @@
 // one), as pbrt-v4's light paths do.
 #pragma once
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "accel/embree.h"
+#include "render/pinhole.h"
 #include "render/views.h"
 #include "wave/estimator.h"
 #include "wave/tile.h"
 
 namespace tuile {
-
-struct LightPathSplat {
-  uint32_t pixel;
-  float r, g, b;
-};
 
 // What --light-paths auto (the default) turns on: whether the scene holds paths that the
 // path tracer finds only by chance and the light tracer at a steady rate, where the light
@@ -168,13 +165,8 @@ class LightPaths {
   double disc_area_ = 0;
   bool area_glossy_ = false;  // area sources' light at near-specular vertices is the light tracer's too
   float scene_c_[3] = {}, scene_r_ = 0;
-  // the camera
-  double o_[3] = {}, inv_[3][3] = {}, m_[3][3] = {};
-  double det_ = 1, area_ = 1;  // |det M|, the screen window's area at distance 1
-  // the pixel filter: radii and 1 / its integral
-  double rx_ = 0.5, ry_ = 0.5, inv_norm_ = 1;
+  std::optional<Pinhole> cam_;  // the camera (set where active)
 
-  void splat(double rx, double ry, const float c[3], std::vector<LightPathSplat>& out) const;
   void flag_glossy(const Scene& scene, SceneViews& v);
   void emit_distant(int32_t l, float pmf, float u, float u2, float u3, TileBuffers& tb, int i) const;
 };

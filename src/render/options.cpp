@@ -65,6 +65,18 @@ void validate(const RenderOptions& o) {
       throw std::invalid_argument("--light-paths: the variance layer is estimated from the camera's samples alone, "
                                   "which the light paths' contributions are not; leave out --aov variance");
   }
+  if (e.bdpt) {
+    if (e.guide) throw std::invalid_argument("--bdpt does not combine with --guide");
+    if (e.light_paths) throw std::invalid_argument("--bdpt traces light paths of its own: leave out --light-paths");
+    if (e.equiangular) throw std::invalid_argument("--bdpt does not combine with --equiangular (nor renders media yet)");
+    if (e.regularize) throw std::invalid_argument("--bdpt does not combine with --regularize");
+    if (e.heuristic == Heuristic::optimal)
+      throw std::invalid_argument("--bdpt weighs its strategies by the balance heuristic: --heuristic optimal does not apply");
+    if (o.aov_variance)
+      throw std::invalid_argument("--bdpt: the variance layer is estimated from the camera's samples alone, which bdpt's "
+                                  "light paths are not; leave out --aov variance");
+    if (o.est.aov_mis_weight) throw std::invalid_argument("--bdpt: the mis_weight layer is the path tracer's; leave it out");
+  }
   if (e.rr_depth < 0 || e.rr_depth > 100000) throw std::invalid_argument("--rr-depth must be in 0..100000");
   if (!(e.rr_threshold > 0.f && e.rr_threshold <= 1000.f))
     throw std::invalid_argument("--rr-threshold must be in (0, 1000]");
@@ -153,6 +165,7 @@ std::string describe(const Estimator& e) {
   if (e.regularize) s += " regularize=on";
   if (e.light_paths) s += e.light_paths_glossy ? " light-paths=glossy" : " light-paths=on";
   if (e.equiangular) s += " equiangular=on";  // (off: the description, and checkpoints' fingerprint, of earlier releases)
+  if (e.bdpt) s += " bdpt=on";
   if (e.guide) {  // (likewise)
     char a[32];
     std::snprintf(a, sizeof a, "%g", static_cast<double>(e.guide_alpha));

@@ -49,6 +49,7 @@ struct TileRect {
 
 class Guide;  // render/guide.h
 class LightPaths;  // render/light_paths.h
+class Bdpt;  // render/bdpt.h
 struct SampleLayout;  // sample/layout.h
 
 class Renderer {
@@ -93,7 +94,9 @@ class Renderer {
   // (dist/mpi_render.cpp) traces the chunks on any rank with render_light_chunk and adds
   // them in the same order, for the single process's bits. render(..., only) leaves its
   // light paths out when set_light_paths_apart(true), and refuses them otherwise.
-  bool has_light_paths() const { return light_paths_ != nullptr; }
+  // --bdpt renders everything this way (its camera paths' splats too): render(..., only)
+  // then renders nothing of its own.
+  bool has_light_paths() const { return light_paths_ != nullptr || bdpt_ != nullptr; }
   uint32_t light_chunk_samples() const;
   RenderStats render_light_chunk(std::vector<double>& sums, uint32_t begin, uint32_t end);
   void set_light_paths_apart(bool apart) { light_paths_apart_ = apart; }
@@ -134,6 +137,7 @@ class Renderer {
   uint32_t guide_recorded_ = 0;  // the samples [0, n) whose records the guide holds or learned from
   std::unique_ptr<LightPaths> light_paths_;  // --light-paths, where there is something to trace
   bool light_paths_apart_ = false;
+  std::unique_ptr<Bdpt> bdpt_;  // --bdpt
 };
 
 }  // namespace tuile

@@ -14,6 +14,7 @@
 
 #include "render/filter_table.h"
 #include "render/guide.h"
+#include "render/bdpt.h"
 #include "render/light_paths.h"
 #include "render/tile_pipeline.h"
 #include "wave/accumulate.h"
@@ -82,6 +83,7 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
     light_paths_ = std::make_unique<LightPaths>(scene, *views_, opt_.est, scene.camera.width, scene.camera.height, lo, hi);
     if (!light_paths_->active()) light_paths_.reset();
   }
+  if (opt_.est.bdpt) bdpt_ = std::make_unique<Bdpt>(scene, *views_, opt_.est, scene.camera.width, scene.camera.height);
 }
 
 Renderer::~Renderer() = default;
@@ -249,8 +251,12 @@ void Renderer::trace_light_paths(std::vector<double>& sums, uint32_t s0, uint32_
                               skipped.store(true, std::memory_order_relaxed);
                               return;
                             }
-                            light_paths_->trace_tile(accel_, tb, t, ts, tiles_x, b0, b1, first_pair,
-                                                     splats[static_cast<size_t>(t)], tb.stats.rejected_bsdf);
+                            if (bdpt_)
+                              bdpt_->trace_tile(accel_, tb, t, ts, tiles_x, b0, b1, splats[static_cast<size_t>(t)],
+                                                tb.stats.rejected_bsdf);
+                            else
+                              light_paths_->trace_tile(accel_, tb, t, ts, tiles_x, b0, b1, first_pair,
+                                                       splats[static_cast<size_t>(t)], tb.stats.rejected_bsdf);
                           }
                         },
                         tbb::simple_partitioner());
@@ -269,7 +275,7 @@ void Renderer::trace_light_paths(std::vector<double>& sums, uint32_t s0, uint32_
 }
 
 RenderStats Renderer::render_light_chunk(std::vector<double>& sums, uint32_t begin, uint32_t end) {
-  if (!light_paths_) throw std::logic_error("render_light_chunk: the render has no light paths");
+  if (!has_light_paths()) throw std::logic_error("render_light_chunk: the render has no light paths");
   const auto t0 = clock_type::now();
   const size_t n = 3 * static_cast<size_t>(scene_.camera.width) * static_cast<size_t>(scene_.camera.height);
   sums.assign(n, 0.0);
@@ -336,7 +342,7 @@ RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Pro
   const int threads = opt_.threads > 0 ? opt_.threads : tbb::this_task_arena::max_concurrency();
   tbb::task_arena arena(threads);
   std::atomic<bool> skipped{false};
-  arena.execute([&] {
+  if (!bdpt_) arena.execute([&] {  // (bdpt: every contribution comes with the light chunks below)
     tbb::parallel_for(tbb::blocked_range<int>(0, tiles, 1),
                       [&](const tbb::blocked_range<int>& r) {
                         TileBuffers& tb = *buffers.local();
@@ -353,9 +359,9 @@ RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Pro
   });
   // --light-paths: the light tracer's paths of every pixel, chunk by chunk (render.h), each
   // chunk's splats added into a zeroed image and that image to the film
-  if (light_paths_ && !skipped.load()) {
+  if (has_light_paths() && !skipped.load()) {
     if (only && !light_paths_apart_)
-      throw std::invalid_argument("--light-paths: a light path lands anywhere in the image, so the light tracer does not "
+      throw std::invalid_argument(std::string(bdpt_ ? "--bdpt" : "--light-paths") + ": a light path lands anywhere in the image, so the light tracer does not "
                                   "render a part of the tiles alone");
     if (!only) {
       std::vector<double> sums;
@@ -372,7 +378,7 @@ RenderStats Renderer::render_range(Film& film, uint32_t begin, uint32_t end, Pro
   RenderStats st;
   st.seconds = std::chrono::duration<double>(clock_type::now() - t0).count();
   const double sec_per_tick = st.seconds / static_cast<double>(std::max<uint64_t>(1, __rdtsc() - ticks0));
-  st.pipeline = pipe.name;
+  st.pipeline = bdpt_ ? "bdpt" : pipe.name;
   st.cancelled = skipped.load();
   st.bounce_against_emitters = bounce_against_emitters_;
   film.samples += end - begin;

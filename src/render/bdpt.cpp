@@ -1,0 +1,687 @@
+// Bidirectional path tracing (--bdpt): render/bdpt.h.
+#include "render/bdpt.h"
+
+#include <tbb/enumerable_thread_specific.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <stdexcept>
+
+#include "light/kinds.h"
+#include "light/table.h"
+#include "sample/layout.h"
+#include "sample/rng.h"
+#include "sample/sampling.h"
+#include "scene/scene.h"
+#include "wave/accumulate.h"
+#include "wave/emitter_hits.h"
+#include "wave/generate.h"
+#include "wave/surface_bsdf.h"
+#include "wave/surface_hits.h"
+
+namespace tuile {
+
+namespace {
+
+using V3 = Vec3<float>;
+using Bsdf = SurfaceBsdf<float, bsdf_all>;
+
+bool area_kind(int32_t type) {
+  return type == static_cast<int32_t>(LightKind::triangle) || type == static_cast<int32_t>(LightKind::parallelogram) ||
+         type == static_cast<int32_t>(LightKind::sphere);
+}
+
+// A subpath's vertex. z0 is the camera (p its position, ng zero); y0 a point on a source
+// (ng its normal on the side it emits to). fwd: the density of this vertex from the one
+// before on its subpath, rev: from the one after, both per unit area (0 for a delta
+// sample, which the weights read as pbrt's remap0 does).
+struct Vertex {
+  V3 p{0.f, 0.f, 0.f}, ng{0.f, 0.f, 0.f};  // ng: the geometric normal on the side the subpath arrived from
+  Bsdf bsdf{};                              // surface vertices: wo towards the vertex before
+  float beta[3] = {0.f, 0.f, 0.f};          // the subpath's throughput up to this vertex
+  float fwd = 0.f, rev = 0.f;
+  float eps = 0.f;     // ray offset
+  int32_t light = -1;  // camera subpath: the source this point is on, facing the vertex before; y0: its source
+  bool delta = false;  // the direction sampled here was a delta lobe's
+};
+
+struct Pd {
+  float fwd, rev;
+  bool delta;
+};
+
+float remap0(float f) { return f != 0.f ? f : 1.f; }
+
+// pbrt-v4's MISWeight, the balance heuristic: light vertices l[0..s), camera vertices
+// c[0..t), their densities as the strategy (s, t) sees them.
+float mis_weight(const Pd* l, int s, const Pd* c, int t) {
+  if (s + t == 2) return 1.f;
+  float sum = 0.f, ri = 1.f;
+  for (int i = t - 1; i > 0; --i) {
+    ri *= remap0(c[i].rev) / remap0(c[i].fwd);
+    if (!c[i].delta && !c[i - 1].delta) sum += ri;
+  }
+  ri = 1.f;
+  for (int i = s - 1; i >= 0; --i) {
+    ri *= remap0(l[i].rev) / remap0(l[i].fwd);
+    if (!l[i].delta && !(i > 0 && l[i - 1].delta)) sum += ri;  // (an area source is no delta light)
+  }
+  return 1.f / (1.f + sum);
+}
+
+// The BSDF of surface vertex v with the viewer along the unit w (the path tracer's
+// convention: the normals on the viewer's side of the geometric normal, which side of the
+// surface the viewer is on in `side`, the shading normal turned to w's side).
+Bsdf viewed_from(const Vertex& v, const V3& w) {
+  Bsdf b = v.bsdf;
+  V3 ns = dot(b.n, v.ng) < 0.f ? V3(0.f, 0.f, 0.f) - b.n : b.n;
+  if (dot(v.ng, w) < 0.f) {
+    ns = V3(0.f, 0.f, 0.f) - ns;
+    b.side = -b.side;
+  }
+  if (dot(ns, w) < 0.f) ns = V3(0.f, 0.f, 0.f) - ns;
+  b.n = ns;
+  b.wo = w;
+  return b;
+}
+
+// A point's ray origin for a ray along d: off the surface on d's side.
+V3 offset(const V3& p, const V3& ng, float eps, const V3& d) { return p + ng * (dot(ng, d) < 0.f ? -eps : eps); }
+
+float offset_eps(const V3& p) {
+  return (std::max(std::max(std::abs(p.x), std::abs(p.y)), std::abs(p.z)) + 1.f) * 0x1p-16f;
+}
+
+// A join that needs a shadow ray: strategy (s, t) of lane `lane`, its weighted
+// contribution c, and for t = 1 where it lands.
+struct Job {
+  int lane, s, t;
+  float c[3];
+  double rx, ry;
+  V3 org, dir;
+  float tfar;
+};
+
+}  // namespace
+
+struct Bdpt::Scratch {
+  std::vector<std::vector<Vertex>> cam, light;  // [vertex][lane]
+  std::vector<int> ncam, nlight;
+  std::vector<float> br, bg, bb, pend, m0, u0, u1, u2, u3, u4, u5, sr, sg, sb;
+  std::vector<int32_t> pend_light;
+  std::vector<Job> jobs;
+  std::vector<Pd> pl, pc;
+};
+
+struct BdptPool {
+  tbb::enumerable_thread_specific<Bdpt::Scratch> local;
+};
+
+Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int width, int height)
+    : v_(v), est_(est), width_(width), height_(height), cam_(v.camera, width, height, "--bdpt"),
+      pool_(std::make_unique<BdptPool>()) {
+  const LightView& L = v.lights;
+  const GeomView& G = v.geom;
+  if (G.has_media) throw std::invalid_argument("--bdpt: the scene has participating media, which bdpt does not render yet");
+  if (G.has_hair || !scene.curves.empty())
+    throw std::invalid_argument("--bdpt: the scene has curves (hair), which bdpt does not render yet");
+  if (L.alpha_shape)
+    throw std::invalid_argument("--bdpt: the scene has an emitter with an alpha cut-out, which bdpt does not sample yet");
+  int other = 0;
+  for (int32_t i = 0; i < L.count; ++i) other += !area_kind(L.type[i]);
+  if (other > 0)
+    throw std::invalid_argument("--bdpt: the scene has " + std::to_string(other) +
+                                " point, spot or distant source(s) or environment map(s); bdpt samples area sources "
+                                "alone yet (render it without --bdpt)");
+  pmf_.assign(static_cast<size_t>(L.count), 0.f);
+  double total = 0;
+  std::vector<double> power;
+  for (int32_t i = 0; i < L.count; ++i) {
+    const int32_t s = L.one_radiance ? 0 : i;
+    const double p = static_cast<double>(luminance<float>(L.Lr[s], L.Lg[s], L.Lb[s])) * L.area[i] * (L.two_sided[i] > 0.5f ? 2 : 1);
+    if (!(p > 0) || !std::isfinite(p)) continue;
+    lights_.push_back(i);
+    power.push_back(p);
+    total += p;
+  }
+  double run = 0;
+  for (size_t k = 0; k < lights_.size(); ++k) {
+    run += power[k];
+    cdf_.push_back(static_cast<float>(run / total));
+    pmf_[static_cast<size_t>(lights_[k])] = static_cast<float>(power[k] / total);
+  }
+  if (!cdf_.empty()) cdf_.back() = 1.f;
+}
+
+Bdpt::~Bdpt() = default;
+
+void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_size, int tiles_x, uint32_t begin,
+                      uint32_t end, std::vector<LightPathSplat>& out, uint64_t& rejected) const {
+  if (lights_.empty()) return;  // nothing emits: a black image
+  Scratch& S = pool_->local.local();
+  const GeomView& G = v_.geom;
+  const LightView& L = v_.lights;
+  const Estimator& est = est_;
+  Estimator hits = est;  // the hit stages' estimator: no one-sample choice, no regularization
+  hits.mode = MisMode::multi;
+  hits.regularize = false;
+  const int D = est.max_depth;
+  const int x0 = (tile % tiles_x) * tile_size, y0 = (tile / tiles_x) * tile_size;
+  const int tw = std::min(tile_size, width_ - x0), th = std::min(tile_size, height_ - y0);
+  const int lanes = tw * th;
+  const int padded = packet_padded(lanes);
+  for (int i = 0; i < padded; ++i) {
+    const int j = i < lanes ? i : 0;
+    tb.lanes.fx[i] = static_cast<float>(x0 + j % tw);
+    tb.lanes.fy[i] = static_cast<float>(y0 + j / tw);
+    tb.lanes.pixel[i] = static_cast<uint32_t>(y0 + j / tw) * static_cast<uint32_t>(width_) + static_cast<uint32_t>(x0 + j % tw);
+  }
+  tb.keys.keyed = 0;  // (no cached keys: every pair is drawn here)
+  for (auto* a : {&S.br, &S.bg, &S.bb, &S.pend, &S.m0, &S.u0, &S.u1, &S.u2, &S.u3, &S.u4, &S.u5, &S.sr, &S.sg, &S.sb})
+    a->resize(lane_array);
+  S.pend_light.resize(lane_array);
+  S.ncam.resize(lane_array);
+  S.nlight.resize(lane_array);
+  S.pl.resize(static_cast<size_t>(D) + 3);
+  S.pc.resize(static_cast<size_t>(D) + 3);
+  auto layer = [](std::vector<std::vector<Vertex>>& path, int j) {
+    while (static_cast<int>(path.size()) <= j) path.emplace_back(lane_array);
+  };
+  layer(S.cam, 0);
+  layer(S.light, 0);
+  // the sampler's pairs: the camera's position in the pixel (SampleLayout::camera, as the
+  // path tracer), four per camera vertex (its BSDF direction; lobe and Russian roulette; the
+  // s = 1 join's source and point), three for the emission, two per light vertex
+  const uint32_t light_base = 1 + 4 * static_cast<uint32_t>(D + 1);
+  auto cam_pair = [](int j, int what) { return 1 + 4 * static_cast<uint32_t>(j - 1) + static_cast<uint32_t>(what); };
+  auto light_pair = [&](int j, int what) { return light_base + 3 + 2 * static_cast<uint32_t>(j - 1) + static_cast<uint32_t>(what); };
+  auto pairs = [&](uint32_t s, uint32_t pair, float* u, float* w) {
+    sample_pairs(est.sampler, est.seed, tb.lanes.pixel, s, est.spp, pair, padded, u, w);
+  };
+  const float inv_t = 1.f / est.rr_threshold;
+  auto trace = [&](const int32_t* valid, RayHit16& p) { accel.intersect16(valid, p, false, Bvh::scene); };
+  ShadingPoints& P = tb.points;
+  auto set_ray = [&](int k, const V3& org, const V3& d) {
+    RayHit16& r = tb.bounce[k / packet_width];
+    const int ln = k % packet_width;
+    r.ray.org_x[ln] = org.x;
+    r.ray.org_y[ln] = org.y;
+    r.ray.org_z[ln] = org.z;
+    r.ray.dir_x[ln] = d.x;
+    r.ray.dir_y[ln] = d.y;
+    r.ray.dir_z[ln] = d.z;
+    r.ray.tfar[ln] = 3.0e38f;
+    tb.tech.valid[k] = -1;
+  };
+  auto start_points = [&]() {
+    for (int i = 0; i < padded; ++i) {
+      P.lane[i] = i;
+      P.pixel[i] = tb.lanes.pixel[i];
+      tb.path.throughput_r[i] = tb.path.throughput_g[i] = tb.path.throughput_b[i] = 0.f;
+      tb.path.eta_scale[i] = 1.f;
+      tb.path.rough[i] = tb.path.first_rough[i] = 0.f;
+    }
+    P.count = lanes;
+  };
+
+  // One subpath's walk from its first rays (set in tb.bounce and tb.tech.valid, one per
+  // lane): each hit becomes vertex j of the lane, then its BSDF samples the next direction,
+  // until vertex `last`. from_light: the adjoint's weights; else the emitters met are noted.
+  auto walk = [&](uint32_t s, bool from_light, std::vector<std::vector<Vertex>>& path, std::vector<int>& n, int last,
+                  bool traced) {
+    for (int j = 1;; ++j) {
+      const int count = P.count;
+      const int cp = packet_padded(count);
+      if (j > 1 || !traced)
+        for (int p = 0; p < cp / packet_width; ++p) {
+          reset_hit(tb.bounce[p]);
+          trace(tb.tech.valid + p * packet_width, tb.bounce[p]);
+        }
+      if (!from_light)
+        for (int k = 0; k < count; ++k) {
+          const int lane = P.lane[k];
+          S.pend_light[lane] = -1;
+          if (!tb.tech.valid[k]) continue;
+          const int32_t l = bounce_hit_light<float>(G, tb, k, true);
+          if (l < 0 || pmf_[static_cast<size_t>(l)] == 0.f) continue;
+          const RayHit16& r = tb.bounce[k / packet_width];
+          const int ln = k % packet_width;
+          const V3 o{r.ray.org_x[ln], r.ray.org_y[ln], r.ray.org_z[ln]}, d{r.ray.dir_x[ln], r.ray.dir_y[ln], r.ray.dir_z[ln]};
+          if (light_front_lanes<float, true>(L, l, o, d)) S.pend_light[lane] = l;
+        }
+      bounce_hits<vfloat, true>(G, L, hits, s, 0, tb);
+      const int np_ = P.count;
+      if (np_ == 0) break;
+      layer(path, j);
+      for (int k = 0; k < np_; ++k) {
+        const int lane = P.lane[k];
+        Vertex& v = path[static_cast<size_t>(j)][static_cast<size_t>(lane)];
+        const Vertex& prev = path[static_cast<size_t>(j - 1)][static_cast<size_t>(lane)];
+        v.p = {P.px[k], P.py[k], P.pz[k]};
+        v.ng = {P.nx[k], P.ny[k], P.nz[k]};
+        const V3 ns = G.shading_normals ? V3(P.snx[k], P.sny[k], P.snz[k]) : v.ng;
+        v.bsdf = load_surface_bsdf<float, bsdf_all>(G, P, k, ns);
+        v.eps = P.eps[k];
+        v.beta[0] = S.br[lane];
+        v.beta[1] = S.bg[lane];
+        v.beta[2] = S.bb[lane];
+        v.light = from_light ? -1 : S.pend_light[lane];
+        const V3 e = v.p - prev.p;
+        const float d2 = dot(e, e);
+        v.fwd = S.pend[lane] * std::abs(dot(v.ng, e)) / (d2 * std::sqrt(d2));
+        v.rev = 0.f;
+        v.delta = false;
+        n[static_cast<size_t>(lane)] = j + 1;
+      }
+      if (j >= last) break;
+      const int np = packet_padded(np_);
+      pairs(s, from_light ? light_pair(j, 0) : cam_pair(j, 0), S.u0.data(), S.u1.data());
+      pairs(s, from_light ? light_pair(j, 1) : cam_pair(j, 1), S.u2.data(), S.u3.data());
+      const bool roulette = j > est.rr_depth;
+      for (int k = 0; k < np; ++k) {
+        tb.tech.valid[k] = 0;
+        if (k >= np_) continue;
+        const int lane = P.lane[k];
+        const size_t ln = static_cast<size_t>(lane);
+        Vertex& v = path[static_cast<size_t>(j)][ln];
+        Vertex& prev = path[static_cast<size_t>(j - 1)][ln];
+        const BsdfSample<float> bs = v.bsdf.sample(S.u2[ln], S.u0[ln], S.u1[ln]);
+        if (!bs.valid) continue;
+        const V3 wo = v.bsdf.wo;
+        float adj = 1.f;
+        if (from_light) {  // the adjoint: Veach's shading-normal factor, no 1 / eta^2 on transmissions
+          const V3 ns = v.bsdf.n;
+          const float cgi = dot(v.ng, bs.wi);
+          const float den = std::abs(dot(v.ng, wo)) * std::abs(dot(ns, bs.wi));
+          adj = den > 0.f ? std::abs(dot(ns, wo)) * std::abs(cgi) / den : 0.f;
+          if (v.bsdf.kind == static_cast<int32_t>(MaterialKind::dielectric) && cgi < 0.f) {
+            const float eta = G.mat_param[mp_eta][v.bsdf.mat];
+            const float etap = v.bsdf.side > 0.f ? eta : 1.f / eta;
+            adj *= etap * etap;
+          }
+        }
+        float br = S.br[ln] * bs.weight.r * adj, bg = S.bg[ln] * bs.weight.g * adj, bb = S.bb[ln] * bs.weight.b * adj;
+        const float m = std::max(std::max(br, bg), bb);
+        if (!std::isfinite(m)) {
+          ++rejected;
+          continue;
+        }
+        if (!(m > 0.f)) continue;
+        if (roulette) {
+          const float rr = m * (from_light ? S.m0[ln] : 1.f) * inv_t;
+          if (rr < 1.f) {
+            if (S.u3[ln] >= rr) continue;
+            br /= rr;
+            bg /= rr;
+            bb /= rr;
+          }
+        }
+        S.br[ln] = br;
+        S.bg[ln] = bg;
+        S.bb[ln] = bb;
+        v.delta = bs.delta;
+        S.pend[ln] = bs.delta ? 0.f : bs.pdf;
+        if (bs.delta) {
+          prev.rev = 0.f;
+        } else {  // the vertex before, as the next one's BSDF would sample it
+          const V3 e = prev.p - v.p;
+          const float d2 = dot(e, e);
+          prev.rev = viewed_from(v, bs.wi).eval(wo).pdf * std::abs(dot(prev.ng, e)) / (d2 * std::sqrt(d2));
+        }
+        set_ray(k, offset(v.p, v.ng, v.eps, bs.wi), bs.wi);
+      }
+    }
+  };
+
+  // the densities of emission from a point of source l with normal n (on its emitting
+  // side) towards unit w: per unit area of the source, and per unit solid angle
+  auto emit_sa = [&](int32_t l, const V3& n, const V3& w) {
+    const float c = dot(n, w);
+    if (L.two_sided[l] > 0.5f) return std::abs(c) * (0.5f / pi_f);
+    return c > 0.f ? c * (1.f / pi_f) : 0.f;
+  };
+  auto point_on = [&](int32_t l, float ua, float ub, V3& n) {
+    const LightGeom<float> g = broadcast_light<float>(L, l);
+    V3 y;
+    if (L.type[l] == static_cast<int32_t>(LightKind::sphere)) {
+      y = LightKindOps<LightKind::sphere>::area_point(g, ua, ub);
+      n = normalize(y - g.p0);
+    } else if (L.type[l] == static_cast<int32_t>(LightKind::triangle)) {
+      y = LightKindOps<LightKind::triangle>::area_point(g, ua, ub);
+      n = g.n;
+    } else {
+      y = LightKindOps<LightKind::parallelogram>::area_point(g, ua, ub);
+      n = g.n;
+    }
+    return y;
+  };
+  auto pick = [&](float u) {
+    return lights_[std::min(static_cast<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), u) - cdf_.begin()), cdf_.size() - 1)];
+  };
+  auto radiance = [&](int32_t l, float c[3]) {
+    const int32_t sl = L.one_radiance ? 0 : l;
+    c[0] = L.Lr[sl];
+    c[1] = L.Lg[sl];
+    c[2] = L.Lb[sl];
+  };
+  auto finite3 = [](const float c[3]) { return std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]); };
+  auto nonzero3 = [](const float c[3]) { return c[0] > 0.f || c[1] > 0.f || c[2] > 0.f; };
+
+  for (uint32_t s = begin; s < end; ++s) {
+    // the camera subpaths: z0 the camera, z1 its ray's hit
+    generate(v_.camera, est, s, SampleLayout::camera, lanes, tb);
+    for (int p = 0; p < padded / packet_width; ++p) {
+      accel.intersect16(tb.lanes.cam_valid + p * packet_width, tb.cam[p], true, Bvh::scene);
+      tb.bounce[p] = tb.cam[p];
+    }
+    start_points();
+    const V3 eye{static_cast<float>(cam_.origin()[0]), static_cast<float>(cam_.origin()[1]), static_cast<float>(cam_.origin()[2])};
+    for (int i = 0; i < padded; ++i) {
+      tb.tech.valid[i] = i < lanes ? tb.lanes.cam_valid[i] : 0;
+      const float w = tb.lanes.weighted ? tb.lanes.fw[i] : 1.f;
+      S.br[static_cast<size_t>(i)] = S.bg[static_cast<size_t>(i)] = S.bb[static_cast<size_t>(i)] = w;
+      const RayHit16& r = tb.cam[i / packet_width];
+      const int ln = i % packet_width;
+      S.pend[static_cast<size_t>(i)] =
+          static_cast<float>(cam_.ray_density(V3(r.ray.dir_x[ln], r.ray.dir_y[ln], r.ray.dir_z[ln])));
+      Vertex& z0 = S.cam[0][static_cast<size_t>(i)];
+      z0 = Vertex{};
+      z0.p = eye;
+      S.ncam[static_cast<size_t>(i)] = 1;
+    }
+    walk(s, false, S.cam, S.ncam, D + 1, true);
+
+    // the light subpaths: y0 on a source picked by power, uniform in area, its direction
+    // cosine-weighted (either side of a two-sided source, by u1)
+    pairs(s, light_base, S.u0.data(), S.u1.data());
+    pairs(s, light_base + 1, S.u2.data(), S.u3.data());
+    pairs(s, light_base + 2, S.u4.data(), S.u5.data());
+    start_points();
+    for (int i = 0; i < padded; ++i) {
+      const size_t li = static_cast<size_t>(i);
+      tb.tech.valid[i] = 0;
+      S.nlight[li] = 0;
+      if (i >= lanes) continue;
+      const int32_t l = pick(S.u0[li]);
+      V3 n;
+      const V3 y = point_on(l, S.u2[li], S.u3[li], n);
+      const bool two = L.two_sided[l] > 0.5f;
+      if (two && S.u1[li] >= 0.5f) n = V3(0.f, 0.f, 0.f) - n;
+      const float pmf = pmf_[static_cast<size_t>(l)];
+      const float pdf_pos = pmf / L.area[l];
+      float le[3];
+      radiance(l, le);
+      Vertex& y0 = S.light[0][li];
+      y0 = Vertex{};
+      y0.p = y;
+      y0.ng = n;
+      y0.light = l;
+      y0.eps = offset_eps(y);
+      for (int c = 0; c < 3; ++c) y0.beta[c] = le[c] / pdf_pos;
+      y0.fwd = pdf_pos;
+      S.nlight[li] = 1;
+      V3 t, b;
+      make_basis(n, t, b);
+      const V3 dl = sample_cosine_hemisphere<float>(S.u4[li], S.u5[li]);
+      if (!(dl.z > 0.f)) continue;
+      const V3 d = normalize(t * dl.x + b * dl.y + n * dl.z);
+      const float pdf_dir = dl.z * ((two ? 0.5f : 1.f) / pi_f);
+      const float scale = 1.f / (pdf_pos * pdf_dir) * dl.z;
+      S.br[li] = le[0] * scale;
+      S.bg[li] = le[1] * scale;
+      S.bb[li] = le[2] * scale;
+      const float m0 = std::max(std::max(S.br[li], S.bg[li]), S.bb[li]);
+      if (!(m0 > 0.f) || !std::isfinite(m0)) continue;
+      S.m0[li] = 1.f / m0;
+      S.pend[li] = pdf_dir;
+      set_ray(i, y + n * y0.eps, d);
+    }
+    walk(s, true, S.light, S.nlight, D, false);
+
+    // the joins
+    S.jobs.clear();
+    std::fill_n(S.sr.begin(), lanes, 0.f);
+    std::fill_n(S.sg.begin(), lanes, 0.f);
+    std::fill_n(S.sb.begin(), lanes, 0.f);
+    auto add_lane = [&](int lane, const float c[3]) {
+      S.sr[static_cast<size_t>(lane)] += c[0];
+      S.sg[static_cast<size_t>(lane)] += c[1];
+      S.sb[static_cast<size_t>(lane)] += c[2];
+    };
+    auto fill_pd = [&](int lane, int ns, int nt) {
+      const size_t ln = static_cast<size_t>(lane);
+      for (int i = 0; i < ns; ++i) {
+        const Vertex& v = S.light[static_cast<size_t>(i)][ln];
+        S.pl[static_cast<size_t>(i)] = {v.fwd, v.rev, v.delta};
+      }
+      for (int i = 0; i < nt; ++i) {
+        const Vertex& v = S.cam[static_cast<size_t>(i)][ln];
+        S.pc[static_cast<size_t>(i)] = {v.fwd, v.rev, v.delta};
+      }
+    };
+    // the density of reaching `to` from `from` along a direction of solid-angle density pdf
+    auto area = [](float pdf, const V3& from, const Vertex& to) {
+      const V3 e = to.p - from;
+      const float d2 = dot(e, e);
+      return pdf * std::abs(dot(to.ng, e)) / (d2 * std::sqrt(d2));
+    };
+    auto shadow = [&](Job& j, const V3& a, const V3& na, float ea, const V3& b, const V3& nb, float eb) {
+      const V3 ab = b - a;
+      j.org = ea > 0.f ? offset(a, na, ea, ab) : a;
+      const V3 end_ = eb > 0.f ? offset(b, nb, eb, V3(0.f, 0.f, 0.f) - ab) : b;
+      const V3 e = end_ - j.org;
+      const float len = std::sqrt(dot(e, e));
+      j.dir = e * (1.f / len);
+      j.tfar = len * (1.f - 1.f / 4096.f);
+      return len > 0.f && std::isfinite(len);
+    };
+    auto push = [&](Job& j) {
+      if (!nonzero3(j.c)) return;
+      if (!finite3(j.c)) {
+        ++rejected;
+        return;
+      }
+      S.jobs.push_back(j);
+    };
+    int most = 0;
+    for (int i = 0; i < lanes; ++i) most = std::max(most, S.ncam[static_cast<size_t>(i)]);
+    // s = 0: the camera subpath's emitters
+    for (int i = 0; i < lanes; ++i) {
+      const size_t ln = static_cast<size_t>(i);
+      for (int t = 2; t <= S.ncam[ln]; ++t) {
+        const Vertex& z = S.cam[static_cast<size_t>(t - 1)][ln];
+        if (z.light < 0) continue;
+        float c[3];
+        radiance(z.light, c);
+        for (int k = 0; k < 3; ++k) c[k] *= z.beta[k];
+        if (!nonzero3(c)) continue;
+        float w = 1.f;
+        if (t > 2) {
+          fill_pd(i, 0, t);
+          const Vertex& zm = S.cam[static_cast<size_t>(t - 2)][ln];
+          S.pc[static_cast<size_t>(t - 1)].rev = pmf_[static_cast<size_t>(z.light)] / L.area[z.light];
+          S.pc[static_cast<size_t>(t - 1)].delta = false;
+          const V3 e = zm.p - z.p;
+          const V3 we = normalize(e);
+          S.pc[static_cast<size_t>(t - 2)].rev = area(emit_sa(z.light, z.ng, we), z.p, zm);
+          w = mis_weight(S.pl.data(), 0, S.pc.data(), t);
+        }
+        for (int k = 0; k < 3; ++k) c[k] *= w;
+        if (!finite3(c)) {
+          ++rejected;
+          continue;
+        }
+        add_lane(i, c);
+      }
+    }
+    // s = 1: a point on a source joined to z(t-1), t - 1 in 1..D
+    for (int j = 1; j < most && j <= D; ++j) {
+      pairs(s, cam_pair(j, 2), S.u0.data(), S.u1.data());
+      pairs(s, cam_pair(j, 3), S.u2.data(), S.u3.data());
+      for (int i = 0; i < lanes; ++i) {
+        const size_t ln = static_cast<size_t>(i);
+        if (S.ncam[ln] <= j) continue;
+        const int t = j + 1;
+        const Vertex& z = S.cam[static_cast<size_t>(j)][ln];
+        const int32_t l = pick(S.u0[ln]);
+        V3 n;
+        const V3 y = point_on(l, S.u2[ln], S.u3[ln], n);
+        const V3 e = y - z.p;
+        const float d2 = dot(e, e);
+        const float dist = std::sqrt(d2);
+        if (!(dist > 0.f)) continue;
+        const V3 w = e * (1.f / dist);
+        const float cl = dot(n, w);  // (the source faces z where cl < 0)
+        if (!(L.two_sided[l] > 0.5f) && !(cl < 0.f)) continue;
+        const BsdfEval<float> fz = z.bsdf.eval(w);
+        const float pdf_pos = pmf_[static_cast<size_t>(l)] / L.area[l];
+        float le[3];
+        radiance(l, le);
+        Job job{};
+        job.lane = i;
+        job.s = 1;
+        job.t = t;
+        const float g = std::abs(dot(z.bsdf.n, w)) * std::abs(cl) / (d2 * pdf_pos);
+        job.c[0] = z.beta[0] * fz.f.r * le[0] * g;
+        job.c[1] = z.beta[1] * fz.f.g * le[1] * g;
+        job.c[2] = z.beta[2] * fz.f.b * le[2] * g;
+        if (!nonzero3(job.c)) continue;
+        fill_pd(i, 0, t);
+        const V3 nf = cl < 0.f ? n : V3(0.f, 0.f, 0.f) - n;  // the source's normal on z's side
+        S.pl[0] = {pdf_pos, fz.pdf * std::abs(cl) / d2, false};
+        S.pc[static_cast<size_t>(t - 1)].rev = emit_sa(l, nf, V3(0.f, 0.f, 0.f) - w) * std::abs(dot(z.ng, w)) / d2;
+        S.pc[static_cast<size_t>(t - 1)].delta = false;
+        if (t > 2) {
+          const Vertex& zm = S.cam[static_cast<size_t>(t - 2)][ln];
+          S.pc[static_cast<size_t>(t - 2)].rev = area(viewed_from(z, w).eval(z.bsdf.wo).pdf, z.p, zm);
+        }
+        const float wgt = mis_weight(S.pl.data(), 1, S.pc.data(), t);
+        for (float& c : job.c) c *= wgt;
+        if (shadow(job, z.p, z.ng, z.eps, y, nf, offset_eps(y))) push(job);
+      }
+    }
+    for (int i = 0; i < lanes; ++i) {
+      const size_t ln = static_cast<size_t>(i);
+      // t = 1: y(s-1) joined to the camera, s - 1 in 1..D
+      for (int sl = 2; sl <= S.nlight[ln]; ++sl) {
+        const Vertex& y = S.light[static_cast<size_t>(sl - 1)][ln];
+        const Vertex& ym = S.light[static_cast<size_t>(sl - 2)][ln];
+        double rx, ry, vv[3], d2, density;
+        if (!cam_.see(y.p, rx, ry, vv, d2, density)) continue;
+        const double dist = std::sqrt(d2);
+        const V3 w{static_cast<float>(vv[0] / dist), static_cast<float>(vv[1] / dist), static_cast<float>(vv[2] / dist)};
+        const BsdfEval<float> fy = y.bsdf.eval(w);
+        const V3 wo = y.bsdf.wo;
+        const float ngo = std::abs(dot(y.ng, wo));
+        if (!(ngo > 0.f)) continue;
+        float k0 = std::abs(dot(y.bsdf.n, wo)) / ngo * std::abs(dot(y.ng, w));
+        if (y.bsdf.kind == static_cast<int32_t>(MaterialKind::dielectric) && dot(y.ng, w) < 0.f) {
+          const float eta = G.mat_param[mp_eta][y.bsdf.mat];
+          const float etap = y.bsdf.side > 0.f ? eta : 1.f / eta;
+          k0 *= etap * etap;
+        }
+        const float imp = static_cast<float>(density / d2);
+        Job job{};
+        job.lane = i;
+        job.s = sl;
+        job.t = 1;
+        job.rx = rx;
+        job.ry = ry;
+        job.c[0] = y.beta[0] * fy.f.r * k0 * imp;
+        job.c[1] = y.beta[1] * fy.f.g * k0 * imp;
+        job.c[2] = y.beta[2] * fy.f.b * k0 * imp;
+        if (!nonzero3(job.c)) continue;
+        fill_pd(i, sl, 1);
+        S.pc[0] = {0.f, 0.f, false};
+        S.pl[static_cast<size_t>(sl - 1)].rev = static_cast<float>(density) * std::abs(dot(y.ng, w)) / static_cast<float>(d2);
+        S.pl[static_cast<size_t>(sl - 1)].delta = false;
+        S.pl[static_cast<size_t>(sl - 2)].rev = area(viewed_from(y, w).eval(wo).pdf, y.p, ym);
+        const float wgt = mis_weight(S.pl.data(), sl, S.pc.data(), 1);
+        for (float& c : job.c) c *= wgt;
+        if (shadow(job, y.p, y.ng, y.eps, eye, V3(0.f, 0.f, 0.f), 0.f)) push(job);
+      }
+      // s, t >= 2: y(s-1) joined to z(t-1)
+      for (int t = 2; t <= S.ncam[ln]; ++t) {
+        const Vertex& z = S.cam[static_cast<size_t>(t - 1)][ln];
+        const Vertex& zm = S.cam[static_cast<size_t>(t - 2)][ln];
+        for (int sl = 2; sl <= S.nlight[ln] && sl + t - 2 <= D; ++sl) {
+          const Vertex& y = S.light[static_cast<size_t>(sl - 1)][ln];
+          const Vertex& ym = S.light[static_cast<size_t>(sl - 2)][ln];
+          const V3 e = y.p - z.p;
+          const float d2 = dot(e, e);
+          const float dist = std::sqrt(d2);
+          if (!(dist > 0.f)) continue;
+          const V3 w = e * (1.f / dist);  // from z to y
+          const V3 mw = V3(0.f, 0.f, 0.f) - w;
+          const BsdfEval<float> fz = z.bsdf.eval(w);
+          if (!(fz.f.r > 0.f || fz.f.g > 0.f || fz.f.b > 0.f)) continue;
+          const BsdfEval<float> fy = y.bsdf.eval(mw);
+          if (!(fy.f.r > 0.f || fy.f.g > 0.f || fy.f.b > 0.f)) continue;
+          const V3 wo = y.bsdf.wo;
+          const float ngo = std::abs(dot(y.ng, wo));
+          if (!(ngo > 0.f)) continue;
+          float ky = std::abs(dot(y.bsdf.n, wo)) / ngo * std::abs(dot(y.ng, w));
+          if (y.bsdf.kind == static_cast<int32_t>(MaterialKind::dielectric) && dot(y.ng, mw) < 0.f) {
+            const float eta = G.mat_param[mp_eta][y.bsdf.mat];
+            const float etap = y.bsdf.side > 0.f ? eta : 1.f / eta;
+            ky *= etap * etap;
+          }
+          const float g = ky * std::abs(dot(z.bsdf.n, w)) / d2;
+          Job job{};
+          job.lane = i;
+          job.s = sl;
+          job.t = t;
+          job.c[0] = z.beta[0] * fz.f.r * y.beta[0] * fy.f.r * g;
+          job.c[1] = z.beta[1] * fz.f.g * y.beta[1] * fy.f.g * g;
+          job.c[2] = z.beta[2] * fz.f.b * y.beta[2] * fy.f.b * g;
+          if (!nonzero3(job.c)) continue;
+          fill_pd(i, sl, t);
+          S.pc[static_cast<size_t>(t - 1)].rev = fy.pdf * std::abs(dot(z.ng, w)) / d2;
+          S.pc[static_cast<size_t>(t - 1)].delta = false;
+          if (t > 2) S.pc[static_cast<size_t>(t - 2)].rev = area(viewed_from(z, w).eval(z.bsdf.wo).pdf, z.p, zm);
+          S.pl[static_cast<size_t>(sl - 1)].rev = fz.pdf * std::abs(dot(y.ng, w)) / d2;
+          S.pl[static_cast<size_t>(sl - 1)].delta = false;
+          S.pl[static_cast<size_t>(sl - 2)].rev = area(viewed_from(y, mw).eval(wo).pdf, y.p, ym);
+          const float wgt = mis_weight(S.pl.data(), sl, S.pc.data(), t);
+          for (float& c : job.c) c *= wgt;
+          if (shadow(job, z.p, z.ng, z.eps, y.p, y.ng, y.eps)) push(job);
+        }
+      }
+    }
+    // the joins' shadow rays, in whole packets
+    const int cap = packet_width * static_cast<int>(std::size(tb.shadow));
+    for (size_t j0 = 0; j0 < S.jobs.size(); j0 += static_cast<size_t>(cap)) {
+      const int n = static_cast<int>(std::min(S.jobs.size() - j0, static_cast<size_t>(cap)));
+      const int np = packet_padded(n);
+      for (int k = 0; k < np; ++k) {
+        tb.tech.valid[k] = k < n ? -1 : 0;
+        if (k >= n) continue;
+        const Job& jb = S.jobs[j0 + static_cast<size_t>(k)];
+        Ray16& sh = tb.shadow[k / packet_width];
+        const int ln = k % packet_width;
+        sh.org_x[ln] = jb.org.x;
+        sh.org_y[ln] = jb.org.y;
+        sh.org_z[ln] = jb.org.z;
+        sh.dir_x[ln] = jb.dir.x;
+        sh.dir_y[ln] = jb.dir.y;
+        sh.dir_z[ln] = jb.dir.z;
+        sh.tfar[ln] = jb.tfar;
+      }
+      for (int p = 0; p < np / packet_width; ++p) accel.occluded16(tb.tech.valid + p * packet_width, tb.shadow[p], false, nullptr);
+      for (int k = 0; k < n; ++k) {
+        if (tb.shadow[k / packet_width].tfar[k % packet_width] == -INFINITY) continue;
+        const Job& jb = S.jobs[j0 + static_cast<size_t>(k)];
+        if (jb.t == 1) cam_.splat(jb.rx, jb.ry, jb.c, out);
+        else add_lane(jb.lane, jb.c);
+      }
+    }
+    for (int i = 0; i < lanes; ++i) {
+      const size_t ln = static_cast<size_t>(i);
+      if (S.sr[ln] == 0.f && S.sg[ln] == 0.f && S.sb[ln] == 0.f) continue;
+      out.push_back({tb.lanes.pixel[i], S.sr[ln], S.sg[ln], S.sb[ln]});
+    }
+  }
+}
+
+}  // namespace tuile

@@ -1,0 +1,77 @@
+// Bidirectional path tracing (--bdpt, Estimator::bdpt): Veach's estimator, as pbrt-v4's
+// `bdpt` integrator defines it, over the path tracer's surfaces and BSDFs.
+//
+// Per pixel and sample, a camera subpath z0 (the pinhole), z1, ... and a light subpath y0
+// (a point on an area source), y1, ... are traced, each vertex's direction sampled by its
+// BSDF (the light subpath's with the adjoint's weights, as the light tracer of
+// light_paths.h: Veach's shading-normal factor and no 1 / eta^2 on transmissions), Russian
+// roulette as the path tracer plays it. Every pair of a light prefix y0..y(s-1) and a camera
+// prefix z0..z(t-1) with s + t - 2 <= the depth is a strategy for the path of s + t
+// vertices they make:
+// - s = 0: the camera subpath met an emitter (its front, or either side of a two-sided one);
+// - s = 1: a point sampled on a source (picked by power, uniform in area) joined to z(t-1);
+// - t = 1: y(s-1) joined to the camera, splatted where it is seen (pbrt-v4's light tracer);
+// - s, t >= 2: y(s-1) joined to z(t-1) by a shadow ray.
+// (s = 1, t = 1, a point on a source joined to the camera, is left out, as pbrt-v4 does;
+// s = 0, t = 2 has weight 1.) Each is weighted by the balance heuristic over the strategies
+// that could have made its path (pbrt-v4's MISWeight: the ratios of each vertex's reverse
+// and forward densities in area measure, walked from the joined vertices outwards, delta
+// lobes and zero densities skipped as pbrt's remap0), so that the weights of a path sum to
+// one and the estimator is unbiased. The densities: a source is picked by power and a point
+// on it uniform in area, its direction cosine-weighted (half of that on each side of a
+// two-sided source); the camera's as Pinhole::ray_density. A vertex's reverse density is its
+// neighbour's BSDF density with the viewer and the sampled direction exchanged.
+//
+// What it renders: surfaces of every material the path tracer knows but hair, lit by area
+// sources (triangles, parallelograms, spheres). It refuses (std::invalid_argument) point,
+// spot and distant sources, environment maps, participating media, curves and emitters with
+// an alpha cut-out, which its strategies do not cover yet.
+//
+// Determinism: as the light tracer's splats (the renderer adds a tile's splats in tile
+// order), each lane's camera-side contributions summed in strategy order into one splat per
+// pixel and sample, so the image depends on neither threads nor tile order, and over MPI its
+// sample ranges are units of their own (Renderer::render_light_chunk).
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "accel/embree.h"
+#include "render/pinhole.h"
+#include "render/views.h"
+#include "wave/estimator.h"
+#include "wave/tile.h"
+
+namespace tuile {
+
+struct Scene;
+struct BdptPool;  // the threads' scratch (bdpt.cpp)
+
+class Bdpt {
+ public:
+  // Throws std::invalid_argument naming what the scene has that bdpt does not render.
+  Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int width, int height);
+  ~Bdpt();
+  // The paths of the pixels of tile `tile` for samples [begin, end): every contribution
+  // appended to out (the camera side's one per pixel and sample, the light tracer's where
+  // they land); rejected counts contributions that were not finite.
+  void trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_size, int tiles_x, uint32_t begin, uint32_t end,
+                  std::vector<LightPathSplat>& out, uint64_t& rejected) const;
+  // The sources' pick probabilities (by power; 0 for those that emit nothing).
+  const std::vector<float>& pick_pmf() const { return pmf_; }
+
+  struct Scratch;
+
+ private:
+  const SceneViews& v_;
+  Estimator est_;
+  int width_, height_;
+  Pinhole cam_;
+  std::vector<int32_t> lights_;  // the sources with power, in table order
+  std::vector<float> cdf_;       // their power, cumulated (last 1)
+  std::vector<float> pmf_;       // per source of the table: its pick probability
+  std::unique_ptr<BdptPool> pool_;
+};
+
+}  // namespace tuile
