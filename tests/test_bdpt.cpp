@@ -1,0 +1,158 @@
+// --bdpt (src/render/bdpt.h): bidirectional path tracing renders the path tracer's mean.
+// The room of tests/caustic_room.h holds what its strategies and weights must get right: a
+// smooth glass sphere and a mirror (delta vertices on both subpaths, which no join may
+// use: their caustics on the walls come from the camera subpath meeting the light and from
+// the light subpath joined to the camera alone), a smooth coat over a diffuse base (a delta
+// and a rough lobe at one vertex), a glass slab whose faces under its smooth top are rough
+// glass (joins through a rough transmission, whose adjoint carries no 1 / eta^2) and the
+// light, one-sided, on the ceiling; then the same with shading normals (a faceted ball with
+// vertex normals), a sphere source and the triangle filter (splats over several pixels),
+// and with a two-sided source. The means are compared over independent seeds, quarter by
+// quarter and channel by channel, against the path tracer's (without light paths). Also: the
+// same bits on any thread count, and what it refuses.
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <vector>
+
+#include "caustic_room.h"
+#include "media_util.h"
+#include "render/bdpt.h"
+#include "render/options.h"
+#include "render_util.h"
+
+using namespace tuile;
+using namespace tuile::test;
+
+namespace {
+
+RenderOptions bdpt_options(bool bdpt, uint32_t spp, uint32_t seed, int depth = 6) {
+  RenderOptions o = independent_options(Strategy::mis, LightPick::power, MisMode::multi, depth, spp, seed);
+  o.est.bdpt = bdpt;
+  return o;
+}
+
+}  // namespace
+
+TEST(Bdpt, RendersThePathTracersMean) {
+  const Scene s = caustic_room(24);
+  expect_same_mean_over_seeds(s, bdpt_options(true, static_cast<uint32_t>(scaled(24)), 0),
+                              bdpt_options(false, static_cast<uint32_t>(scaled(96)), 0), 24, "bdpt, caustic room");
+}
+
+TEST(Bdpt, RendersThePathTracersMeanWithShadingNormalsASphereSourceAndATriangleFilter) {
+  const Scene s = caustic_room(24, true, true, true);
+  RenderOptions with = bdpt_options(true, static_cast<uint32_t>(scaled(24)), 0),
+                without = bdpt_options(false, static_cast<uint32_t>(scaled(96)), 0);
+  with.filter = without.filter = default_filter(FilterKind::triangle);
+  expect_same_mean_over_seeds(s, with, without, 24, "bdpt, shading normals, triangle filter");
+}
+
+TEST(Bdpt, RendersThePathTracersMeanUnderATwoSidedSourceAtDepthThree) {
+  Scene s = caustic_room(20, false, false);
+  for (Mesh& m : s.meshes)
+    if (m.name == "light") {  // lowered into the room, lighting the ceiling too
+      m.two_sided = true;
+      for (size_t k = 1; k < m.positions.size(); k += 3) m.positions[k] = 1.6f;
+    }
+  finalize_scene(s);
+  expect_same_mean_over_seeds(s, bdpt_options(true, static_cast<uint32_t>(scaled(24)), 0, 3),
+                              bdpt_options(false, static_cast<uint32_t>(scaled(96)), 0, 3), 24, "bdpt, two-sided source");
+}
+
+// Light that enters a glass slab by its smooth top and leaves by its bottom, seen from
+// below: the light subpath's throughput carries the entry's etap^2 (the adjoint has no
+// 1 / eta^2), and where the bottom is rough glass, so do its joins through that face (to
+// the camera and to the camera subpath's vertices). Without either the light subpath's
+// share of this image is 2.25 times too dark.
+TEST(Bdpt, RendersThePathTracersMeanThroughAGlassSlab) {
+  Scene s = glass_slab_scene();
+  for (Mesh& m : s.meshes)  // a smaller light of the same power: the light subpaths' share grows
+    if (m.emission.r > 0) {
+      for (size_t k = 0; k < m.positions.size(); k += 3) {
+        m.positions[k] *= 0.3f;
+        m.positions[k + 2] *= 0.3f;
+      }
+      m.emission = {44.f, 44.f, 44.f};
+    }
+  finalize_scene(s);
+  expect_same_mean_over_seeds(s, bdpt_options(true, static_cast<uint32_t>(scaled(128)), 0),
+                              bdpt_options(false, static_cast<uint32_t>(scaled(512)), 0), 24, "bdpt, glass slab");
+  Scene rough = s;
+  Material glass;
+  glass.kind = MaterialKind::dielectric;
+  glass.eta = 1.5f;
+  glass.alpha_u.value = glass.alpha_v.value = 0.3f;
+  rough.materials[2] = glass;
+  finalize_scene(rough);
+  expect_same_mean_over_seeds(rough, bdpt_options(true, static_cast<uint32_t>(scaled(128)), 0),
+                              bdpt_options(false, static_cast<uint32_t>(scaled(512)), 0), 24, "bdpt, rough glass slab");
+}
+
+TEST(Bdpt, SameBitsOnAnyThreadCount) {
+  const Scene s = caustic_room(20);
+  Accel accel(s);
+  auto render = [&](bool bdpt, int threads) {
+    RenderOptions o = bdpt_options(bdpt, 6, 5);
+    o.est.sampler = SamplerKind::sobol;
+    o.threads = threads;
+    return render_mean(s, accel, o, 6);
+  };
+  const std::vector<float> two = render(true, 2), one = render(true, 1), plain = render(false, 2);
+  size_t differ = 0, differ_plain = 0;
+  for (size_t i = 0; i < two.size(); ++i) {
+    differ += two[i] != one[i];
+    differ_plain += two[i] != plain[i];
+  }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_GT(differ_plain, two.size() / 4);  // bdpt rendered, not the path tracer
+}
+
+TEST(Bdpt, RefusesWhatItCannotDo) {
+  RenderOptions o = bdpt_options(true, 4, 0);
+  o.est.guide = true;
+  EXPECT_THROW(validate(o), std::invalid_argument);
+  o = bdpt_options(true, 4, 0);
+  o.est.light_paths = true;
+  EXPECT_THROW(validate(o), std::invalid_argument);
+  o = bdpt_options(true, 4, 0);
+  o.aov_variance = true;
+  EXPECT_THROW(validate(o), std::invalid_argument);
+  EXPECT_NO_THROW(validate(bdpt_options(true, 4, 0)));
+  // a part of the tiles (a distributed render) without its light chunks apart
+  const Scene s = caustic_room(16);
+  {
+    Accel accel(s);
+    Renderer r(s, accel, bdpt_options(true, 4, 0));
+    Film f;
+    f.reset(16, 16);
+    const std::vector<int> tiles{0};
+    EXPECT_THROW(r.render(f, 0, 4, nullptr, &tiles), std::invalid_argument);
+  }
+  auto refused = [](Scene sc) {
+    finalize_scene(sc);
+    Accel accel(sc);
+    try {
+      Renderer r(sc, accel, bdpt_options(true, 4, 0));
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  // a point source, a distant one
+  for (LightKind kind : {LightKind::point, LightKind::distant}) {
+    Scene sc = caustic_room(16, false, false);
+    Light l;
+    l.type = kind;
+    l.p0 = {0.f, 1.5f, 0.f};
+    l.e1 = normalize(vec3f{0.3f, 1, -0.4f});
+    l.radiance = {1, 1, 1};
+    sc.lights.push_back(l);
+    EXPECT_NE(refused(sc).find("--bdpt"), std::string::npos);
+  }
+  // a medium
+  Scene fog = caustic_room(16, false, false);
+  fog.media.push_back(homogeneous({0.05f, 0.05f, 0.05f}, {0.3f, 0.3f, 0.3f}));
+  for (Sphere& sp : fog.spheres) sp.medium_inside = 0;
+  EXPECT_NE(refused(fog).find("media"), std::string::npos);
+}
