@@ -15,6 +15,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "app/cli.h"
 #include "caustic_room.h"
 #include "media_util.h"
 #include "render/bdpt.h"
@@ -106,6 +107,50 @@ TEST(Bdpt, SameBitsOnAnyThreadCount) {
   }
   EXPECT_EQ(differ, 0u);
   EXPECT_GT(differ_plain, two.size() / 4);  // bdpt rendered, not the path tracer
+}
+
+// The default, auto: bdpt where the scene file asks for pbrt's bdpt, bdpt renders the scene
+// and no option of the path tracer's is given; the flag overrides the file either way.
+TEST(Bdpt, AutoIsOnWhereTheFileAsksForIt) {
+  Scene s = caustic_room(16);
+  s.file_integrator = "bdpt";
+  s.file_max_depth = 5;
+  s.file_regularize = true;
+  const RenderFlags plain;
+  const RenderOptions o = resolve_options(plain, s);
+  EXPECT_TRUE(o.est.bdpt);
+  EXPECT_FALSE(o.est.regularize);  // (the file's regularize is the path tracer's)
+  EXPECT_FALSE(o.est.light_paths);
+  RenderFlags f;
+  f.bdpt = "off";
+  EXPECT_FALSE(resolve_options(f, s).est.bdpt);
+  f = RenderFlags{};
+  f.guide = true;
+  EXPECT_FALSE(resolve_options(f, s).est.bdpt);
+  f = RenderFlags{};
+  f.light_paths = "on";
+  EXPECT_FALSE(resolve_options(f, s).est.bdpt);
+  f = RenderFlags{};
+  f.bdpt = "sometimes";
+  EXPECT_THROW(resolve_options(f, s), std::invalid_argument);
+  Scene path = s;
+  path.file_integrator = "path";
+  EXPECT_FALSE(resolve_options(plain, path).est.bdpt);
+  f = RenderFlags{};
+  f.bdpt = "on";
+  EXPECT_TRUE(resolve_options(f, path).est.bdpt);
+  // a point source: the path tracer renders the file (with a warning)
+  Scene point = caustic_room(16, false, false);
+  Light l;
+  l.type = LightKind::point;
+  l.p0 = {0.f, 1.5f, 0.f};
+  l.radiance = {1, 1, 1};
+  point.lights.push_back(l);
+  finalize_scene(point);
+  point.file_integrator = "bdpt";
+  EXPECT_NE(bdpt_refusal(point), "");
+  EXPECT_EQ(bdpt_refusal(s), "");
+  EXPECT_FALSE(resolve_options(plain, point).est.bdpt);
 }
 
 TEST(Bdpt, RefusesWhatItCannotDo) {

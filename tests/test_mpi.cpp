@@ -137,6 +137,33 @@ TEST(Mpi, GuidedRendersGiveTheSingleProcessBytes) {
   EXPECT_TRUE(same_pixels(dir / "resumed-one.exr", dir / "resumed-mpi.exr"));
 }
 
+// --bdpt under mpirun (auto: the file asks for pbrt's bdpt): every contribution is a splat,
+// so the sample ranges are light chunks (as --light-paths'), traced on any rank and added by
+// rank 0 in the single process's order: the job renders the single process's bytes.
+TEST(Mpi, BdptRendersTheSingleProcessBits) {
+  std::string why;
+  if (!mpi_ready(why)) GTEST_SKIP() << why;
+  TempDir dir;
+  const std::string scene = dir / "bdpt.pbrt";
+  std::ofstream(scene) << "LookAt 0 1.2 4  0 0.4 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 45 ]\n"
+                          "Integrator \"bdpt\" \"integer maxdepth\" [ 4 ]\nWorldBegin\n"
+                          "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [ 8 8 8 ]\n"
+                          "Shape \"trianglemesh\" \"point3 P\" [ -0.5 2 -0.5  0.5 2 -0.5  0.5 2 0.5  -0.5 2 0.5 ] "
+                          "\"integer indices\" [ 0 1 2  0 2 3 ]\nAttributeEnd\n"
+                          "Material \"diffuse\" \"rgb reflectance\" [ 0.6 0.6 0.6 ]\n"
+                          "Shape \"trianglemesh\" \"point3 P\" [ -3 0 -3  3 0 -3  3 0 3  -3 0 3 ] "
+                          "\"integer indices\" [ 0 2 1  0 3 2 ]\n"
+                          "Material \"dielectric\" \"float eta\" [ 1.5 ]\n"
+                          "AttributeBegin\nTranslate 0 0.5 0\nShape \"sphere\" \"float radius\" [ 0.5 ]\nAttributeEnd\n";
+  const std::string args = " render " + scene + " --res 128x64 --spp 6 --quiet -o ";
+  std::string out;
+  ASSERT_EQ(run(std::string(TUILE_BINARY) + args + (dir / "auto.exr"), out), 0) << out;
+  ASSERT_EQ(run(std::string(TUILE_BINARY) + args + (dir / "off.exr") + " --bdpt=off", out), 0) << out;
+  EXPECT_FALSE(same_pixels(dir / "auto.exr", dir / "off.exr"));  // bdpt rendered it
+  ASSERT_EQ(run(mpirun(3) + args + (dir / "mpi.exr"), out), 0) << out;
+  EXPECT_TRUE(same_pixels(dir / "auto.exr", dir / "mpi.exr"));
+}
+
 // --light-paths under mpirun: a light path lands anywhere in the image, so the light paths
 // are units of their own (chunks of about 2^22 paths, the whole image's sums each), which
 // rank 0 adds to each pass in the single process's order: the job renders the single

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "render/filter_table.h"
+#include "render/bdpt.h"
 #include "render/light_paths.h"
 
 namespace tuile {
@@ -60,11 +61,13 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                "from the first --guide-learn samples' paths, drawn from at diffuse points and in media with "
                "probability --guide-alpha and mixed with BSDF sampling (MIS sees the mixture's density); over MPI the "
                "ranks learn together (the single process's image)");
-  app.add_flag("--bdpt", f.bdpt,
-               "bidirectional path tracing (Veach; pbrt-v4's bdpt, unbiased) instead of the path tracer: a camera and a "
-               "light subpath per pixel and sample, every join of a prefix of each weighted by the balance heuristic "
-               "(the paths off a small or hidden lamp that light samples rarely reach: veach-bidir); area sources only, "
-               "no media or curves yet");
+  app.add_flag("--bdpt{on}", f.bdpt,
+               "[=auto|on|off] bidirectional path tracing (Veach; pbrt-v4's bdpt, unbiased) instead of the path tracer: "
+               "a camera and a light subpath per pixel and sample, every join of a prefix of each weighted by the balance "
+               "heuristic (the light of a small or hidden lamp that light samples rarely reach: veach-bidir); area "
+               "sources only, no media or curves yet; default auto: on where the scene file asks for Integrator "
+               "\"bdpt\", bdpt renders the scene and no path tracer's option (--guide, --light-paths, --equiangular "
+               "on, --regularize on, --heuristic optimal, --aov, --target-error) is given");
   app.add_flag("--light-paths{on}", f.light_paths,
                "[=auto|on|glossy|off] light tracing for the caustics (unbiased): the paths whose first vertex from the "
                "camera is diffuse or in a medium and whose vertex next to an area light scatters by a delta lobe (a "
@@ -183,15 +186,31 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   e.max_depth = f.max_depth_given ? f.max_depth : scene.file_max_depth > 0 ? scene.file_max_depth : 1;
   e.rr_depth = f.rr_depth;
   e.rr_threshold = f.rr_threshold;
-  if (f.regularize.empty()) e.regularize = scene.file_regularize && !f.bdpt;
-  else if (f.regularize == "on") e.regularize = true;
-  else if (f.regularize == "off") e.regularize = false;
-  else throw std::invalid_argument("--regularize: '" + f.regularize + "' is not on or off");
   e.guide = f.guide;
-  e.bdpt = f.bdpt;
+  // --bdpt: auto is on where the file asks for pbrt's bdpt, bdpt renders the scene and no
+  // option of the path tracer's is given (else a warning says what renders the file)
+  if (f.bdpt == "on" || f.bdpt == "true") e.bdpt = true;
+  else if (f.bdpt == "off" || f.bdpt == "false") e.bdpt = false;
+  else if (f.bdpt.empty() || f.bdpt == "auto") {
+    e.bdpt = false;
+    if (scene.file_integrator == "bdpt") {
+      std::string why = bdpt_refusal(scene);
+      if (why.empty() && (f.guide || light_paths_asked(f) || f.equiangular == "on" || f.regularize == "on" ||
+                          f.heuristic == "optimal" || !f.aov.empty() || f.target_error > 0))
+        why = "an option of the path tracer's is given";
+      if (why.empty()) e.bdpt = true;
+      else
+        std::fprintf(stderr, "tuile: warning: %s: Integrator \"bdpt\" rendered by tuile's path tracer (next-event "
+                     "estimation and MIS at every vertex): %s\n", scene.source.c_str(), why.c_str());
+    }
+  } else throw std::invalid_argument("--bdpt: '" + f.bdpt + "' is not auto, on or off");
   if (e.bdpt && f.target_error > 0)
     throw std::invalid_argument("--bdpt: --target-error reads the camera samples' variance, which bdpt's splats do not "
                                 "give; render a fixed --spp");
+  if (f.regularize.empty()) e.regularize = scene.file_regularize && !e.bdpt;
+  else if (f.regularize == "on") e.regularize = true;
+  else if (f.regularize == "off") e.regularize = false;
+  else throw std::invalid_argument("--regularize: '" + f.regularize + "' is not on or off");
   e.guide_learn = f.guide_learn;
   e.guide_alpha = f.guide_alpha;
   if (f.spp_given && f.spp < 1) throw std::invalid_argument("--spp must be >= 1");

@@ -23,7 +23,7 @@ struct RenderFlags {
   std::string filter;  // pixel filter; "": the scene file's PixelFilter, else box
   std::string regularize;  // --regularize on|off; "": the scene file's Integrator
   bool guide = false;      // --guide
-  bool bdpt = false;       // --bdpt
+  std::string bdpt;          // --bdpt[=auto|on|off] (empty: auto; the flag alone: on)
   std::string light_paths;   // --light-paths[=auto|on|glossy|off] (empty: auto; the flag alone: on)
   std::string equiangular;   // --equiangular on | off (empty: the default)
   uint32_t guide_learn = 64;

@@ -97,7 +97,8 @@ int main(int argc, char** argv) {
   // for a stray positional argument
   std::vector<std::string> args(argv, argv + argc);
   for (size_t i = 1; i + 1 < args.size(); ++i)
-    if (args[i] == "--light-paths" && light_paths_mode(args[i + 1])) {
+    if ((args[i] == "--light-paths" && light_paths_mode(args[i + 1])) ||
+        (args[i] == "--bdpt" && (args[i + 1] == "auto" || args[i + 1] == "on" || args[i + 1] == "off"))) {
       args[i] += "=" + args[i + 1];
       args.erase(args.begin() + static_cast<std::ptrdiff_t>(i) + 1);
     }

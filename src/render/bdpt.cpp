@@ -10,6 +10,7 @@
 
 #include "light/kinds.h"
 #include "light/table.h"
+#include "render/light_paths.h"
 #include "sample/layout.h"
 #include "sample/rng.h"
 #include "sample/sampling.h"
@@ -118,22 +119,28 @@ struct BdptPool {
   tbb::enumerable_thread_specific<Bdpt::Scratch> local;
 };
 
+std::string bdpt_refusal(const Scene& scene) {
+  if ((scene.features & feat_media) != 0) return "the scene has participating media, which bdpt does not render yet";
+  if (!scene.curves.empty()) return "the scene has curves (hair), which bdpt does not render yet";
+  if (alpha_cut_emitter(scene)) return "the scene has an emitter with an alpha cut-out, which bdpt does not sample yet";
+  int other = 0;
+  for (const Light& l : scene.lights) other += !area_kind(static_cast<int32_t>(l.type));
+  if (other > 0)
+    return "the scene has " + std::to_string(other) +
+           " point, spot or distant source(s) or environment map(s); bdpt samples area sources alone yet";
+  return "";
+}
+
 Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int width, int height)
     : v_(v), est_(est), width_(width), height_(height), cam_(v.camera, width, height, "--bdpt"),
       pool_(std::make_unique<BdptPool>()) {
   const LightView& L = v.lights;
   const GeomView& G = v.geom;
-  if (G.has_media) throw std::invalid_argument("--bdpt: the scene has participating media, which bdpt does not render yet");
-  if (G.has_hair || !scene.curves.empty())
-    throw std::invalid_argument("--bdpt: the scene has curves (hair), which bdpt does not render yet");
-  if (L.alpha_shape)
-    throw std::invalid_argument("--bdpt: the scene has an emitter with an alpha cut-out, which bdpt does not sample yet");
-  int other = 0;
-  for (int32_t i = 0; i < L.count; ++i) other += !area_kind(L.type[i]);
-  if (other > 0)
-    throw std::invalid_argument("--bdpt: the scene has " + std::to_string(other) +
-                                " point, spot or distant source(s) or environment map(s); bdpt samples area sources "
-                                "alone yet (render it without --bdpt)");
+  const std::string why = bdpt_refusal(scene);
+  if (!why.empty()) throw std::invalid_argument("--bdpt: " + why + " (render it without --bdpt)");
+  if (G.has_media || G.has_hair || L.alpha_shape) throw std::invalid_argument("--bdpt: the scene's views hold what it refuses");
+  for (int32_t i = 0; i < L.count; ++i)
+    if (!area_kind(L.type[i])) throw std::invalid_argument("--bdpt: the scene's light table holds a source it does not sample");
   pmf_.assign(static_cast<size_t>(L.count), 0.f);
   double total = 0;
   std::vector<double> power;

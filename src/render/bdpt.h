@@ -48,6 +48,10 @@ namespace tuile {
 struct Scene;
 struct BdptPool;  // the threads' scratch (bdpt.cpp)
 
+// Why bdpt does not render this scene ("" where it does): point, spot or distant sources,
+// environment maps, media, curves or an emitter with an alpha cut-out.
+std::string bdpt_refusal(const Scene& scene);
+
 class Bdpt {
  public:
   // Throws std::invalid_argument naming what the scene has that bdpt does not render.

@@ -287,6 +287,7 @@ struct Scene {
   std::string file_light_pick;    // "", "uniform", "power", "bvh"
   int file_max_depth = 0;         // Integrator's maxdepth (pbrt's 5 when a file gives none); 0 for built-in scenes
   bool file_regularize = false;   // Integrator's "bool regularize" (pbrt-v4's path and volpath)
+  std::string file_integrator;    // the Integrator's type ("" without one): "bdpt" makes --bdpt auto on
   std::string file_output;        // Film "filename"
   FilterParams file_filter;       // PixelFilter (pbrt-v4's defaults per filter; none: the box of radius 1/2)
   uint32_t features = 0;

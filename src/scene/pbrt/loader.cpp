@@ -247,7 +247,9 @@ void Loader::directive(Lexer& lx, const Token& t) {
     }
     scene.file_max_depth = depth;
     scene.file_regularize = ps.one_bool("regularize", false);
-    if (type != "path" && type != "volpath" && type != "simplepath")
+    scene.file_integrator = type;
+    // (bdpt: tuile's own where it renders the scene, else a warning from the options: cli.cpp)
+    if (type != "path" && type != "volpath" && type != "simplepath" && type != "bdpt")
       warn("integrator", where + ": Integrator \"" + type + "\" rendered by tuile's path tracer (next-event estimation "
                              "and MIS at every vertex, maxdepth " + std::to_string(depth) + ")");
     ps.mark_all_used();
