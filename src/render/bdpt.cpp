@@ -10,6 +10,7 @@
 
 #include "light/kinds.h"
 #include "light/table.h"
+#include "render/bdpt_mis.h"
 #include "render/light_paths.h"
 #include "sample/layout.h"
 #include "sample/rng.h"
@@ -32,6 +33,16 @@ bool area_kind(int32_t type) {
   return type == static_cast<int32_t>(LightKind::triangle) || type == static_cast<int32_t>(LightKind::parallelogram) ||
          type == static_cast<int32_t>(LightKind::sphere);
 }
+bool positional_kind(int32_t type) {
+  return type == static_cast<int32_t>(LightKind::point) || type == static_cast<int32_t>(LightKind::spot);
+}
+
+// pbrt-v4's spot falloff: smoothstep from the cone's edge (cos_end) to the falloff's start.
+float spot_falloff(const LightGeom<float>& g, float cos_t) {
+  const float c0 = g.e2.y, c1 = g.e2.x;
+  const float t = std::min(1.f, std::max(0.f, (cos_t - c0) / std::max(c1 - c0, 1e-12f)));
+  return t * t * (3.f - 2.f * t);
+}
 
 // A subpath's vertex. z0 is the camera (p its position, ng zero); y0 a point on a source
 // (ng its normal on the side it emits to). fwd: the density of this vertex from the one
@@ -45,31 +56,8 @@ struct Vertex {
   float eps = 0.f;     // ray offset
   int32_t light = -1;  // camera subpath: the source this point is on, facing the vertex before; y0: its source
   bool delta = false;  // the direction sampled here was a delta lobe's
+  float mis = 0.f;     // the prefix sum of the balance heuristic's ratios up to here (bdpt_mis.h)
 };
-
-struct Pd {
-  float fwd, rev;
-  bool delta;
-};
-
-float remap0(float f) { return f != 0.f ? f : 1.f; }
-
-// pbrt-v4's MISWeight, the balance heuristic: light vertices l[0..s), camera vertices
-// c[0..t), their densities as the strategy (s, t) sees them.
-float mis_weight(const Pd* l, int s, const Pd* c, int t) {
-  if (s + t == 2) return 1.f;
-  float sum = 0.f, ri = 1.f;
-  for (int i = t - 1; i > 0; --i) {
-    ri *= remap0(c[i].rev) / remap0(c[i].fwd);
-    if (!c[i].delta && !c[i - 1].delta) sum += ri;
-  }
-  ri = 1.f;
-  for (int i = s - 1; i >= 0; --i) {
-    ri *= remap0(l[i].rev) / remap0(l[i].fwd);
-    if (!l[i].delta && !(i > 0 && l[i - 1].delta)) sum += ri;  // (an area source is no delta light)
-  }
-  return 1.f / (1.f + sum);
-}
 
 // The BSDF of surface vertex v with the viewer along the unit w (the path tracer's
 // convention: the normals on the viewer's side of the geometric normal, which side of the
@@ -85,6 +73,14 @@ Bsdf viewed_from(const Vertex& v, const V3& w) {
   b.n = ns;
   b.wo = w;
   return b;
+}
+
+// |cos| of the unit-less direction e at vertex v, over |e| (1 at a point on no surface: the
+// camera, a point or spot source, whose densities per unit area are per unit solid angle
+// over d^2, as pbrt-v4's ConvertDensity).
+float cosine_over_length(const Vertex& v, const V3& e, float len) {
+  if (v.ng.x == 0.f && v.ng.y == 0.f && v.ng.z == 0.f) return 1.f;
+  return std::abs(dot(v.ng, e)) / len;
 }
 
 // A point's ray origin for a ray along d: off the surface on d's side.
@@ -112,7 +108,6 @@ struct Bdpt::Scratch {
   std::vector<float> br, bg, bb, pend, m0, u0, u1, u2, u3, u4, u5, sr, sg, sb;
   std::vector<int32_t> pend_light;
   std::vector<Job> jobs;
-  std::vector<Pd> pl, pc;
 };
 
 struct BdptPool {
@@ -124,10 +119,11 @@ std::string bdpt_refusal(const Scene& scene) {
   if (!scene.curves.empty()) return "the scene has curves (hair), which bdpt does not render yet";
   if (alpha_cut_emitter(scene)) return "the scene has an emitter with an alpha cut-out, which bdpt does not sample yet";
   int other = 0;
-  for (const Light& l : scene.lights) other += !area_kind(static_cast<int32_t>(l.type));
+  for (const Light& l : scene.lights)
+    other += !area_kind(static_cast<int32_t>(l.type)) && !positional_kind(static_cast<int32_t>(l.type));
   if (other > 0)
     return "the scene has " + std::to_string(other) +
-           " point, spot or distant source(s) or environment map(s); bdpt samples area sources alone yet";
+           " distant source(s) or environment map(s), which bdpt does not sample yet";
   return "";
 }
 
@@ -140,13 +136,22 @@ Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int wi
   if (!why.empty()) throw std::invalid_argument("--bdpt: " + why + " (render it without --bdpt)");
   if (G.has_media || G.has_hair || L.alpha_shape) throw std::invalid_argument("--bdpt: the scene's views hold what it refuses");
   for (int32_t i = 0; i < L.count; ++i)
-    if (!area_kind(L.type[i])) throw std::invalid_argument("--bdpt: the scene's light table holds a source it does not sample");
+    if (!area_kind(L.type[i]) && !positional_kind(L.type[i]))
+      throw std::invalid_argument("--bdpt: the scene's light table holds a source it does not sample");
   pmf_.assign(static_cast<size_t>(L.count), 0.f);
   double total = 0;
   std::vector<double> power;
   for (int32_t i = 0; i < L.count; ++i) {
     const int32_t s = L.one_radiance ? 0 : i;
-    const double p = static_cast<double>(luminance<float>(L.Lr[s], L.Lg[s], L.Lb[s])) * L.area[i] * (L.two_sided[i] > 0.5f ? 2 : 1);
+    const double lum = static_cast<double>(luminance<float>(L.Lr[s], L.Lg[s], L.Lb[s]));
+    double p = 0;
+    if (area_kind(L.type[i])) {
+      p = lum * L.area[i] * (L.two_sided[i] > 0.5f ? 2 : 1);
+    } else {  // pbrt-v4's: 4 pi I, a spot's 2 pi I (1 - (cos_start + cos_end) / 2)
+      const LightGeom<float> g = broadcast_light<float>(L, i);
+      p = L.type[i] == static_cast<int32_t>(LightKind::point) ? 4 * pi_f * lum
+                                                              : 2 * pi_f * lum * (1 - 0.5 * (g.e2.x + g.e2.y));
+    }
     if (!(p > 0) || !std::isfinite(p)) continue;
     lights_.push_back(i);
     power.push_back(p);
@@ -190,8 +195,6 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
   S.pend_light.resize(lane_array);
   S.ncam.resize(lane_array);
   S.nlight.resize(lane_array);
-  S.pl.resize(static_cast<size_t>(D) + 3);
-  S.pc.resize(static_cast<size_t>(D) + 3);
   auto layer = [](std::vector<std::vector<Vertex>>& path, int j) {
     while (static_cast<int>(path.size()) <= j) path.emplace_back(lane_array);
   };
@@ -276,7 +279,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         v.light = from_light ? -1 : S.pend_light[lane];
         const V3 e = v.p - prev.p;
         const float d2 = dot(e, e);
-        v.fwd = S.pend[lane] * std::abs(dot(v.ng, e)) / (d2 * std::sqrt(d2));
+        v.fwd = S.pend[lane] * cosine_over_length(v, e, std::sqrt(d2)) / d2;
         v.rev = 0.f;
         v.delta = false;
         n[static_cast<size_t>(lane)] = j + 1;
@@ -334,7 +337,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         } else {  // the vertex before, as the next one's BSDF would sample it
           const V3 e = prev.p - v.p;
           const float d2 = dot(e, e);
-          prev.rev = viewed_from(v, bs.wi).eval(wo).pdf * std::abs(dot(prev.ng, e)) / (d2 * std::sqrt(d2));
+          prev.rev = viewed_from(v, bs.wi).eval(wo).pdf * cosine_over_length(prev, e, std::sqrt(d2)) / d2;
         }
         set_ray(k, offset(v.p, v.ng, v.eps, bs.wi), bs.wi);
       }
@@ -344,6 +347,11 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
   // the densities of emission from a point of source l with normal n (on its emitting
   // side) towards unit w: per unit area of the source, and per unit solid angle
   auto emit_sa = [&](int32_t l, const V3& n, const V3& w) {
+    if (L.type[l] == static_cast<int32_t>(LightKind::point)) return 1.f / (4.f * pi_f);
+    if (L.type[l] == static_cast<int32_t>(LightKind::spot)) {  // uniform in the cone
+      const LightGeom<float> g = broadcast_light<float>(L, l);
+      return dot(w, g.e1) >= g.e2.y ? 1.f / (2.f * pi_f * (1.f - g.e2.y)) : 0.f;
+    }
     const float c = dot(n, w);
     if (L.two_sided[l] > 0.5f) return std::abs(c) * (0.5f / pi_f);
     return c > 0.f ? c * (1.f / pi_f) : 0.f;
@@ -411,6 +419,44 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       S.nlight[li] = 0;
       if (i >= lanes) continue;
       const int32_t l = pick(S.u0[li]);
+      if (positional_kind(L.type[l])) {  // a point or spot source: y0 its position, on no surface
+        const LightGeom<float> g = broadcast_light<float>(L, l);
+        const float pmf = pmf_[static_cast<size_t>(l)];
+        float le[3];
+        radiance(l, le);
+        Vertex& y0 = S.light[0][li];
+        y0 = Vertex{};
+        y0.p = g.p0;
+        y0.light = l;
+        for (int c = 0; c < 3; ++c) y0.beta[c] = le[c] / pmf;
+        y0.fwd = pmf;
+        S.nlight[li] = 1;
+        V3 d;
+        float pdf_dir, falloff = 1.f;
+        if (L.type[l] == static_cast<int32_t>(LightKind::point)) {
+          d = sample_uniform_sphere<float>(S.u4[li], S.u5[li]);
+          pdf_dir = 1.f / (4.f * pi_f);
+        } else {  // uniform in the cone (pbrt-v4's SampleUniformCone), the falloff in the weight
+          const float ce = g.e2.y;
+          const float ct = 1.f - S.u4[li] * (1.f - ce), st = std::sqrt(std::max(0.f, 1.f - ct * ct));
+          const float ph = 2.f * pi_f * S.u5[li];
+          V3 t, b;
+          make_basis(g.e1, t, b);
+          d = normalize(t * (st * std::cos(ph)) + b * (st * std::sin(ph)) + g.e1 * ct);
+          pdf_dir = 1.f / (2.f * pi_f * (1.f - ce));
+          falloff = spot_falloff(g, ct);
+        }
+        const float scale = falloff / (pmf * pdf_dir);
+        S.br[li] = le[0] * scale;
+        S.bg[li] = le[1] * scale;
+        S.bb[li] = le[2] * scale;
+        const float m0 = std::max(std::max(S.br[li], S.bg[li]), S.bb[li]);
+        if (!(m0 > 0.f) || !std::isfinite(m0)) continue;
+        S.m0[li] = 1.f / m0;
+        S.pend[li] = pdf_dir;
+        set_ray(i, g.p0, d);
+        continue;
+      }
       V3 n;
       const V3 y = point_on(l, S.u2[li], S.u3[li], n);
       const bool two = L.two_sided[l] > 0.5f;
@@ -445,6 +491,23 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       set_ray(i, y + n * y0.eps, d);
     }
     walk(s, true, S.light, S.nlight, D, false);
+    // each subpath vertex's prefix sum of the weights' ratios (bdpt_mis.h)
+    for (int i = 0; i < lanes; ++i) {
+      const size_t ln = static_cast<size_t>(i);
+      float p = 0.f;
+      for (int k = 1; k < S.ncam[ln]; ++k) {
+        Vertex& z = S.cam[static_cast<size_t>(k)][ln];
+        p = bdpt_prefix(p, {z.fwd, z.rev, z.delta}, S.cam[static_cast<size_t>(k - 1)][ln].delta);
+        z.mis = p;
+      }
+      p = 0.f;
+      for (int k = 0; k < S.nlight[ln]; ++k) {
+        Vertex& y = S.light[static_cast<size_t>(k)][ln];
+        p = bdpt_prefix(p, {y.fwd, y.rev, y.delta},
+                        k > 0 ? S.light[static_cast<size_t>(k - 1)][ln].delta : positional_kind(L.type[y.light]));
+        y.mis = p;
+      }
+    }
 
     // the joins
     S.jobs.clear();
@@ -456,22 +519,31 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       S.sg[static_cast<size_t>(lane)] += c[1];
       S.sb[static_cast<size_t>(lane)] += c[2];
     };
-    auto fill_pd = [&](int lane, int ns, int nt) {
+    // one side of a join: its n vertices, the reverse densities through the join of its
+    // last two (rev2 unused where there is one), whether a delta light stands before y0
+    auto delta_light = [&](int lane) { return positional_kind(L.type[S.light[0][static_cast<size_t>(lane)].light]); };
+    auto side = [&](const std::vector<std::vector<Vertex>>& path, int lane, int n, float fwd1, float rev1, float rev2,
+                    bool dl) {
       const size_t ln = static_cast<size_t>(lane);
-      for (int i = 0; i < ns; ++i) {
-        const Vertex& v = S.light[static_cast<size_t>(i)][ln];
-        S.pl[static_cast<size_t>(i)] = {v.fwd, v.rev, v.delta};
+      BdptSide d{n, fwd1, rev1, 0.f, rev2, n == 1 && dl, n == 2 && dl, 0.f};
+      if (n >= 2) {
+        const Vertex& v2 = path[static_cast<size_t>(n - 2)][ln];
+        d.fwd2 = v2.fwd;
+        d.delta2 = v2.delta;
       }
-      for (int i = 0; i < nt; ++i) {
-        const Vertex& v = S.cam[static_cast<size_t>(i)][ln];
-        S.pc[static_cast<size_t>(i)] = {v.fwd, v.rev, v.delta};
+      if (n >= 3) {
+        const Vertex& v3 = path[static_cast<size_t>(n - 3)][ln];
+        d.delta3 = v3.delta;
+        d.prefix3 = v3.mis;
       }
+      return d;
     };
+    const BdptSide none{0, 0.f, 0.f, 0.f, 0.f, false, false, 0.f};
     // the density of reaching `to` from `from` along a direction of solid-angle density pdf
     auto area = [](float pdf, const V3& from, const Vertex& to) {
       const V3 e = to.p - from;
       const float d2 = dot(e, e);
-      return pdf * std::abs(dot(to.ng, e)) / (d2 * std::sqrt(d2));
+      return pdf * cosine_over_length(to, e, std::sqrt(d2)) / d2;
     };
     auto shadow = [&](Job& j, const V3& a, const V3& na, float ea, const V3& b, const V3& nb, float eb) {
       const V3 ab = b - a;
@@ -505,14 +577,10 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         if (!nonzero3(c)) continue;
         float w = 1.f;
         if (t > 2) {
-          fill_pd(i, 0, t);
           const Vertex& zm = S.cam[static_cast<size_t>(t - 2)][ln];
-          S.pc[static_cast<size_t>(t - 1)].rev = pmf_[static_cast<size_t>(z.light)] / L.area[z.light];
-          S.pc[static_cast<size_t>(t - 1)].delta = false;
-          const V3 e = zm.p - z.p;
-          const V3 we = normalize(e);
-          S.pc[static_cast<size_t>(t - 2)].rev = area(emit_sa(z.light, z.ng, we), z.p, zm);
-          w = mis_weight(S.pl.data(), 0, S.pc.data(), t);
+          const V3 we = normalize(zm.p - z.p);
+          w = bdpt_mis(none, side(S.cam, i, t, z.fwd, pmf_[static_cast<size_t>(z.light)] / L.area[z.light],
+                                  area(emit_sa(z.light, z.ng, we), z.p, zm), false));
         }
         for (int k = 0; k < 3; ++k) c[k] *= w;
         if (!finite3(c)) {
@@ -532,6 +600,38 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         const int t = j + 1;
         const Vertex& z = S.cam[static_cast<size_t>(j)][ln];
         const int32_t l = pick(S.u0[ln]);
+        if (positional_kind(L.type[l])) {  // its position, the falloff's intensity towards z
+          const LightGeom<float> g = broadcast_light<float>(L, l);
+          const V3 e = g.p0 - z.p;
+          const float d2 = dot(e, e);
+          const float dist = std::sqrt(d2);
+          if (!(dist > 0.f)) continue;
+          const V3 w = e * (1.f / dist);
+          const float falloff =
+              L.type[l] == static_cast<int32_t>(LightKind::spot) ? spot_falloff(g, -dot(w, g.e1)) : 1.f;
+          if (!(falloff > 0.f)) continue;
+          const BsdfEval<float> fz = z.bsdf.eval(w);
+          const float pmf = pmf_[static_cast<size_t>(l)];
+          float le[3];
+          radiance(l, le);
+          Job job{};
+          job.lane = i;
+          job.s = 1;
+          job.t = t;
+          const float gg = std::abs(dot(z.bsdf.n, w)) * falloff / (d2 * pmf);
+          job.c[0] = z.beta[0] * fz.f.r * le[0] * gg;
+          job.c[1] = z.beta[1] * fz.f.g * le[1] * gg;
+          job.c[2] = z.beta[2] * fz.f.b * le[2] * gg;
+          if (!nonzero3(job.c)) continue;
+          const BdptSide ls{1, pmf, fz.pdf / d2, 0.f, 0.f, true, false, 0.f};  // (a delta light)
+          const float zrev = emit_sa(l, V3(0.f, 0.f, 0.f), V3(0.f, 0.f, 0.f) - w) * std::abs(dot(z.ng, w)) / d2;
+          const float zmrev =
+              t > 2 ? area(viewed_from(z, w).eval(z.bsdf.wo).pdf, z.p, S.cam[static_cast<size_t>(t - 2)][ln]) : 0.f;
+          const float wgt = bdpt_mis(ls, side(S.cam, i, t, z.fwd, zrev, zmrev, false));
+          for (float& c : job.c) c *= wgt;
+          if (shadow(job, z.p, z.ng, z.eps, g.p0, V3(0.f, 0.f, 0.f), 0.f)) push(job);
+          continue;
+        }
         V3 n;
         const V3 y = point_on(l, S.u2[ln], S.u3[ln], n);
         const V3 e = y - z.p;
@@ -554,16 +654,11 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         job.c[1] = z.beta[1] * fz.f.g * le[1] * g;
         job.c[2] = z.beta[2] * fz.f.b * le[2] * g;
         if (!nonzero3(job.c)) continue;
-        fill_pd(i, 0, t);
         const V3 nf = cl < 0.f ? n : V3(0.f, 0.f, 0.f) - n;  // the source's normal on z's side
-        S.pl[0] = {pdf_pos, fz.pdf * std::abs(cl) / d2, false};
-        S.pc[static_cast<size_t>(t - 1)].rev = emit_sa(l, nf, V3(0.f, 0.f, 0.f) - w) * std::abs(dot(z.ng, w)) / d2;
-        S.pc[static_cast<size_t>(t - 1)].delta = false;
-        if (t > 2) {
-          const Vertex& zm = S.cam[static_cast<size_t>(t - 2)][ln];
-          S.pc[static_cast<size_t>(t - 2)].rev = area(viewed_from(z, w).eval(z.bsdf.wo).pdf, z.p, zm);
-        }
-        const float wgt = mis_weight(S.pl.data(), 1, S.pc.data(), t);
+        const BdptSide ls{1, pdf_pos, fz.pdf * std::abs(cl) / d2, 0.f, 0.f, false, false, 0.f};
+        const float zrev = emit_sa(l, nf, V3(0.f, 0.f, 0.f) - w) * std::abs(dot(z.ng, w)) / d2;
+        const float zmrev = t > 2 ? area(viewed_from(z, w).eval(z.bsdf.wo).pdf, z.p, S.cam[static_cast<size_t>(t - 2)][ln]) : 0.f;
+        const float wgt = bdpt_mis(ls, side(S.cam, i, t, z.fwd, zrev, zmrev, false));
         for (float& c : job.c) c *= wgt;
         if (shadow(job, z.p, z.ng, z.eps, y, nf, offset_eps(y))) push(job);
       }
@@ -599,12 +694,10 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         job.c[1] = y.beta[1] * fy.f.g * k0 * imp;
         job.c[2] = y.beta[2] * fy.f.b * k0 * imp;
         if (!nonzero3(job.c)) continue;
-        fill_pd(i, sl, 1);
-        S.pc[0] = {0.f, 0.f, false};
-        S.pl[static_cast<size_t>(sl - 1)].rev = static_cast<float>(density) * std::abs(dot(y.ng, w)) / static_cast<float>(d2);
-        S.pl[static_cast<size_t>(sl - 1)].delta = false;
-        S.pl[static_cast<size_t>(sl - 2)].rev = area(viewed_from(y, w).eval(wo).pdf, y.p, ym);
-        const float wgt = mis_weight(S.pl.data(), sl, S.pc.data(), 1);
+        const float yrev = static_cast<float>(density) * std::abs(dot(y.ng, w)) / static_cast<float>(d2);
+        const float wgt =
+            bdpt_mis(side(S.light, i, sl, y.fwd, yrev, area(viewed_from(y, w).eval(wo).pdf, y.p, ym), delta_light(i)),
+                     side(S.cam, i, 1, 0.f, 0.f, 0.f, false));
         for (float& c : job.c) c *= wgt;
         if (shadow(job, y.p, y.ng, y.eps, eye, V3(0.f, 0.f, 0.f), 0.f)) push(job);
       }
@@ -643,14 +736,10 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
           job.c[1] = z.beta[1] * fz.f.g * y.beta[1] * fy.f.g * g;
           job.c[2] = z.beta[2] * fz.f.b * y.beta[2] * fy.f.b * g;
           if (!nonzero3(job.c)) continue;
-          fill_pd(i, sl, t);
-          S.pc[static_cast<size_t>(t - 1)].rev = fy.pdf * std::abs(dot(z.ng, w)) / d2;
-          S.pc[static_cast<size_t>(t - 1)].delta = false;
-          if (t > 2) S.pc[static_cast<size_t>(t - 2)].rev = area(viewed_from(z, w).eval(z.bsdf.wo).pdf, z.p, zm);
-          S.pl[static_cast<size_t>(sl - 1)].rev = fz.pdf * std::abs(dot(y.ng, w)) / d2;
-          S.pl[static_cast<size_t>(sl - 1)].delta = false;
-          S.pl[static_cast<size_t>(sl - 2)].rev = area(viewed_from(y, mw).eval(wo).pdf, y.p, ym);
-          const float wgt = mis_weight(S.pl.data(), sl, S.pc.data(), t);
+          const float zmrev = t > 2 ? area(viewed_from(z, w).eval(z.bsdf.wo).pdf, z.p, zm) : 0.f;
+          const float wgt = bdpt_mis(side(S.light, i, sl, y.fwd, fz.pdf * std::abs(dot(y.ng, w)) / d2,
+                                          area(viewed_from(y, mw).eval(wo).pdf, y.p, ym), delta_light(i)),
+                                     side(S.cam, i, t, z.fwd, fy.pdf * std::abs(dot(z.ng, w)) / d2, zmrev, false));
           for (float& c : job.c) c *= wgt;
           if (shadow(job, z.p, z.ng, z.eps, y.p, y.ng, y.eps)) push(job);
         }

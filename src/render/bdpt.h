@@ -9,7 +9,8 @@
 // prefix z0..z(t-1) with s + t - 2 <= the depth is a strategy for the path of s + t
 // vertices they make:
 // - s = 0: the camera subpath met an emitter (its front, or either side of a two-sided one);
-// - s = 1: a point sampled on a source (picked by power, uniform in area) joined to z(t-1);
+// - s = 1: a point sampled on a source (picked by power, uniform in area; a point or spot
+//   source's position) joined to z(t-1);
 // - t = 1: y(s-1) joined to the camera, splatted where it is seen (pbrt-v4's light tracer);
 // - s, t >= 2: y(s-1) joined to z(t-1) by a shadow ray.
 // (s = 1, t = 1, a point on a source joined to the camera, is left out, as pbrt-v4 does;
@@ -19,13 +20,15 @@
 // lobes and zero densities skipped as pbrt's remap0), so that the weights of a path sum to
 // one and the estimator is unbiased. The densities: a source is picked by power and a point
 // on it uniform in area, its direction cosine-weighted (half of that on each side of a
-// two-sided source); the camera's as Pinhole::ray_density. A vertex's reverse density is its
+// two-sided source); a point source's direction uniform on the sphere, a spot's uniform in
+// its cone (its falloff in the weight), both delta lights (y0 on no surface: no strategy
+// meets them from the camera's side); the camera's as Pinhole::ray_density. A vertex's reverse density is its
 // neighbour's BSDF density with the viewer and the sampled direction exchanged.
 //
 // What it renders: surfaces of every material the path tracer knows but hair, lit by area
-// sources (triangles, parallelograms, spheres). It refuses (std::invalid_argument) point,
-// spot and distant sources, environment maps, participating media, curves and emitters with
-// an alpha cut-out, which its strategies do not cover yet.
+// sources (triangles, parallelograms, spheres), point and spot sources. It refuses
+// (std::invalid_argument) distant sources, environment maps, participating media, curves
+// and emitters with an alpha cut-out, which its strategies do not cover yet.
 //
 // Determinism: as the light tracer's splats (the renderer adds a tile's splats in tile
 // order), each lane's camera-side contributions summed in strategy order into one splat per
@@ -48,8 +51,8 @@ namespace tuile {
 struct Scene;
 struct BdptPool;  // the threads' scratch (bdpt.cpp)
 
-// Why bdpt does not render this scene ("" where it does): point, spot or distant sources,
-// environment maps, media, curves or an emitter with an alpha cut-out.
+// Why bdpt does not render this scene ("" where it does): distant sources, environment
+// maps, media, curves or an emitter with an alpha cut-out.
 std::string bdpt_refusal(const Scene& scene);
 
 class Bdpt {
