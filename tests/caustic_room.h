@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 #include "media_util.h"
 #include "render_util.h"
@@ -146,6 +147,25 @@ inline Scene glass_slab_scene() {
   camera_look_at(s.camera, {0.2f, -1.2f, 0.1f}, {0, 0, 0}, {0, 0, 1});
   finalize_scene(s);
   return s;
+}
+
+// An estimator that splats (the light tracer, bdpt): the same bits on one thread and on two
+// (Sobol' sampler, `on`), and an image that differs from `off`'s (it ran).
+inline void expect_same_bits_on_any_thread_count(const Scene& s, RenderOptions on, RenderOptions off, uint32_t spp) {
+  Accel accel(s);
+  auto render = [&](RenderOptions o, int threads) {
+    o.est.sampler = SamplerKind::sobol;
+    o.threads = threads;
+    return render_mean(s, accel, o, spp);
+  };
+  const std::vector<float> two = render(on, 2), one = render(on, 1), plain = render(off, 2);
+  size_t differ = 0, differ_plain = 0;
+  for (size_t i = 0; i < two.size(); ++i) {
+    differ += two[i] != one[i];
+    differ_plain += two[i] != plain[i];
+  }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_GT(differ_plain, two.size() / 4);
 }
 
 }  // namespace tuile::test

@@ -168,22 +168,7 @@ TEST(Bdpt, RendersThePathTracersMeanUnderPointAndSpotSources) {
 }
 
 TEST(Bdpt, SameBitsOnAnyThreadCount) {
-  const Scene s = caustic_room(20);
-  Accel accel(s);
-  auto render = [&](bool bdpt, int threads) {
-    RenderOptions o = bdpt_options(bdpt, 6, 5);
-    o.est.sampler = SamplerKind::sobol;
-    o.threads = threads;
-    return render_mean(s, accel, o, 6);
-  };
-  const std::vector<float> two = render(true, 2), one = render(true, 1), plain = render(false, 2);
-  size_t differ = 0, differ_plain = 0;
-  for (size_t i = 0; i < two.size(); ++i) {
-    differ += two[i] != one[i];
-    differ_plain += two[i] != plain[i];
-  }
-  EXPECT_EQ(differ, 0u);
-  EXPECT_GT(differ_plain, two.size() / 4);  // bdpt rendered, not the path tracer
+  expect_same_bits_on_any_thread_count(caustic_room(20), bdpt_options(true, 6, 5), bdpt_options(false, 6, 5), 6);
 }
 
 // The default, auto: bdpt where the scene file asks for pbrt's bdpt, bdpt renders the scene

@@ -230,22 +230,7 @@ TEST(LightPaths, RendersThePathTracersMeanUnderASunAndAnAreaLight) {
 }
 
 TEST(LightPaths, SameBitsOnAnyThreadCount) {
-  const Scene s = caustic_room(20);
-  Accel accel(s);
-  auto render = [&](bool lp, int threads) {
-    RenderOptions o = options(lp, 12, 5);
-    o.est.sampler = SamplerKind::sobol;
-    o.threads = threads;
-    return render_mean(s, accel, o, 12);
-  };
-  const std::vector<float> two = render(true, 2), one = render(true, 1), plain = render(false, 2);
-  size_t differ = 0, differ_plain = 0;
-  for (size_t i = 0; i < two.size(); ++i) {
-    differ += two[i] != one[i];
-    differ_plain += two[i] != plain[i];
-  }
-  EXPECT_EQ(differ, 0u);
-  EXPECT_GT(differ_plain, two.size() / 4);  // the light paths were traced
+  expect_same_bits_on_any_thread_count(caustic_room(20), options(true, 12, 5), options(false, 12, 5), 12);
 }
 
 TEST(LightPaths, RefusesWhatItCannotDo) {

@@ -83,6 +83,22 @@ float cosine_over_length(const Vertex& v, const V3& e, float len) {
   return std::abs(dot(v.ng, e)) / len;
 }
 
+// A light vertex y joined along the unit w (from y): its BSDF's factor as importance carries
+// it, times |ns.w|: Veach's shading-normal factor |ns.wo| |ng.w| / |ng.wo| and etap^2 on a
+// transmission through a dielectric; 0 where wo grazes the surface.
+float importance_join(const GeomView& G, const Vertex& y, const V3& w) {
+  const V3 wo = y.bsdf.wo;
+  const float ngo = std::abs(dot(y.ng, wo));
+  if (!(ngo > 0.f)) return 0.f;
+  float k = std::abs(dot(y.bsdf.n, wo)) / ngo * std::abs(dot(y.ng, w));
+  if (y.bsdf.kind == static_cast<int32_t>(MaterialKind::dielectric) && dot(y.ng, w) < 0.f) {
+    const float eta = G.mat_param[mp_eta][y.bsdf.mat];
+    const float etap = y.bsdf.side > 0.f ? eta : 1.f / eta;
+    k *= etap * etap;
+  }
+  return k;
+}
+
 // A point's ray origin for a ray along d: off the surface on d's side.
 V3 offset(const V3& p, const V3& ng, float eps, const V3& d) { return p + ng * (dot(ng, d) < 0.f ? -eps : eps); }
 
@@ -212,18 +228,6 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
   const float inv_t = 1.f / est.rr_threshold;
   auto trace = [&](const int32_t* valid, RayHit16& p) { accel.intersect16(valid, p, false, Bvh::scene); };
   ShadingPoints& P = tb.points;
-  auto set_ray = [&](int k, const V3& org, const V3& d) {
-    RayHit16& r = tb.bounce[k / packet_width];
-    const int ln = k % packet_width;
-    r.ray.org_x[ln] = org.x;
-    r.ray.org_y[ln] = org.y;
-    r.ray.org_z[ln] = org.z;
-    r.ray.dir_x[ln] = d.x;
-    r.ray.dir_y[ln] = d.y;
-    r.ray.dir_z[ln] = d.z;
-    r.ray.tfar[ln] = 3.0e38f;
-    tb.tech.valid[k] = -1;
-  };
   auto start_points = [&]() {
     for (int i = 0; i < padded; ++i) {
       P.lane[i] = i;
@@ -299,18 +303,8 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         const BsdfSample<float> bs = v.bsdf.sample(S.u2[ln], S.u0[ln], S.u1[ln]);
         if (!bs.valid) continue;
         const V3 wo = v.bsdf.wo;
-        float adj = 1.f;
-        if (from_light) {  // the adjoint: Veach's shading-normal factor, no 1 / eta^2 on transmissions
-          const V3 ns = v.bsdf.n;
-          const float cgi = dot(v.ng, bs.wi);
-          const float den = std::abs(dot(v.ng, wo)) * std::abs(dot(ns, bs.wi));
-          adj = den > 0.f ? std::abs(dot(ns, wo)) * std::abs(cgi) / den : 0.f;
-          if (v.bsdf.kind == static_cast<int32_t>(MaterialKind::dielectric) && cgi < 0.f) {
-            const float eta = G.mat_param[mp_eta][v.bsdf.mat];
-            const float etap = v.bsdf.side > 0.f ? eta : 1.f / eta;
-            adj *= etap * etap;
-          }
-        }
+        // the adjoint: Veach's shading-normal factor, no 1 / eta^2 on transmissions
+        const float adj = from_light ? adjoint_factor(G, v.bsdf.mat, v.bsdf.kind, v.bsdf.side, v.ng, v.bsdf.n, wo, bs.wi) : 1.f;
         float br = S.br[ln] * bs.weight.r * adj, bg = S.bg[ln] * bs.weight.g * adj, bb = S.bb[ln] * bs.weight.b * adj;
         const float m = std::max(std::max(br, bg), bb);
         if (!std::isfinite(m)) {
@@ -339,7 +333,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
           const float d2 = dot(e, e);
           prev.rev = viewed_from(v, bs.wi).eval(wo).pdf * cosine_over_length(prev, e, std::sqrt(d2)) / d2;
         }
-        set_ray(k, offset(v.p, v.ng, v.eps, bs.wi), bs.wi);
+        set_light_ray(tb, k, offset(v.p, v.ng, v.eps, bs.wi), bs.wi);
       }
     }
   };
@@ -454,7 +448,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         if (!(m0 > 0.f) || !std::isfinite(m0)) continue;
         S.m0[li] = 1.f / m0;
         S.pend[li] = pdf_dir;
-        set_ray(i, g.p0, d);
+        set_light_ray(tb, i, g.p0, d);
         continue;
       }
       V3 n;
@@ -488,7 +482,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       if (!(m0 > 0.f) || !std::isfinite(m0)) continue;
       S.m0[li] = 1.f / m0;
       S.pend[li] = pdf_dir;
-      set_ray(i, y + n * y0.eps, d);
+      set_light_ray(tb, i, y + n * y0.eps, d);
     }
     walk(s, true, S.light, S.nlight, D, false);
     // each subpath vertex's prefix sum of the weights' ratios (bdpt_mis.h)
@@ -675,14 +669,8 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         const V3 w{static_cast<float>(vv[0] / dist), static_cast<float>(vv[1] / dist), static_cast<float>(vv[2] / dist)};
         const BsdfEval<float> fy = y.bsdf.eval(w);
         const V3 wo = y.bsdf.wo;
-        const float ngo = std::abs(dot(y.ng, wo));
-        if (!(ngo > 0.f)) continue;
-        float k0 = std::abs(dot(y.bsdf.n, wo)) / ngo * std::abs(dot(y.ng, w));
-        if (y.bsdf.kind == static_cast<int32_t>(MaterialKind::dielectric) && dot(y.ng, w) < 0.f) {
-          const float eta = G.mat_param[mp_eta][y.bsdf.mat];
-          const float etap = y.bsdf.side > 0.f ? eta : 1.f / eta;
-          k0 *= etap * etap;
-        }
+        const float k0 = importance_join(G, y, w);
+        if (!(k0 > 0.f)) continue;
         const float imp = static_cast<float>(density / d2);
         Job job{};
         job.lane = i;
@@ -719,14 +707,8 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
           const BsdfEval<float> fy = y.bsdf.eval(mw);
           if (!(fy.f.r > 0.f || fy.f.g > 0.f || fy.f.b > 0.f)) continue;
           const V3 wo = y.bsdf.wo;
-          const float ngo = std::abs(dot(y.ng, wo));
-          if (!(ngo > 0.f)) continue;
-          float ky = std::abs(dot(y.bsdf.n, wo)) / ngo * std::abs(dot(y.ng, w));
-          if (y.bsdf.kind == static_cast<int32_t>(MaterialKind::dielectric) && dot(y.ng, mw) < 0.f) {
-            const float eta = G.mat_param[mp_eta][y.bsdf.mat];
-            const float etap = y.bsdf.side > 0.f ? eta : 1.f / eta;
-            ky *= etap * etap;
-          }
+          const float ky = importance_join(G, y, mw);
+          if (!(ky > 0.f)) continue;
           const float g = ky * std::abs(dot(z.bsdf.n, w)) / d2;
           Job job{};
           job.lane = i;

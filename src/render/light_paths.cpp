@@ -247,11 +247,7 @@ double area_caustic_share(const Scene& scene) {
   });
 }
 
-namespace {
-
-// Lane i's ray (a light path's next segment) from org along the unit d, traced to the
-// nearest hit.
-void set_ray(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<float>& d) {
+void set_light_ray(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<float>& d) {
   RayHit16& r = tb.bounce[i / packet_width];
   const int ln = i % packet_width;
   r.ray.org_x[ln] = org.x;
@@ -264,11 +260,29 @@ void set_ray(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<float>& 
   tb.tech.valid[i] = -1;
 }
 
+float adjoint_factor(const GeomView& G, int32_t mat, int32_t kind, float side, const Vec3<float>& ng, const Vec3<float>& ns,
+                     const Vec3<float>& wo, const Vec3<float>& wi) {
+  float adj = 1.f;
+  const float cgi = dot(ng, wi);
+  if (G.shading_normals) {
+    const float den = std::abs(dot(ng, wo)) * std::abs(dot(ns, wi));
+    adj = den > 0.f ? std::abs(dot(ns, wo)) * std::abs(cgi) / den : 0.f;
+  }
+  if (kind == static_cast<int32_t>(MaterialKind::dielectric) && cgi < 0.f) {
+    const float eta = G.mat_param[mp_eta][mat];
+    const float etap = side > 0.f ? eta : 1.f / eta;
+    adj *= etap * etap;
+  }
+  return adj;
+}
+
+namespace {
+
 // Lane i's light path leaves its source: its first ray, its throughput (the largest
 // channel m0 > 0), in medium med; eta_scale holds 1 / m0, for Russian roulette.
 void emit(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<float>& d, float br, float bg, float bb, float m0,
           int32_t med) {
-  set_ray(tb, i, org, d);
+  set_light_ray(tb, i, org, d);
   tb.path.throughput_r[i] = br;
   tb.path.throughput_g[i] = bg;
   tb.path.throughput_b[i] = bb;
@@ -787,19 +801,8 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           if (tb.path.first_rough[k] > 0.f ? bs.delta || !glossy : !(bs.delta || (area_glossy_ && glossy))) continue;
         }
         const bool in_medium = bsdf.kind == static_cast<int32_t>(MaterialKind::phase);
-        float adj = 1.f;
         const float cgi = dot(ng, bs.wi);
-        if (!in_medium) {
-          if (G.shading_normals) {
-            const float den = std::abs(dot(ng, wo)) * std::abs(dot(ns, bs.wi));
-            adj = den > 0.f ? std::abs(dot(ns, wo)) * std::abs(cgi) / den : 0.f;
-          }
-          if (bsdf.kind == static_cast<int32_t>(MaterialKind::dielectric) && cgi < 0.f) {
-            const float eta = G.mat_param[mp_eta][P.mat[k]];
-            const float etap = P.side[k] > 0.f ? eta : 1.f / eta;
-            adj *= etap * etap;
-          }
-        }
+        const float adj = in_medium ? 1.f : adjoint_factor(G, P.mat[k], bsdf.kind, P.side[k], ng, ns, wo, bs.wi);
         float br = tb.path.throughput_r[k] * bs.weight.r * adj;
         float bg = tb.path.throughput_g[k] * bs.weight.g * adj;
         float bb = tb.path.throughput_b[k] * bs.weight.b * adj;
@@ -819,7 +822,7 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           }
         }
         const float side = in_medium ? 0.f : (cgi < 0.f ? -1.f : 1.f);
-        set_ray(tb, k, x + ng * (P.eps[k] * side), bs.wi);
+        set_light_ray(tb, k, x + ng * (P.eps[k] * side), bs.wi);
         tb.path.throughput_r[k] = br;
         tb.path.throughput_g[k] = bg;
         tb.path.throughput_b[k] = bb;

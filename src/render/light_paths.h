@@ -127,6 +127,17 @@ double area_caustic_share(const Scene& scene);
 // tracer refuses.
 bool alpha_cut_emitter(const Scene& scene);
 
+// Lane i's ray (a light path's next segment) from org along the unit d, traced to the
+// nearest hit (tb.bounce, tb.tech.valid): the light tracer's and bdpt's.
+void set_light_ray(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<float>& d);
+// The adjoint's factor on a light path's BSDF sample wi at a surface point (geometric normal
+// ng, shading normal ns, wo towards the vertex before; material mat of kind `kind`, the
+// viewer's side `side`): Veach's shading-normal factor |ns.wo| |ng.wi| / (|ng.wo| |ns.wi|)
+// where the scene has shading normals, and etap^2 on a transmission through a dielectric
+// (importance carries no 1 / eta^2).
+float adjoint_factor(const GeomView& G, int32_t mat, int32_t kind, float side, const Vec3<float>& ng, const Vec3<float>& ns,
+                     const Vec3<float>& wo, const Vec3<float>& wi);
+
 class LightPaths {
  public:
   // Throws std::invalid_argument where the scene has what the light tracer cannot trace
