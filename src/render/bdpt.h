@@ -65,8 +65,6 @@ class Bdpt {
   // they land); rejected counts contributions that were not finite.
   void trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_size, int tiles_x, uint32_t begin, uint32_t end,
                   std::vector<LightPathSplat>& out, uint64_t& rejected) const;
-  // The sources' pick probabilities (by power; 0 for those that emit nothing).
-  const std::vector<float>& pick_pmf() const { return pmf_; }
 
   struct Scratch;
 
