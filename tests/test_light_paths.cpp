@@ -11,7 +11,9 @@
 // quarter and channel by channel; and under a sun whose glints off glossy things (a metal
 // plate, a coated ball, a mix with a glazed coat) light a wall in its own shade, with and
 // without an area light and a glass ball beside it (the light tracer's distant source, its
-// discs, and the path tracer's light samples left out). Also: the same bits on any thread count, and an image that
+// discs, and the path tracer's light samples left out); and under point and spot sources,
+// whose caustics the path tracer has no sample of, against bdpt. Also: the same bits on any
+// thread count, and an image that
 // differs from the path tracer's alone (the light paths were traced).
 #include <gtest/gtest.h>
 
@@ -227,6 +229,100 @@ TEST(LightPaths, RendersThePathTracersMeanUnderASunAndAnAreaLight) {
   const Scene s = sun_wall(24, true);
   const uint32_t spp = static_cast<uint32_t>(scaled(96));
   expect_same_mean_over_seeds(s, options(true, spp, 0), options(false, spp, 0), 24, "sun and area light");
+}
+
+// Point and spot sources in the caustic room without its glass ball and slab: the mirror
+// and the smooth coat on the back wall throw their light on the floor and the walls. The
+// path tracer has no sample of those paths (a light sample stops at the delta lobe, no BSDF
+// sample meets a point), so its image alone is darker where they fall; with the light
+// tracer's paths from those sources it renders bdpt's mean (tests/test_bdpt.cpp checks bdpt
+// against the path tracer where both sample everything). The camera, by the back wall,
+// sees no delta lobe (a caustic seen in a mirror is neither estimator's: the light tracer
+// joins the camera directly), but a rough metal right wall and a rough coat on the front
+// wall, at which the light paths of these sources join the camera too. The area light
+// dimmed a hundred times, so that these caustics are a large share of the image.
+Scene point_and_spot_room() {
+  Scene s = caustic_room(20, false, false);
+  s.spheres.clear();
+  std::vector<Mesh> kept;
+  for (Mesh& m : s.meshes) {
+    if (m.name == "slab" || m.name == "slab top") continue;
+    if (m.name == "light") m.emission = {m.emission.r * 0.01f, m.emission.g * 0.01f, m.emission.b * 0.01f};
+    kept.push_back(m);
+  }
+  s.meshes = kept;
+  Material metal;
+  metal.kind = MaterialKind::conductor;
+  metal.eta_rgb = {0.2f, 0.9f, 1.1f};
+  metal.k_rgb = {3.9f, 2.4f, 2.1f};
+  metal.alpha_u.value = metal.alpha_v.value = 0.3f;
+  Material coat;
+  coat.kind = MaterialKind::coated_diffuse;
+  coat.reflectance = {0.5f, 0.4f, 0.3f};
+  coat.alpha_u.value = coat.alpha_v.value = 0.2f;
+  const int metal_m = static_cast<int>(s.materials.size()), coat_m = metal_m + 1;
+  s.materials.push_back(metal);
+  s.materials.push_back(coat);
+  for (Mesh& m : s.meshes) {
+    if (m.name == "right") m.material = metal_m;
+    if (m.name == "front") m.material = coat_m;
+  }
+  Light point;
+  point.type = LightKind::point;
+  point.p0 = {0.6f, 1.5f, -0.2f};
+  point.radiance = {0.6f, 0.5f, 0.4f};
+  s.lights.push_back(point);
+  Light spot;  // at the back wall's smooth coat
+  spot.type = LightKind::spot;
+  spot.p0 = {-0.4f, 1.8f, 0.6f};
+  spot.e1 = normalize(vec3f{0.1f, -0.6f, -1});
+  spot.e2 = {std::cos(0.3f), std::cos(0.5f), 0};  // falloff start, total
+  spot.radiance = {2, 2, 2.5f};
+  s.lights.push_back(spot);
+  camera_look_at(s.camera, {0, 1.6f, -1.4f}, {0, 0, 1.0f}, {0, 1, 0});
+  finalize_scene(s);
+  return s;
+}
+
+TEST(LightPaths, RendersBdptsMeanUnderPointAndSpotSources) {
+  const Scene s = point_and_spot_room();
+  RenderOptions lp = options(true, static_cast<uint32_t>(scaled(96)), 0), bdpt = options(false, static_cast<uint32_t>(scaled(32)), 0);
+  lp.est.max_depth = bdpt.est.max_depth = 4;
+  bdpt.est.bdpt = true;
+  expect_same_mean_over_seeds(s, lp, bdpt, 24, "point and spot sources, light paths against bdpt");
+}
+
+// auto turns the light tracer on for a point or spot source's caustics: a positional source
+// and a surface with a delta lobe, in a scene without media; not where every surface is
+// rough (the path tracer samples everything there).
+TEST(LightPaths, AutoIsOnForAPointOrSpotSourcesCaustics) {
+  auto resolved = [](Scene s) {
+    RenderFlags f;
+    f.max_depth = 5;
+    f.max_depth_given = true;
+    return resolve_options(f, s).est.light_paths;
+  };
+  Scene s = caustic_room(16, false, false);
+  for (Mesh& m : s.meshes)
+    if (m.name == "light") m.emission = {0, 0, 0};  // (its own caustics: off, AutoIsOnForASmallLampsCausticsOnSurfaces)
+  Light spot;
+  spot.type = LightKind::spot;
+  spot.p0 = {0.6f, 1.8f, 0.8f};
+  spot.e1 = normalize(vec3f{-0.5f, -1, -0.6f});
+  spot.e2 = {std::cos(0.3f), std::cos(0.5f), 0};
+  spot.radiance = {2, 2, 2};
+  s.lights.push_back(spot);
+  Scene rough = s;
+  finalize_scene(s);
+  EXPECT_TRUE(resolved(s));
+  for (Material& m : rough.materials)
+    if (m.kind != MaterialKind::diffuse) m.alpha_u.value = m.alpha_v.value = std::max(m.alpha_u.value, 0.3f);
+  finalize_scene(rough);
+  EXPECT_FALSE(resolved(rough));
+  Scene dark = s;  // a source of no intensity
+  dark.lights.back().radiance = {0, 0, 0};
+  finalize_scene(dark);
+  EXPECT_FALSE(resolved(dark));
 }
 
 TEST(LightPaths, SameBitsOnAnyThreadCount) {

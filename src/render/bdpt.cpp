@@ -33,17 +33,6 @@ bool area_kind(int32_t type) {
   return type == static_cast<int32_t>(LightKind::triangle) || type == static_cast<int32_t>(LightKind::parallelogram) ||
          type == static_cast<int32_t>(LightKind::sphere);
 }
-bool positional_kind(int32_t type) {
-  return type == static_cast<int32_t>(LightKind::point) || type == static_cast<int32_t>(LightKind::spot);
-}
-
-// pbrt-v4's spot falloff: smoothstep from the cone's edge (cos_end) to the falloff's start.
-float spot_falloff(const LightGeom<float>& g, float cos_t) {
-  const float c0 = g.e2.y, c1 = g.e2.x;
-  const float t = std::min(1.f, std::max(0.f, (cos_t - c0) / std::max(c1 - c0, 1e-12f)));
-  return t * t * (3.f - 2.f * t);
-}
-
 // A subpath's vertex. z0 is the camera (p its position, ng zero); y0 a point on a source
 // (ng its normal on the side it emits to). fwd: the density of this vertex from the one
 // before on its subpath, rev: from the one after, both per unit area (0 for a delta
@@ -136,7 +125,7 @@ std::string bdpt_refusal(const Scene& scene) {
   if (alpha_cut_emitter(scene)) return "the scene has an emitter with an alpha cut-out, which bdpt does not sample yet";
   int other = 0;
   for (const Light& l : scene.lights)
-    other += !area_kind(static_cast<int32_t>(l.type)) && !positional_kind(static_cast<int32_t>(l.type));
+    other += !area_kind(static_cast<int32_t>(l.type)) && !positional_light(static_cast<int32_t>(l.type));
   if (other > 0)
     return "the scene has " + std::to_string(other) +
            " distant source(s) or environment map(s), which bdpt does not sample yet";
@@ -152,7 +141,7 @@ Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int wi
   if (!why.empty()) throw std::invalid_argument("--bdpt: " + why + " (render it without --bdpt)");
   if (G.has_media || G.has_hair || L.alpha_shape) throw std::invalid_argument("--bdpt: the scene's views hold what it refuses");
   for (int32_t i = 0; i < L.count; ++i)
-    if (!area_kind(L.type[i]) && !positional_kind(L.type[i]))
+    if (!area_kind(L.type[i]) && !positional_light(L.type[i]))
       throw std::invalid_argument("--bdpt: the scene's light table holds a source it does not sample");
   pmf_.assign(static_cast<size_t>(L.count), 0.f);
   double total = 0;
@@ -163,10 +152,8 @@ Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int wi
     double p = 0;
     if (area_kind(L.type[i])) {
       p = lum * L.area[i] * (L.two_sided[i] > 0.5f ? 2 : 1);
-    } else {  // pbrt-v4's: 4 pi I, a spot's 2 pi I (1 - (cos_start + cos_end) / 2)
-      const LightGeom<float> g = broadcast_light<float>(L, i);
-      p = L.type[i] == static_cast<int32_t>(LightKind::point) ? 4 * pi_f * lum
-                                                              : 2 * pi_f * lum * (1 - 0.5 * (g.e2.x + g.e2.y));
+    } else {
+      p = positional_power(L.type[i], broadcast_light<float>(L, i), lum);
     }
     if (!(p > 0) || !std::isfinite(p)) continue;
     lights_.push_back(i);
@@ -413,7 +400,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       S.nlight[li] = 0;
       if (i >= lanes) continue;
       const int32_t l = pick(S.u0[li]);
-      if (positional_kind(L.type[l])) {  // a point or spot source: y0 its position, on no surface
+      if (positional_light(L.type[l])) {  // a point or spot source: y0 its position, on no surface
         const LightGeom<float> g = broadcast_light<float>(L, l);
         const float pmf = pmf_[static_cast<size_t>(l)];
         float le[3];
@@ -426,20 +413,8 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         y0.fwd = pmf;
         S.nlight[li] = 1;
         V3 d;
-        float pdf_dir, falloff = 1.f;
-        if (L.type[l] == static_cast<int32_t>(LightKind::point)) {
-          d = sample_uniform_sphere<float>(S.u4[li], S.u5[li]);
-          pdf_dir = 1.f / (4.f * pi_f);
-        } else {  // uniform in the cone (pbrt-v4's SampleUniformCone), the falloff in the weight
-          const float ce = g.e2.y;
-          const float ct = 1.f - S.u4[li] * (1.f - ce), st = std::sqrt(std::max(0.f, 1.f - ct * ct));
-          const float ph = 2.f * pi_f * S.u5[li];
-          V3 t, b;
-          make_basis(g.e1, t, b);
-          d = normalize(t * (st * std::cos(ph)) + b * (st * std::sin(ph)) + g.e1 * ct);
-          pdf_dir = 1.f / (2.f * pi_f * (1.f - ce));
-          falloff = spot_falloff(g, ct);
-        }
+        float falloff;
+        const float pdf_dir = sample_positional_direction(L.type[l], g, S.u4[li], S.u5[li], d, falloff);
         const float scale = falloff / (pmf * pdf_dir);
         S.br[li] = le[0] * scale;
         S.bg[li] = le[1] * scale;
@@ -498,7 +473,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       for (int k = 0; k < S.nlight[ln]; ++k) {
         Vertex& y = S.light[static_cast<size_t>(k)][ln];
         p = bdpt_prefix(p, {y.fwd, y.rev, y.delta},
-                        k > 0 ? S.light[static_cast<size_t>(k - 1)][ln].delta : positional_kind(L.type[y.light]));
+                        k > 0 ? S.light[static_cast<size_t>(k - 1)][ln].delta : positional_light(L.type[y.light]));
         y.mis = p;
       }
     }
@@ -515,7 +490,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
     };
     // one side of a join: its n vertices, the reverse densities through the join of its
     // last two (rev2 unused where there is one), whether a delta light stands before y0
-    auto delta_light = [&](int lane) { return positional_kind(L.type[S.light[0][static_cast<size_t>(lane)].light]); };
+    auto delta_light = [&](int lane) { return positional_light(L.type[S.light[0][static_cast<size_t>(lane)].light]); };
     auto side = [&](const std::vector<std::vector<Vertex>>& path, int lane, int n, float fwd1, float rev1, float rev2,
                     bool dl) {
       const size_t ln = static_cast<size_t>(lane);
@@ -594,7 +569,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         const int t = j + 1;
         const Vertex& z = S.cam[static_cast<size_t>(j)][ln];
         const int32_t l = pick(S.u0[ln]);
-        if (positional_kind(L.type[l])) {  // its position, the falloff's intensity towards z
+        if (positional_light(L.type[l])) {  // its position, the falloff's intensity towards z
           const LightGeom<float> g = broadcast_light<float>(L, l);
           const V3 e = g.p0 - z.p;
           const float d2 = dot(e, e);

@@ -276,6 +276,36 @@ float adjoint_factor(const GeomView& G, int32_t mat, int32_t kind, float side, c
   return adj;
 }
 
+bool positional_light(int32_t type) {
+  return type == static_cast<int32_t>(LightKind::point) || type == static_cast<int32_t>(LightKind::spot);
+}
+
+float spot_falloff(const LightGeom<float>& g, float cos_t) {
+  const float c0 = g.e2.y, c1 = g.e2.x;
+  const float t = std::min(1.f, std::max(0.f, (cos_t - c0) / std::max(c1 - c0, 1e-12f)));
+  return t * t * (3.f - 2.f * t);
+}
+
+float sample_positional_direction(int32_t type, const LightGeom<float>& g, float u, float v, Vec3<float>& d, float& falloff) {
+  if (type == static_cast<int32_t>(LightKind::point)) {
+    d = sample_uniform_sphere<float>(u, v);
+    falloff = 1.f;
+    return 1.f / (4.f * pi_f);
+  }
+  const float ce = g.e2.y;
+  const float ct = 1.f - u * (1.f - ce), st = std::sqrt(std::max(0.f, 1.f - ct * ct));
+  const float ph = 2.f * pi_f * v;
+  Vec3<float> t, b;
+  make_basis(g.e1, t, b);
+  d = normalize(t * (st * std::cos(ph)) + b * (st * std::sin(ph)) + g.e1 * ct);
+  falloff = spot_falloff(g, ct);
+  return 1.f / (2.f * pi_f * (1.f - ce));
+}
+
+double positional_power(int32_t type, const LightGeom<float>& g, double lum) {
+  return type == static_cast<int32_t>(LightKind::point) ? 4 * pi_f * lum : 2 * pi_f * lum * (1 - 0.5 * (g.e2.x + g.e2.y));
+}
+
 namespace {
 
 // Lane i's light path leaves its source: its first ray, its throughput (the largest
@@ -293,11 +323,12 @@ void emit(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<float>& d, 
 }  // namespace
 
 LightPathsPay light_paths_pay(const Scene& scene, bool glossy_allowed) {
-  bool distant = false, area = false;
+  bool distant = false, area = false, positional = false;
   for (const Light& l : scene.lights) {
     if (!l.radiance.any_positive()) continue;
     distant |= l.type == LightKind::distant;
     area |= is_area(static_cast<int32_t>(l.type));
+    positional |= positional_light(static_cast<int32_t>(l.type));
   }
   const bool media = (scene.features & feat_media) != 0;
   if (area && glossy_allowed && !media && scene.instances.empty() && area_glint_share(scene) >= glint_share_min)
@@ -312,13 +343,16 @@ LightPathsPay light_paths_pay(const Scene& scene, bool glossy_allowed) {
     return LightPathsPay::on;
   // caustics onto surfaces from small sources: a spot lamp's through a glass egg
   if (area && area_caustic_share(scene) >= caustic_share_min) return LightPathsPay::on;
+  // a point or spot source's light through a delta lobe, which the path tracer never samples
+  auto delta_lobe = [&](const Material& m) {
+    if (m.kind == MaterialKind::thin_dielectric) return true;
+    return microfacet_kind(static_cast<int32_t>(m.kind)) && constant_alpha(m) &&
+           std::max(m.alpha_u.value, m.alpha_v.value) < smooth_alpha;
+  };
+  if (positional && !media && any_used_material(scene, delta_lobe)) return LightPathsPay::on;
   const bool scattering = std::any_of(scene.media.begin(), scene.media.end(),
                                       [](const Medium& m) { return m.supported && m.sigma_s.any_positive(); });
-  const bool caustics = area && media && scattering && any_used_material(scene, [&](const Material& m) {
-                          if (m.kind == MaterialKind::thin_dielectric) return true;
-                          return microfacet_kind(static_cast<int32_t>(m.kind)) && constant_alpha(m) &&
-                                 std::max(m.alpha_u.value, m.alpha_v.value) < smooth_alpha;
-                        });
+  const bool caustics = area && media && scattering && any_used_material(scene, delta_lobe);
   return caustics ? LightPathsPay::on : LightPathsPay::no;
 }
 
@@ -366,6 +400,19 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
       add_source(i, static_cast<double>(luminance(L.Lr[s], L.Lg[s], L.Lb[s])) * L.area[i] * (L.two_sided[i] > 0.5f ? 2 : 1));
       if (area_glossy_ && lights_.size() > before) v.lt_glossy[static_cast<size_t>(i)] = 1;
     }
+  // point and spot sources, where some surface can scatter by a delta lobe: the paths
+  // whose vertex next to them is a delta lobe's have no sample of the path tracer's at all
+  // (a light sample stops at the lobe, no BSDF sample meets a point), so the light tracer
+  // takes them and the path tracer leaves nothing out. Not in scenes with media: a
+  // positional source's medium is not recorded (the paths stay unsampled there, as in a
+  // path tracer)
+  if (((v.bsdf_kinds & bsdf_delta_capable) != 0 || G.has_mix) && !G.has_media)
+    for (int32_t i = 0; i < L.count; ++i) {
+      if (!positional_light(L.type[i])) continue;
+      const int32_t s = L.one_radiance ? 0 : i;
+      add_source(i, positional_power(L.type[i], broadcast_light<float>(L, i),
+                                     static_cast<double>(luminance(L.Lr[s], L.Lg[s], L.Lb[s]))));
+    }
   // distant sources, towards the near-specular surfaces
   if (!discs_.empty()) {
     for (int32_t i = 0; i < L.count; ++i) {
@@ -378,8 +425,8 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
   }
   if (std::find(v.lt_glossy.begin(), v.lt_glossy.end(), 1) == v.lt_glossy.end()) v.lt_glossy.clear();
   if (lights_.empty()) {
-    why_ = "the scene has no area light and a surface that scatters by a delta lobe, nor a distant source and a "
-           "near-specular surface";
+    why_ = "the scene has no area, point or spot light and a surface that scatters by a delta lobe, nor a distant "
+           "source and a near-specular surface";
     return;
   }
   // nothing to join to the camera: no surface of a kind the light tracer joins (diffuse,
@@ -640,6 +687,20 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
         emit_distant(l, pmf_[pick], tb.tech.u1[i], tb.tech.u2[i], tb.tech.u3[i], tb, i);
         continue;
       }
+      if (positional_light(L.type[l])) {  // from its position, the intensity I / (p pdf(d)) the spot's falloff
+        const LightGeom<float> g = broadcast_light<float>(L, l);
+        Vec3<float> d;
+        float falloff;
+        const float pdf_dir = sample_positional_direction(L.type[l], g, tb.ris.cr[i], tb.ris.cg[i], d, falloff);
+        const int32_t sl = L.one_radiance ? 0 : l;
+        const float scale = falloff / (pmf_[pick] * pdf_dir);
+        const float br = L.Lr[sl] * scale, bg = L.Lg[sl] * scale, bb = L.Lb[sl] * scale;
+        const float m0 = std::max(std::max(br, bg), bb);
+        if (!(m0 > 0.f) || !std::isfinite(m0)) continue;
+        emit(tb, i, g.p0, d, br, bg, bb, m0, -1);
+        tb.path.first_rough[i] = -1.f;  // (marks a positional source's path: its first vertex a delta lobe's alone)
+        continue;
+      }
       const LightGeom<float> g = broadcast_light<float>(L, l);
       Vec3<float> y, n;
       if (L.type[l] == static_cast<int32_t>(LightKind::sphere)) {
@@ -697,9 +758,10 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           const int32_t m = G.geom_material[g];
           const bool mix = G.has_mix && G.mat_mix0[m] >= 0;
           const bool from_distant = tb.path.first_rough[k] > 0.f;  // (near-specular: its own flag)
+          const bool positional = tb.path.first_rough[k] < 0.f;   // (delta alone)
           const bool glossy = G.mat_lt_glossy != nullptr && G.mat_lt_glossy[m] != 0;
           const bool delta = ((1u << G.mat_kind[m]) & bsdf_delta_capable) != 0;
-          if (!mix && (from_distant ? !glossy : !(delta || (area_glossy_ && glossy)))) tb.tech.valid[k] = 0;
+          if (!mix && (from_distant ? !glossy : !(delta || (area_glossy_ && !positional && glossy)))) tb.tech.valid[k] = 0;
         }
       }
       bounce_hits<vfloat, true>(G, L, hits, s, 0, tb);
@@ -725,8 +787,13 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           const Vec3<float> wo{P.wox[k], P.woy[k], P.woz[k]};  // towards the vertex before
           SurfaceBsdf<float, bsdf_all> bsdf = load_surface_bsdf<float, bsdf_all>(G, P, k, ns);
           // (a glossy or coated vertex: the path tracer's; but a distant source's light path
-          // joins coated diffuse too: sun_traced_material, the path tracer's first_rough 0.5)
-          if (!(tb.path.first_rough[k] > 0.f ? sun_traced_material(G, P.mat[k]) : light_traced_kind(bsdf.kind))) continue;
+          // joins coated diffuse too: sun_traced_material, the path tracer's first_rough 0.5;
+          // and a positional source's joins every vertex, which no sample of the path
+          // tracer's reaches: a delta lobe alone evaluates to zero)
+          if (!(tb.path.first_rough[k] > 0.f   ? sun_traced_material(G, P.mat[k])
+                : tb.path.first_rough[k] < 0.f ? true
+                                                : light_traced_kind(bsdf.kind)))
+            continue;
           const bool in_medium = bsdf.kind == static_cast<int32_t>(MaterialKind::phase);
           const float cg = dot(ng, w);
           double geo = 1;
@@ -796,9 +863,11 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
         const SurfaceBsdf<float, bsdf_all> bsdf = load_surface_bsdf<float, bsdf_all>(G, P, k, ns);
         const BsdfSample<float> bs = bsdf.sample(tb.tech.u2[k], tb.tech.u0[k], tb.tech.u1[k]);
         if (!bs.valid) continue;
-        if (j == 1) {  // (a delta lobe from an area source; a flagged material's other lobes)
+        if (j == 1) {  // (a delta lobe from an area or positional source; a flagged material's other lobes)
           const bool glossy = G.mat_lt_glossy != nullptr && G.mat_lt_glossy[P.mat[k]] != 0;
-          if (tb.path.first_rough[k] > 0.f ? bs.delta || !glossy : !(bs.delta || (area_glossy_ && glossy))) continue;
+          const bool positional = tb.path.first_rough[k] < 0.f;
+          if (tb.path.first_rough[k] > 0.f ? bs.delta || !glossy : !(bs.delta || (area_glossy_ && !positional && glossy)))
+            continue;
         }
         const bool in_medium = bsdf.kind == static_cast<int32_t>(MaterialKind::phase);
         const float cgi = dot(ng, bs.wi);

@@ -11,9 +11,18 @@
 // path tracer counts them only through a BSDF sample of a delta lobe that meets the light
 // (no light sample has a value there), so it drops exactly those emitter hits
 // (drop_light_traced_hits) and counts everything else as before; the light tracer counts
-// exactly these paths. Each estimator is unbiased for its part, so the sum is. Point
-// and spot sources, the sky and emitting media are the path tracer's alone (it reaches them
-// by light samples); distant sources below.
+// exactly these paths. Each estimator is unbiased for its part, so the sum is. The sky and
+// emitting media are the path tracer's alone (it reaches them by light samples); distant
+// sources below.
+//
+// Point and spot sources. A path whose vertex next to one scattered by a delta lobe has no
+// sample of the path tracer's at all: a light sample stops at the lobe and no BSDF sample
+// meets a point, so a path tracer renders no caustic of a point or spot source (pbrt-v4's
+// `path` neither). The light tracer takes exactly those paths, emitting from the source's
+// position (uniform on the sphere, or in a spot's cone with its falloff in the weight, the
+// throughput I falloff / (p(source) pdf(d))) with the first vertex a delta lobe's, as from
+// an area source; the path tracer leaves nothing out. Not in scenes with media (a
+// positional source's medium is not recorded).
 //
 // Distant sources (a sun). A path whose vertex next to a distant source is near-specular (a
 // microfacet lobe of alphas at most sun_glossy_alpha, 0.25, constant: GeomView::mat_lt_glossy;
@@ -79,6 +88,7 @@
 #include <vector>
 
 #include "accel/embree.h"
+#include "light/table.h"
 #include "render/pinhole.h"
 #include "render/views.h"
 #include "wave/estimator.h"
@@ -105,6 +115,9 @@ namespace tuile {
 // - on, caustics onto surfaces from small sources: at least 0.3% of the area sources' power
 //   falling on smooth glass or mirrors (area_caustic_share) from a source that looks small
 //   from them (below 0.003 sr; veach-bidir's spot lamp over its glass egg: 0.016).
+// - on, a point or spot source's caustics: such a source and a surface with a delta lobe, in
+//   a scene without media. No cost is weighed here: without the light tracer those paths
+//   are missing from the image, not noisy.
 // An area light's caustics through glass onto surfaces from large sources are not enough:
 // there the path tracer's own samples of them cost less (staircase2, 1.3e-4: 0.68x the
 // efficiency with light paths; kitchen 0.89x, bathroom 0.89x, living-room-3 0.94x, whose
@@ -138,6 +151,19 @@ void set_light_ray(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<fl
 float adjoint_factor(const GeomView& G, int32_t mat, int32_t kind, float side, const Vec3<float>& ng, const Vec3<float>& ns,
                      const Vec3<float>& wo, const Vec3<float>& wi);
 
+// Point and spot sources (positional: on no surface, a delta in position).
+bool positional_light(int32_t type);
+// pbrt-v4's spot falloff at cos_t from the spot's axis: smoothstep from the cone's edge
+// (g.e2.y, the cosine of its total width) to the falloff's start (g.e2.x).
+float spot_falloff(const LightGeom<float>& g, float cos_t);
+// A positional source's emitted direction from (u, v): uniform on the sphere for a point
+// source, uniform in the cone for a spot (pbrt-v4's SampleUniformCone), the falloff at d
+// in `falloff` (1 for a point source); returns the density per unit solid angle.
+float sample_positional_direction(int32_t type, const LightGeom<float>& g, float u, float v, Vec3<float>& d, float& falloff);
+// pbrt-v4's power of a positional source whose intensity has luminance lum: 4 pi lum, a
+// spot's 2 pi lum (1 - (cos_start + cos_end) / 2).
+double positional_power(int32_t type, const LightGeom<float>& g, double lum);
+
 class LightPaths {
  public:
   // Throws std::invalid_argument where the scene has what the light tracer cannot trace
@@ -146,8 +172,8 @@ class LightPaths {
   // tracer's stages read them); lo, hi: the scene's bounds.
   LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, int width, int height, const float lo[3],
              const float hi[3]);
-  // Something to trace: an area light and a surface that can scatter by a delta lobe, or a
-  // distant source and a near-specular surface.
+  // Something to trace: an area, point or spot light and a surface that can scatter by a
+  // delta lobe, or a distant source and a near-specular surface.
   bool active() const { return active_; }
   const std::string& why_inactive() const { return why_; }
   // The light paths of the pixels of tile `tile` for samples [begin, end), their splats
@@ -161,7 +187,7 @@ class LightPaths {
   int width_, height_;
   bool active_ = false;
   std::string why_;
-  std::vector<int32_t> lights_;      // the area sources, then the distant ones
+  std::vector<int32_t> lights_;      // the area sources, the point and spot ones, then the distant ones
   std::vector<float> cdf_;           // their power, cumulated (last 1)
   std::vector<float> pmf_;
   std::vector<int32_t> medium_out_;  // per area source: the medium on its normal's side, and behind it
