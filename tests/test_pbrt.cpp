@@ -858,6 +858,11 @@ TEST(PbrtErrors, Syntax) {
   expect_error(t, "t.pbrt:2:1", "number");
   t = "WorldBegin\nShape \"sphere\" \"float radius\" [ 1.5.2 ]\n";
   expect_error(t, loc(t, "1.5.2"), "number");
+  // a NUL and a tab in a quoted name: escaped in the message (a NUL cut what() short,
+  // losing what was expected; found by the fuzz test)
+  t = std::string("WorldBegin\nMaterial \"diffuse\" \"rgb refl") + '\0' + "ect\ta\" [ 0.5 ";
+  expect_error(t, "t.pbrt:2:20", "TYPE NAME");
+  EXPECT_NE(error_of(t).find("refl\\x00ect\\x09a"), std::string::npos) << error_of(t);
 }
 
 TEST(PbrtErrors, UnknownDirectiveAndType) {

@@ -235,9 +235,10 @@ std::string info_text(const Prepared& p) {
       say("bounce rays: against the %s%s\n", emitters ? "emitters, then occlusion rays" : "whole scene", per_ray.c_str());
     // --light-paths: what runs, and the figure auto's glossy choice rests on
     if (opt.est.light_paths)
-      say("light paths: %s, %s\n", opt.est.light_paths_glossy ? "glossy" : "on",
-          r.has_light_paths() ? "a light path per pixel and sample after the camera's"
-                              : "inactive (nothing the light tracer could trace and join to the camera)");
+      say("light paths: %s, %s%s\n", opt.est.light_paths_glossy ? "glossy" : "on",
+          r.has_light_paths() ? "a light path per pixel and sample after the camera's, from "
+                              : "inactive (nothing the light tracer could trace and join to the camera)",
+          r.light_paths_sources().c_str());
     const double glints = area_glint_share(scene);
     if (glints > 0)
       say("glints: %.3g of the area sources' power falls on near-specular surfaces from a source that looks small "

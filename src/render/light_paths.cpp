@@ -276,6 +276,20 @@ float adjoint_factor(const GeomView& G, int32_t mat, int32_t kind, float side, c
   return adj;
 }
 
+// The vertices a light path through a delta lobe from a point, spot or distant source joins
+// to the camera (the path tracer has no sample of those paths): the rough kinds, and the
+// microfacet kinds whose constant alphas are coat_join_alpha or more, the bound of the sun's
+// glint joins (wave/path.h sun_traced_material: a sharper lobe's value towards the camera,
+// up to 1 / (pi alpha^2), made fireflies there). Paths seen at sharper lobes stay
+// unsampled, as in a path tracer.
+static bool delta_path_joins(const GeomView& G, int32_t m) {
+  const int32_t kind = G.mat_kind[m];
+  if (light_traced_kind(kind)) return true;
+  if (!microfacet_kind(kind)) return false;
+  if (G.mat_alpha_tex != nullptr && (G.mat_alpha_tex[2 * m] >= 0 || G.mat_alpha_tex[2 * m + 1] >= 0)) return false;
+  return std::min(G.mat_param[mp_ax][m], G.mat_param[mp_ay][m]) >= coat_join_alpha;
+}
+
 bool positional_light(int32_t type) {
   return type == static_cast<int32_t>(LightKind::point) || type == static_cast<int32_t>(LightKind::spot);
 }
@@ -350,6 +364,13 @@ LightPathsPay light_paths_pay(const Scene& scene, bool glossy_allowed) {
            std::max(m.alpha_u.value, m.alpha_v.value) < smooth_alpha;
   };
   if (positional && !media && any_used_material(scene, delta_lobe)) return LightPathsPay::on;
+  // a sun's light through smooth glass (a window), which the path tracer never samples
+  // either: the light paths from a distant source reach it in scenes without media or
+  // instances
+  if (distant && !media && scene.instances.empty() && any_used_material(scene, [&](const Material& m) {
+        return m.kind == MaterialKind::thin_dielectric || (m.kind == MaterialKind::dielectric && delta_lobe(m));
+      }))
+    return LightPathsPay::on;
   const bool scattering = std::any_of(scene.media.begin(), scene.media.end(),
                                       [](const Medium& m) { return m.supported && m.sigma_s.any_positive(); });
   const bool caustics = area && media && scattering && any_used_material(scene, delta_lobe);
@@ -388,8 +409,9 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
     any_area |= is_area(L.type[i]);
   }
   area_glossy_ = any_area && est.light_paths_glossy;
-  if ((any_distant || area_glossy_) && !G.has_media && !G.has_instances) flag_glossy(scene, v);
-  area_glossy_ = area_glossy_ && !discs_.empty();
+  sun_delta_ = any_distant && !G.has_media && !G.has_instances;
+  if ((any_distant || area_glossy_) && !G.has_media && !G.has_instances) flag_glossy(scene, v, sun_delta_);
+  area_glossy_ = area_glossy_ && glossy_discs_;
   v.lt_glossy.assign(static_cast<size_t>(L.count), 0);
   // area sources, where some surface can scatter by a delta lobe (or is near-specular)
   if ((v.bsdf_kinds & bsdf_delta_capable) != 0 || G.has_mix || area_glossy_)
@@ -413,7 +435,7 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
       add_source(i, positional_power(L.type[i], broadcast_light<float>(L, i),
                                      static_cast<double>(luminance(L.Lr[s], L.Lg[s], L.Lb[s]))));
     }
-  // distant sources, towards the near-specular surfaces
+  // distant sources, towards the near-specular surfaces and those with a delta lobe
   if (!discs_.empty()) {
     for (int32_t i = 0; i < L.count; ++i) {
       if (!is_distant(L.type[i])) continue;
@@ -517,16 +539,20 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
 // one per mesh or sphere that carries such a material (through a mix too), its bounding
 // sphere. A material on another kind of geometry (curves) is not flagged: its paths stay
 // the path tracer's.
-void LightPaths::flag_glossy(const Scene& scene, SceneViews& v) {
+void LightPaths::flag_glossy(const Scene& scene, SceneViews& v, bool sun_delta) {
   const GeomView& G = v.geom;
   const size_t nm = v.mat_kind.size();
   std::vector<int32_t>& flag = v.mat_lt_glossy;
   flag.assign(nm, 0);
+  std::vector<uint8_t>& delta = sun_glass_;  // (glass: thin, or smooth: constant alphas below smooth_alpha)
+  delta.assign(nm, 0);
   for (size_t m = 0; m < nm; ++m) {
+    if (v.mat_kind[m] == static_cast<int32_t>(MaterialKind::thin_dielectric) && v.mat_mix0[m] < 0) delta[m] = sun_delta;
     if (!microfacet_kind(v.mat_kind[m]) || v.mat_mix0[m] >= 0) continue;
     if (2 * m + 1 < v.mat_alpha_tex.size() && (v.mat_alpha_tex[2 * m] >= 0 || v.mat_alpha_tex[2 * m + 1] >= 0)) continue;
     const float a = std::max(G.mat_param[mp_ax][m], G.mat_param[mp_ay][m]);
     flag[m] = a >= smooth_alpha && a <= (area_glossy_ ? light_traced_alpha : sun_glossy_alpha) ? 1 : 0;
+    delta[m] = sun_delta && a < smooth_alpha && v.mat_kind[m] == static_cast<int32_t>(MaterialKind::dielectric);
   }
   for (size_t m = 0; m < nm && m < v.mat_reg.size(); ++m)  // (--regularize's twins: as their originals)
     if (v.mat_reg[m] != static_cast<int32_t>(m)) flag[static_cast<size_t>(v.mat_reg[m])] = flag[m];
@@ -548,11 +574,18 @@ void LightPaths::flag_glossy(const Scene& scene, SceneViews& v) {
   for (int32_t g = 0; g < G.geom_count; ++g)
     if (!supported(g) && G.geom_kind[g] != static_cast<int32_t>(GeomKind::medium))
       reach(G.geom_material[g], [&](int32_t m) { flag[static_cast<size_t>(m)] = 0; });
+  glossy_discs_ = false;
   for (int32_t g = 0; g < G.geom_count; ++g) {
     if (!supported(g)) continue;
-    bool flagged = false;
-    reach(G.geom_material[g], [&](int32_t m) { flagged |= flag[static_cast<size_t>(m)] != 0; });
-    if (!flagged) continue;
+    bool flagged = false, deltas = false;
+    reach(G.geom_material[g], [&](int32_t m) {
+      flagged |= flag[static_cast<size_t>(m)] != 0;
+      deltas |= delta[static_cast<size_t>(m)] != 0;
+    });
+    if (!flagged && !deltas) continue;
+    glossy_discs_ |= flagged;
+    near_specular_surfaces_ += flagged;
+    glass_surfaces_ += !flagged;
     Disc d{};
     if (G.geom_kind[g] == static_cast<int32_t>(GeomKind::sphere)) {
       const float* c = G.sphere_center + 4 * static_cast<size_t>(G.geom_first[g]);
@@ -603,6 +636,23 @@ void LightPaths::flag_glossy(const Scene& scene, SceneViews& v) {
   }
   if (!disc_cdf_.empty()) disc_cdf_.back() = 1.f;
   if (discs_.empty()) flag.clear();
+}
+
+std::string LightPaths::describe() const {
+  const LightView& L = v_.lights;
+  int area = 0, positional = 0, distant = 0;
+  for (const int32_t l : lights_) {
+    area += is_area(L.type[l]);
+    positional += positional_light(L.type[l]);
+    distant += is_distant(L.type[l]);
+  }
+  std::string s = std::to_string(area) + " area, " + std::to_string(positional) + " point or spot, " +
+                  std::to_string(distant) + " distant source(s)";
+  if (distant > 0)
+    s += "; the distant ones through " + std::to_string(discs_.size()) + " disc(s) round " +
+         std::to_string(near_specular_surfaces_) + " near-specular surface(s) and " + std::to_string(glass_surfaces_) +
+         " of smooth glass" + (discs_.size() == 1 && near_specular_surfaces_ + glass_surfaces_ > 1 ? " (one round them all)" : "");
+  return s;
 }
 
 // A distant source's emission into lane i: a disc picked by area (u), a point uniform on it
@@ -761,7 +811,9 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           const bool positional = tb.path.first_rough[k] < 0.f;   // (delta alone)
           const bool glossy = G.mat_lt_glossy != nullptr && G.mat_lt_glossy[m] != 0;
           const bool delta = ((1u << G.mat_kind[m]) & bsdf_delta_capable) != 0;
-          if (!mix && (from_distant ? !glossy : !(delta || (area_glossy_ && !positional && glossy)))) tb.tech.valid[k] = 0;
+          const bool glass = !sun_glass_.empty() && sun_glass_[static_cast<size_t>(m)] != 0;
+          if (!mix && (from_distant ? !(glossy || glass) : !(delta || (area_glossy_ && !positional && glossy))))
+            tb.tech.valid[k] = 0;
         }
       }
       bounce_hits<vfloat, true>(G, L, hits, s, 0, tb);
@@ -788,10 +840,11 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
           SurfaceBsdf<float, bsdf_all> bsdf = load_surface_bsdf<float, bsdf_all>(G, P, k, ns);
           // (a glossy or coated vertex: the path tracer's; but a distant source's light path
           // joins coated diffuse too: sun_traced_material, the path tracer's first_rough 0.5;
-          // and a positional source's joins every vertex, which no sample of the path
-          // tracer's reaches: a delta lobe alone evaluates to zero)
+          // and a light path through a delta lobe from a point, spot or distant source, which
+          // no sample of the path tracer's reaches, joins every vertex whose lobes are no
+          // sharper than coat_join_alpha: delta_path_joins)
           if (!(tb.path.first_rough[k] > 0.f   ? sun_traced_material(G, P.mat[k])
-                : tb.path.first_rough[k] < 0.f ? true
+                : tb.path.first_rough[k] < 0.f ? delta_path_joins(G, P.mat[k])
                                                 : light_traced_kind(bsdf.kind)))
             continue;
           const bool in_medium = bsdf.kind == static_cast<int32_t>(MaterialKind::phase);
@@ -863,11 +916,15 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
         const SurfaceBsdf<float, bsdf_all> bsdf = load_surface_bsdf<float, bsdf_all>(G, P, k, ns);
         const BsdfSample<float> bs = bsdf.sample(tb.tech.u2[k], tb.tech.u0[k], tb.tech.u1[k]);
         if (!bs.valid) continue;
+        bool join_all = false;  // (a distant source's path through a delta lobe: joined as a positional one's)
         if (j == 1) {  // (a delta lobe from an area or positional source; a flagged material's other lobes)
           const bool glossy = G.mat_lt_glossy != nullptr && G.mat_lt_glossy[P.mat[k]] != 0;
           const bool positional = tb.path.first_rough[k] < 0.f;
-          if (tb.path.first_rough[k] > 0.f ? bs.delta || !glossy : !(bs.delta || (area_glossy_ && !positional && glossy)))
+          const bool glass = !sun_glass_.empty() && sun_glass_[static_cast<size_t>(P.mat[k])] != 0;
+          if (tb.path.first_rough[k] > 0.f ? (bs.delta ? !glass : !glossy)
+                                           : !(bs.delta || (area_glossy_ && !positional && glossy)))
             continue;
+          join_all = tb.path.first_rough[k] > 0.f && bs.delta;
         }
         const bool in_medium = bsdf.kind == static_cast<int32_t>(MaterialKind::phase);
         const float cgi = dot(ng, bs.wi);
@@ -892,6 +949,7 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
         }
         const float side = in_medium ? 0.f : (cgi < 0.f ? -1.f : 1.f);
         set_light_ray(tb, k, x + ng * (P.eps[k] * side), bs.wi);
+        if (join_all) tb.path.first_rough[k] = -1.f;
         tb.path.throughput_r[k] = br;
         tb.path.throughput_g[k] = bg;
         tb.path.throughput_b[k] = bb;

@@ -222,6 +222,8 @@ SampleLayout Renderer::sample_layout() const {
                       static_cast<uint32_t>(light_passes()), has_media, has_media && est.equiangular};
 }
 
+std::string Renderer::light_paths_sources() const { return light_paths_ ? light_paths_->describe() : std::string(); }
+
 uint32_t Renderer::light_chunk_samples() const {
   const uint64_t pixels = static_cast<uint64_t>(scene_.camera.width) * static_cast<uint64_t>(scene_.camera.height);
   return static_cast<uint32_t>(std::min<uint64_t>(1u << 20, std::max<uint64_t>(1, (uint64_t(1) << 22) / std::max<uint64_t>(1, pixels))));

@@ -11,9 +11,28 @@
 
 namespace tuile::pbrt {
 
+// Control characters of a message (a NUL or a newline the file put in a name it quotes) as
+// \xNN: what() is a C string, which a NUL would cut short, and the message stays one line.
+static std::string printable(const std::string& s) {
+  std::string out;
+  out.reserve(s.size());
+  for (const char c : s) {
+    const unsigned char u = static_cast<unsigned char>(c);
+    if (u < 0x20 || u == 0x7f) {
+      static const char hex[] = "0123456789abcdef";
+      out += "\\x";
+      out += hex[u >> 4];
+      out += hex[u & 15];
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
 void fail(const std::string& file, int line, int col, const std::string& message, const std::string& expected) {
-  throw SceneError(file + ":" + std::to_string(line) + ":" + std::to_string(col) + ": error: " + message +
-                   " (expected " + expected + ")");
+  throw SceneError(printable(file + ":" + std::to_string(line) + ":" + std::to_string(col) + ": error: " + message +
+                             " (expected " + expected + ")"));
 }
 
 static bool ends_with(const std::string& s, std::string_view suffix) {
