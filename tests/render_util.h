@@ -49,6 +49,34 @@ inline void add_named_quad(Scene& s, const char* name, int mat, vec3f p0, vec3f 
   s.meshes.push_back(m);
 }
 
+// Delta sources as the pbrt loader stores them: a point source at p of intensity I; a spot
+// at p along dir of intensity I whose falloff starts where the cosine from its axis is
+// cos_start and ends at the cone's edge, cos_end; a distant source whose light comes from
+// `towards` (the direction to it) with radiance L.
+inline Light point_light(vec3f p, Rgb I) {
+  Light l;
+  l.type = LightKind::point;
+  l.p0 = p;
+  l.radiance = I;
+  return l;
+}
+inline Light spot_light(vec3f p, vec3f dir, float cos_start, float cos_end, Rgb I) {
+  Light l;
+  l.type = LightKind::spot;
+  l.p0 = p;
+  l.e1 = normalize(dir);
+  l.e2 = {cos_start, cos_end, 0};
+  l.radiance = I;
+  return l;
+}
+inline Light distant_light(vec3f towards, Rgb L) {
+  Light l;
+  l.type = LightKind::distant;
+  l.e1 = normalize(towards);
+  l.radiance = L;
+  return l;
+}
+
 // Smooth glass (a delta lobe), pbrt-v4's dielectric of index eta.
 inline Material glass_material(float eta = 1.5f) {
   Material g;

@@ -150,18 +150,8 @@ TEST(Bdpt, RendersThePathTracersMeanUnderPointAndSpotSources) {
   Scene s = caustic_room(20, false, false);
   for (Material& m : s.materials)
     if (m.kind != MaterialKind::diffuse) m.alpha_u.value = m.alpha_v.value = std::max(m.alpha_u.value, 0.3f);
-  Light point;
-  point.type = LightKind::point;
-  point.p0 = {-0.9f, 1.6f, 0.4f};
-  point.radiance = {0.6f, 0.5f, 0.4f};
-  s.lights.push_back(point);
-  Light spot;
-  spot.type = LightKind::spot;
-  spot.p0 = {0.8f, 1.8f, 0.8f};
-  spot.e1 = normalize(vec3f{-0.5f, -1, -0.6f});
-  spot.e2 = {std::cos(0.3f), std::cos(0.5f), 0};  // falloff start, total
-  spot.radiance = {2, 2, 2.5f};
-  s.lights.push_back(spot);
+  s.lights.push_back(point_light({-0.9f, 1.6f, 0.4f}, {0.6f, 0.5f, 0.4f}));
+  s.lights.push_back(spot_light({0.8f, 1.8f, 0.8f}, {-0.5f, -1, -0.6f}, std::cos(0.3f), std::cos(0.5f), {2, 2, 2.5f}));
   finalize_scene(s);
   expect_same_mean_over_seeds(s, bdpt_options(true, static_cast<uint32_t>(scaled(48)), 0, 4),
                               bdpt_options(false, static_cast<uint32_t>(scaled(192)), 0, 4), 24, "bdpt, point and spot");
@@ -203,11 +193,7 @@ TEST(Bdpt, AutoIsOnWhereTheFileAsksForIt) {
   EXPECT_TRUE(resolve_options(f, path).est.bdpt);
   // a distant source: the path tracer renders the file (with a warning)
   Scene point = caustic_room(16, false, false);
-  Light l;
-  l.type = LightKind::distant;
-  l.e1 = normalize(vec3f{0.3f, 1, -0.4f});
-  l.radiance = {1, 1, 1};
-  point.lights.push_back(l);
+  point.lights.push_back(distant_light({0.3f, 1, -0.4f}, {1, 1, 1}));
   finalize_scene(point);
   point.file_integrator = "bdpt";
   EXPECT_NE(bdpt_refusal(point), "");

@@ -179,23 +179,9 @@ Scene fog_room(int res, bool outside) {
   bulb.material = 0;
   bulb.emission = {4, 6, 8};
   s.spheres.push_back(bulb);
-  Light point;
-  point.type = LightKind::point;
-  point.p0 = {-0.5f, 0.8f, 0.2f};
-  point.radiance = {0.6f, 0.5f, 0.4f};
-  s.lights.push_back(point);
-  Light spot;
-  spot.type = LightKind::spot;
-  spot.p0 = {0.6f, 1.7f, 0.3f};
-  spot.e1 = normalize(vec3f{-0.3f, -1, -0.2f});
-  spot.e2 = {std::cos(0.3f), std::cos(0.5f), 0};
-  spot.radiance = {1.5f, 1.5f, 1.5f};
-  s.lights.push_back(spot);
-  Light sun;
-  sun.type = LightKind::distant;
-  sun.e1 = normalize(vec3f{0.2f, 0.3f, 1});  // towards the light: in through the open side
-  sun.radiance = {0.3f, 0.3f, 0.3f};
-  s.lights.push_back(sun);
+  s.lights.push_back(point_light({-0.5f, 0.8f, 0.2f}, {0.6f, 0.5f, 0.4f}));
+  s.lights.push_back(spot_light({0.6f, 1.7f, 0.3f}, {-0.3f, -1, -0.2f}, std::cos(0.3f), std::cos(0.5f), {1.5f, 1.5f, 1.5f}));
+  s.lights.push_back(distant_light({0.2f, 0.3f, 1}, {0.3f, 0.3f, 0.3f}));  // in through the open side
   if (outside) {
     s.materials.push_back(interface_material());  // 3
     Mesh box = media_box({-0.99f, 0.01f, -0.99f}, {0.99f, 1.99f, 1.f});

@@ -56,23 +56,9 @@ Scene all_lights_scene(bool extras = false, bool sky = false) {
   sp.material = 0;
   sp.emission = {5, 5, 5};
   s.spheres.push_back(sp);
-  Light pt;
-  pt.type = LightKind::point;
-  pt.p0 = {0, 3, 0};
-  pt.radiance = {2, 2, 2};
-  s.lights.push_back(pt);
-  Light spot;
-  spot.type = LightKind::spot;
-  spot.p0 = {1, 3, 1};
-  spot.e1 = normalize(vec3f{0, -1, 0.2f});
-  spot.e2 = {0.95f, 0.85f, 0};
-  spot.radiance = {4, 4, 4};
-  s.lights.push_back(spot);
-  Light dist;
-  dist.type = LightKind::distant;
-  dist.e1 = normalize(vec3f{0.3f, 1, 0.2f});
-  dist.radiance = {1, 1, 1};
-  s.lights.push_back(dist);
+  s.lights.push_back(test::point_light({0, 3, 0}, {2, 2, 2}));
+  s.lights.push_back(test::spot_light({1, 3, 1}, {0, -1, 0.2f}, 0.95f, 0.85f, {4, 4, 4}));
+  s.lights.push_back(test::distant_light({0.3f, 1, 0.2f}, {1, 1, 1}));
   if (sky) {  // a constant sky and one with a map in a turned frame (light/kinds/infinite.h)
     Light inf;
     inf.type = LightKind::infinite;

@@ -605,6 +605,7 @@ TEST(Materials, CheckpointFingerprintFollowsMediaSkiesAndAlpha) {
   l.radiance = {1, 1, 1};
   l.sky_map = 0;
   s.lights.push_back(l);
+  s.lights.push_back(point_light({0, 1, 0}, {1, 1, 1}));
   finalize_scene(s);
   RenderOptions o;
   const PassPlan plan = fixed_passes(16 * 16);
@@ -615,6 +616,10 @@ TEST(Materials, CheckpointFingerprintFollowsMediaSkiesAndAlpha) {
       [](Scene& c) { c.media[0].Le.r = 1.f; },
       [](Scene& c) { c.camera_medium = 0; },
       [](Scene& c) { c.meshes[0].medium_inside = -1; },
+      [](Scene& c) {  // the point source in the medium
+        for (Light& pl : c.lights)
+          if (pl.type == LightKind::point) pl.medium = 0;
+      },
       [](Scene& c) { c.sky_maps[0].texels[5] = 2.f; },
       [](Scene& c) { c.meshes[0].alpha.value = 0.5f; }};
   for (size_t i = 0; i < changes.size(); ++i) {

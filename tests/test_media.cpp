@@ -76,11 +76,14 @@ TEST(Media, PresetsAreMeasuredCoefficients) {
   EXPECT_TRUE(has_text(s.warnings, "m.pbrt:4: medium preset \"Nectar\" not found"));
 }
 
-TEST(Media, InterfacesBindShapesAndTheCamera) {
+TEST(Media, InterfacesBindShapesTheCameraAndPointSources) {
   const Scene s = media_world(
       "MediumInterface \"glass-inside\" \"\"\n" + media_quad +           // forward reference: defined below
           "AttributeBegin\nMediumInterface \"fog\"\n" + media_quad +  // one name: inside and outside
           "AttributeEnd\n" + media_quad +                              // back to the first interface
+          "LightSource \"point\" \"rgb I\" [1 1 1]\n"                   // in no medium (the outside's "")
+          "AttributeBegin\nMediumInterface \"glass-inside\" \"fog\"\n"
+          "LightSource \"spot\" \"rgb I\" [1 1 1]\nAttributeEnd\n"     // in the outside one: fog
           "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\"\n"
           "MakeNamedMedium \"glass-inside\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [250 1000 1000]\n",
       "MediumInterface \"\" \"fog\"\n"
@@ -93,6 +96,9 @@ TEST(Media, InterfacesBindShapesAndTheCamera) {
   EXPECT_EQ(s.meshes[1].medium_outside, 0);
   EXPECT_EQ(s.meshes[2].medium_inside, 1);
   EXPECT_EQ(s.camera_medium, 0);  // the outside medium in force at Camera
+  ASSERT_EQ(s.lights.size(), 2u);  // a point or spot source: the outside medium at LightSource
+  EXPECT_EQ(s.lights[0].medium, -1);
+  EXPECT_EQ(s.lights[1].medium, 0);
   EXPECT_EQ(s.media[0].bounding_shapes, 1);
   EXPECT_EQ(s.media[1].bounding_shapes, 2);
 }

@@ -149,6 +149,8 @@ std::string render_fingerprint(const Scene& scene, const RenderOptions& options,
     for (const Mesh& m : scene.meshes) sides(m.medium_inside, m.medium_outside);
     for (const Sphere& sp : scene.spheres) sides(sp.medium_inside, sp.medium_outside);
     for (const Curves& cv : scene.curves) sides(cv.medium_inside, cv.medium_outside);
+    for (const Light& l : scene.lights)  // (the media point and spot sources sit in)
+      if (l.medium >= 0) c.add(&l.medium, sizeof(l.medium));
   }
   for (const SkyMap& m : scene.sky_maps) {
     c.add(&m.res, sizeof(m.res));

@@ -363,7 +363,7 @@ LightPathsPay light_paths_pay(const Scene& scene, bool glossy_allowed) {
     return microfacet_kind(static_cast<int32_t>(m.kind)) && constant_alpha(m) &&
            std::max(m.alpha_u.value, m.alpha_v.value) < smooth_alpha;
   };
-  if (positional && !media && any_used_material(scene, delta_lobe)) return LightPathsPay::on;
+  if (positional && any_used_material(scene, delta_lobe)) return LightPathsPay::on;
   // a sun's light through smooth glass (a window), which the path tracer never samples
   // either: the light paths from a distant source reach it in scenes without media or
   // instances
@@ -425,10 +425,8 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
   // point and spot sources, where some surface can scatter by a delta lobe: the paths
   // whose vertex next to them is a delta lobe's have no sample of the path tracer's at all
   // (a light sample stops at the lobe, no BSDF sample meets a point), so the light tracer
-  // takes them and the path tracer leaves nothing out. Not in scenes with media: a
-  // positional source's medium is not recorded (the paths stay unsampled there, as in a
-  // path tracer)
-  if (((v.bsdf_kinds & bsdf_delta_capable) != 0 || G.has_mix) && !G.has_media)
+  // takes them and the path tracer leaves nothing out
+  if ((v.bsdf_kinds & bsdf_delta_capable) != 0 || G.has_mix)
     for (int32_t i = 0; i < L.count; ++i) {
       if (!positional_light(L.type[i])) continue;
       const int32_t s = L.one_radiance ? 0 : i;
@@ -490,9 +488,14 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
     cdf_.push_back(static_cast<float>(run / total));
   }
   cdf_.back() = 1.f;
-  // the medium each source emits into: the side of its shape its normal is on
+  // the medium each source emits into: the side of its shape its normal is on; a point or
+  // spot source's, the one it sits in
   medium_out_.assign(static_cast<size_t>(L.count), -1);
   medium_in_.assign(static_cast<size_t>(L.count), -1);
+  if (G.has_media)
+    for (int32_t i : lights_)
+      if (positional_light(L.type[i]) && static_cast<size_t>(i) < scene.lights.size())
+        medium_out_[static_cast<size_t>(i)] = rendered_medium(scene, scene.lights[static_cast<size_t>(i)].medium);
   if (G.has_media) {
     std::vector<int32_t> light_geom(static_cast<size_t>(L.count), -1);
     const size_t tris = v.tri_light.size() - 1;
@@ -747,7 +750,7 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
         const float br = L.Lr[sl] * scale, bg = L.Lg[sl] * scale, bb = L.Lb[sl] * scale;
         const float m0 = std::max(std::max(br, bg), bb);
         if (!(m0 > 0.f) || !std::isfinite(m0)) continue;
-        emit(tb, i, g.p0, d, br, bg, bb, m0, -1);
+        emit(tb, i, g.p0, d, br, bg, bb, m0, medium_out_[static_cast<size_t>(l)]);
         tb.path.first_rough[i] = -1.f;  // (marks a positional source's path: its first vertex a delta lobe's alone)
         continue;
       }

@@ -21,8 +21,8 @@
 // `path` neither). The light tracer takes exactly those paths, emitting from the source's
 // position (uniform on the sphere, or in a spot's cone with its falloff in the weight, the
 // throughput I falloff / (p(source) pdf(d))) with the first vertex a delta lobe's, as from
-// an area source; the path tracer leaves nothing out. Not in scenes with media (a
-// positional source's medium is not recorded).
+// an area source, into the medium the source sits in (Light::medium: pbrt-v4's outside
+// medium at its LightSource); the path tracer leaves nothing out.
 //
 // Distant sources (a sun). A path whose vertex next to a distant source is near-specular (a
 // microfacet lobe of alphas at most sun_glossy_alpha, 0.25, constant: GeomView::mat_lt_glossy;
@@ -122,8 +122,8 @@ namespace tuile {
 // - on, caustics onto surfaces from small sources: at least 0.3% of the area sources' power
 //   falling on smooth glass or mirrors (area_caustic_share) from a source that looks small
 //   from them (below 0.003 sr; veach-bidir's spot lamp over its glass egg: 0.016).
-// - on, a point or spot source's caustics: such a source and a surface with a delta lobe, in
-//   a scene without media; and a distant source's through a window: such a source and
+// - on, a point or spot source's caustics: such a source and a surface with a delta lobe;
+//   and a distant source's through a window: such a source and
 //   smooth glass (dielectric or thin), in a scene without media or instances. No cost
 //   is weighed here: without the light tracer those paths are missing from the image, not
 //   noisy.

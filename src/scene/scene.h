@@ -222,6 +222,8 @@ struct Light : LightShape {
   int mesh = -1, prim = -1;  // where it came from (-1 for spheres/delta lights)
   int sphere = -1;
   int sky_map = -1;   // a sky with an environment map: its index in Scene::sky_maps
+  int medium = -1;    // a point or spot source: the medium it sits in (Scene::media; pbrt-v4: the
+                      // outside one in force at its LightSource), or -1
 };
 
 // pbrt-v4's ObjectInstance: object `object` (Scene::objects: its shapes are the meshes,

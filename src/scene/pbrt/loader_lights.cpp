@@ -112,6 +112,8 @@ void Loader::light(Lexer& lx, const Token& t, const std::string& type, Params& p
   if (!emission_in_range(l.radiance) || !std::isfinite(l.p0.x) || !std::isfinite(l.p0.y) || !std::isfinite(l.p0.z))
     lx.fail(t, "the light's emission (its " + std::string(what) + " times scale, power or illuminance) or position is not finite or above 1e30",
             "values whose products fit a float");
+  if (l.type == LightKind::point || l.type == LightKind::spot)  // (resolved with the shapes' media: flatten)
+    light_media_.push_back({scene.lights.size(), {"", gs_.medium_out, gs_.medium_where}});
   scene.lights.push_back(l);
 }
 

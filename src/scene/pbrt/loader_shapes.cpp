@@ -772,6 +772,12 @@ void Loader::flatten() {
     resolve_media(camera_medium_, in, scene.camera_medium);
     if (scene.camera_medium >= 0) --scene.media[size_t(scene.camera_medium)].bounding_shapes;
   }
+  for (const auto& [i, names] : light_media_) {  // point and spot sources' media (not shapes either)
+    int in = -1;
+    int& out = scene.lights[i].medium;
+    resolve_media(names, in, out);
+    if (out >= 0) --scene.media[size_t(out)].bounding_shapes;
+  }
   // "interface" shapes bound media and do not scatter light: pbrt-v4's rays pass through
   // them. One that changes the medium (a rendered medium on either side, different sides)
   // stays in the geometry, where the medium stages pass rays through it (wave/media.h);

@@ -254,6 +254,7 @@ class Loader {
   std::unordered_map<std::string, int> named_materials_;
   std::unordered_map<std::string, int> named_media_;
   MediumNames camera_medium_;
+  std::vector<std::pair<size_t, MediumNames>> light_media_;  // point and spot sources' (Scene::lights index)
   std::unordered_map<std::string, int> textures_;       // spectrum textures by name
   std::unordered_map<std::string, int> float_textures_;  // float textures by name: FloatTexDef index
   std::unordered_map<std::string, int> objects_;
