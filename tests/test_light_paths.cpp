@@ -334,6 +334,43 @@ TEST(LightPaths, AutoIsOnForAPointOrSpotSourcesCaustics) {
   EXPECT_FALSE(resolved(frosted));
 }
 
+// The transmittance of pbrt-v4's thin dielectric (ThinDielectricBxDF) at incidence cos c:
+// 1 - R, R = F + (1 - F)^2 F / (1 - F^2) with the inner reflections, F Fresnel's.
+double thin_pane_transmittance(double c, double eta) {
+  const double st = std::sqrt(1 - c * c) / eta, ct = std::sqrt(1 - st * st);
+  const double rs = (c - eta * ct) / (c + eta * ct), rp = (eta * c - ct) / (eta * c + ct);
+  const double F = 0.5 * (rs * rs + rp * rp);
+  return 1 - (F + (1 - F) * (1 - F) * F / (1 - F * F));
+}
+
+// The image mean (over pixels and channels) of 12 seeds of o with light paths, at depth 2,
+// against `expected` at |z| < 5 (a false failure about once in 10^6 runs); the standard
+// error below rel times expected at full size (the test's power; the bound grows as the
+// test scale shrinks the samples); and the path tracer alone black.
+void expect_light_paths_mean(const Scene& s, double expected, double rel, const char* what) {
+  Accel accel(s);
+  RenderOptions o = options(true, static_cast<uint32_t>(scaled(256)), 0);
+  o.est.max_depth = 2;
+  const int seeds = 12;
+  std::vector<double> means;
+  for (int k = 0; k < seeds; ++k) {
+    o.est.seed = static_cast<uint32_t>(k + 1);
+    const std::vector<float> m = render_mean(s, accel, o, o.est.spp);
+    double sum = 0;
+    for (float val : m) sum += val;
+    means.push_back(sum / static_cast<double>(m.size()));
+  }
+  double mean = 0, var = 0;
+  for (double m : means) mean += m / seeds;
+  for (double m : means) var += (m - mean) * (m - mean) / (seeds - 1);
+  const double se = std::sqrt(var / seeds), z = (mean - expected) / se;
+  std::printf("[ %s ] mean %.6f, expected %.6f, z %.2f, std. error %.2g\n", what, mean, expected, z, se);
+  EXPECT_LT(std::abs(z), 5.0) << what;
+  EXPECT_LT(se, rel * expected * std::sqrt(256.0 / o.est.spp)) << what;
+  o.est.light_paths = false;
+  for (float val : render_mean(s, accel, o, 4)) ASSERT_EQ(val, 0.f) << what;
+}
+
 // A sun through a window: a thin glass pane (pbrt-v4's thindielectric) between a distant
 // source and a diffuse floor, seen from under the pane at depth 2 (the light through the
 // pane and nothing else). The path tracer has no sample of it (its light sample stops at the
@@ -344,46 +381,12 @@ TEST(LightPaths, AutoIsOnForAPointOrSpotSourcesCaustics) {
 // seeds against it, at |z| < 5 (a false failure about once in 10^6 runs).
 TEST(LightPaths, SunThroughAWindowPaneIsExact) {
   const vec3f dir = normalize(vec3f{0.2f, 1, 0.1f});
-  const Scene s = sun_window(dir);
-  const double c = dir.y, eta = 1.5;
-  const double st = std::sqrt(1 - c * c) / eta, ct = std::sqrt(1 - st * st);
-  const double rs = (c - eta * ct) / (c + eta * ct), rp = (eta * c - ct) / (eta * c + ct);
-  const double F = 0.5 * (rs * rs + rp * rp);
-  const double R = F + (1 - F) * (1 - F) * F / (1 - F * F);
-  const double expected = 0.5 / 3.14159265358979323846 * 2 * c * (1 - R);
-  Accel accel(s);
-  RenderOptions o = options(true, static_cast<uint32_t>(scaled(256)), 0);
-  o.est.max_depth = 2;
-  const int seeds = 12;
-  std::vector<double> means;
-  for (int k = 0; k < seeds; ++k) {
-    o.est.seed = static_cast<uint32_t>(k + 1);
-    const std::vector<float> m = render_mean(s, accel, o, o.est.spp);
-    double sum = 0;
-    for (float v : m) sum += v;
-    means.push_back(sum / static_cast<double>(m.size()));
-  }
-  double mean = 0, var = 0;
-  for (double m : means) mean += m / seeds;
-  for (double m : means) var += (m - mean) * (m - mean) / (seeds - 1);
-  const double z = (mean - expected) / std::sqrt(var / seeds);
-  std::printf("[ sun through a pane ] mean %.6f, expected %.6f (T %.5f), z %.2f, std. error %.2g\n", mean, expected, 1 - R, z,
-              std::sqrt(var / seeds));
-  EXPECT_LT(std::abs(z), 5.0);
-  // (the test has power: 3% off fails at full size; the bound grows as the samples shrink)
-  EXPECT_LT(std::sqrt(var / seeds), 0.005 * expected * std::sqrt(256.0 / o.est.spp));
-  // the path tracer alone: black
-  o.est.light_paths = false;
-  for (float v : render_mean(s, accel, o, 4)) ASSERT_EQ(v, 0.f);
+  const double c = dir.y;
+  // (3% off fails at full size)
+  expect_light_paths_mean(sun_window(dir), 0.5 / 3.14159265358979323846 * 2 * c * thin_pane_transmittance(c, 1.5), 0.005,
+                          "sun through a pane");
 }
 
-// A point source in an absorbing medium (pbrt-v4: the outside medium at its LightSource,
-// Light::medium), over a thin glass pane above a diffuse floor, all in the medium, the
-// camera under the pane looking down, at depth 2. The path tracer has no sample of the
-// light through the pane (black); the light tracer's paths from the source, emitted into
-// its medium, render each pixel's rho / pi I cos / r^2 T(cos) exp(-sigma_a (r + the
-// camera's distance)), integrated over the pixel (8 x 8 points). The image means of 12 seeds
-// against it, at |z| < 5; with the source in no medium the image is 2.85 times too bright.
 TEST(LightPaths, PointSourceThroughAPaneInAnAbsorbingMediumIsExact) {
   PlaneScene p = plane_scene({0, 0.9f, 0}, 50, 12);
   Scene& s = p.scene;
@@ -402,7 +405,6 @@ TEST(LightPaths, PointSourceThroughAPaneInAnAbsorbingMediumIsExact) {
   finalize_scene(s);
   // the pixels' expectations
   const SceneViews v = build_views(s, LightPick::power);
-  const double eta = 1.5;
   double expected = 0;
   const int q = 8;
   for (int py = 0; py < s.camera.height; ++py)
@@ -415,35 +417,12 @@ TEST(LightPaths, PointSourceThroughAPaneInAnAbsorbingMediumIsExact) {
           const double x[3] = {o.x + t * d.x, 0.0, o.z + t * d.z};
           const double w[3] = {light.p0.x - x[0], light.p0.y - x[1], light.p0.z - x[2]};
           const double r = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]), c = w[1] / r;
-          const double st = std::sqrt(1 - c * c) / eta, ct = std::sqrt(1 - st * st);
-          const double rs = (c - eta * ct) / (c + eta * ct), rp = (eta * c - ct) / (eta * c + ct);
-          const double F = 0.5 * (rs * rs + rp * rp), R = F + (1 - F) * (1 - F) * F / (1 - F * F);
           const double cam = t * std::sqrt(static_cast<double>(dot(d, d)));
-          expected += p.rho / 3.14159265358979323846 * 2 * c / (r * r) * (1 - R) * std::exp(-sigma * (r + cam));
+          expected += p.rho / 3.14159265358979323846 * 2 * c / (r * r) * thin_pane_transmittance(c, 1.5) *
+                      std::exp(-sigma * (r + cam));
         }
   expected /= static_cast<double>(s.camera.width) * s.camera.height * q * q;
-  Accel accel(s);
-  RenderOptions o = options(true, static_cast<uint32_t>(scaled(256)), 0);
-  o.est.max_depth = 2;
-  const int seeds = 12;
-  std::vector<double> means;
-  for (int k = 0; k < seeds; ++k) {
-    o.est.seed = static_cast<uint32_t>(k + 1);
-    const std::vector<float> m = render_mean(s, accel, o, o.est.spp);
-    double sum = 0;
-    for (float val : m) sum += val;
-    means.push_back(sum / static_cast<double>(m.size()));
-  }
-  double mean = 0, var = 0;
-  for (double m : means) mean += m / seeds;
-  for (double m : means) var += (m - mean) * (m - mean) / (seeds - 1);
-  const double z = (mean - expected) / std::sqrt(var / seeds);
-  std::printf("[ point source through a pane in an absorbing medium ] mean %.6f, expected %.6f, z %.2f, std. error %.2g\n",
-              mean, expected, z, std::sqrt(var / seeds));
-  EXPECT_LT(std::abs(z), 5.0);
-  EXPECT_LT(std::sqrt(var / seeds), 0.02 * expected * std::sqrt(256.0 / o.est.spp));
-  o.est.light_paths = false;  // the path tracer alone: black
-  for (float val : render_mean(s, accel, o, 4)) ASSERT_EQ(val, 0.f);
+  expect_light_paths_mean(s, expected, 0.02, "point source through a pane in an absorbing medium");
 }
 
 TEST(LightPaths, SameBitsOnAnyThreadCount) {
