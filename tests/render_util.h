@@ -13,6 +13,7 @@
 #include "render/render.h"
 #include "scene/scene.h"
 #include "test_scale.h"
+#include "wave/generate.h"
 
 namespace tuile::test {
 
@@ -152,6 +153,28 @@ inline double exact_floor_radiance(const PlaneScene& p, double x, double z) {
     e += poly.L * polygon_irradiance_clipped(px, n, v.data(), static_cast<int>(poly.v.size()));
   }
   return p.rho / 3.14159265358979 * e;
+}
+
+// Exact pixel values of a scene whose camera sees the floor y = 0 only, under a radiance
+// known in closed form: the mean over each pixel's raster square of f(x, z, t), the floor's
+// radiance at (x, 0, z) seen from the camera t away, by q x q midpoint quadrature.
+template <class F>
+std::vector<double> floor_pixel_means(const Scene& s, int q, F&& f) {
+  const SceneViews v = build_views(s, LightPick::power);
+  std::vector<double> img(static_cast<size_t>(s.camera.width) * s.camera.height, 0.0);
+  for (int py = 0; py < s.camera.height; ++py)
+    for (int px = 0; px < s.camera.width; ++px) {
+      double sum = 0;
+      for (int i = 0; i < q; ++i)
+        for (int j = 0; j < q; ++j) {
+          vec3f o, d;
+          camera_ray(v.camera, px + (i + 0.5f) / q, py + (j + 0.5f) / q, o, d);
+          const double t = -static_cast<double>(o.y) / d.y;
+          sum += f(o.x + t * d.x, o.z + t * d.z, t * std::sqrt(static_cast<double>(dot(d, d))));
+        }
+      img[static_cast<size_t>(py) * s.camera.width + px] = sum / (q * q);
+    }
+  return img;
 }
 
 // Exact pixel values (the box-filtered radiance: the mean over the pixel's raster square),

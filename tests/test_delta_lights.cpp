@@ -23,35 +23,17 @@ double smoothstep(double a, double b, double x) {
 // Exact pixel means by q x q Gauss-Legendre-free midpoint quadrature (the integrand is
 // smooth: a fine grid is accurate to well below the Monte Carlo error).
 std::vector<double> exact_delta(const Scene& s, const Light& l, double rho, int q = 8) {
-  SceneViews v = build_views(s, LightPick::power);
-  std::vector<double> img(static_cast<size_t>(s.camera.width) * s.camera.height, 0.0);
-  for (int py = 0; py < s.camera.height; ++py)
-    for (int px = 0; px < s.camera.width; ++px) {
-      double sum = 0;
-      for (int i = 0; i < q; ++i)
-        for (int j = 0; j < q; ++j) {
-          vec3f o, d;
-          camera_ray(v.camera, px + (i + 0.5f) / q, py + (j + 0.5f) / q, o, d);
-          const double t = -static_cast<double>(o.y) / d.y;
-          const double x[3] = {o.x + t * d.x, 0.0, o.z + t * d.z};
-          double L = 0;
-          if (l.type == LightKind::distant) {
-            L = rho / M_PI * l.radiance.r * std::max(0.0, static_cast<double>(l.e1.y));
-          } else {
-            const double w[3] = {l.p0.x - x[0], l.p0.y - x[1], l.p0.z - x[2]};
-            const double d2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2], dd = std::sqrt(d2);
-            double I = l.radiance.r;
-            if (l.type == LightKind::spot) {
-              const double cos_t = -(w[0] * l.e1.x + w[1] * l.e1.y + w[2] * l.e1.z) / dd;
-              I *= smoothstep(l.e2.y, l.e2.x, cos_t);
-            }
-            L = rho / M_PI * I * std::max(0.0, w[1] / dd) / d2;
-          }
-          sum += L;
-        }
-      img[static_cast<size_t>(py) * s.camera.width + px] = sum / (q * q);
+  return floor_pixel_means(s, q, [&](double x, double z, double) {
+    if (l.type == LightKind::distant) return rho / M_PI * l.radiance.r * std::max(0.0, static_cast<double>(l.e1.y));
+    const double w[3] = {l.p0.x - x, l.p0.y, l.p0.z - z};
+    const double d2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2], dd = std::sqrt(d2);
+    double I = l.radiance.r;
+    if (l.type == LightKind::spot) {
+      const double cos_t = -(w[0] * l.e1.x + w[1] * l.e1.y + w[2] * l.e1.z) / dd;
+      I *= smoothstep(l.e2.y, l.e2.x, cos_t);
     }
-  return img;
+    return rho / M_PI * I * std::max(0.0, w[1] / dd) / d2;
+  });
 }
 
 }  // namespace

@@ -404,24 +404,15 @@ TEST(LightPaths, PointSourceThroughAPaneInAnAbsorbingMediumIsExact) {
   s.lights.back().medium = 0;
   finalize_scene(s);
   // the pixels' expectations
-  const SceneViews v = build_views(s, LightPick::power);
   double expected = 0;
-  const int q = 8;
-  for (int py = 0; py < s.camera.height; ++py)
-    for (int px = 0; px < s.camera.width; ++px)
-      for (int i = 0; i < q; ++i)
-        for (int j = 0; j < q; ++j) {
-          vec3f o, d;
-          camera_ray(v.camera, px + (i + 0.5f) / q, py + (j + 0.5f) / q, o, d);
-          const double t = -static_cast<double>(o.y) / d.y;
-          const double x[3] = {o.x + t * d.x, 0.0, o.z + t * d.z};
-          const double w[3] = {light.p0.x - x[0], light.p0.y - x[1], light.p0.z - x[2]};
-          const double r = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]), c = w[1] / r;
-          const double cam = t * std::sqrt(static_cast<double>(dot(d, d)));
-          expected += p.rho / 3.14159265358979323846 * 2 * c / (r * r) * thin_pane_transmittance(c, 1.5) *
-                      std::exp(-sigma * (r + cam));
-        }
-  expected /= static_cast<double>(s.camera.width) * s.camera.height * q * q;
+  for (const double e : floor_pixel_means(s, 8, [&](double x, double z, double cam) {
+         const double w[3] = {light.p0.x - x, light.p0.y, light.p0.z - z};
+         const double r = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]), c = w[1] / r;
+         return p.rho / 3.14159265358979323846 * 2 * c / (r * r) * thin_pane_transmittance(c, 1.5) *
+                std::exp(-sigma * (r + cam));
+       }))
+    expected += e;
+  expected /= static_cast<double>(s.camera.width) * s.camera.height;
   expect_light_paths_mean(s, expected, 0.02, "point source through a pane in an absorbing medium");
 }
 

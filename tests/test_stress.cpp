@@ -697,22 +697,10 @@ TEST(StressMis, SphereWithPdf1e30RendersExactly) {
   finalize_scene(p.scene);
   ASSERT_EQ(p.scene.lights.size(), 1u);
   // exact pixel values by 8 x 8 midpoint quadrature of the smooth floor radiance
-  SceneViews v = build_views(p.scene, LightPick::power);
-  const int res = p.scene.camera.width;
-  std::vector<double> exact(static_cast<size_t>(res) * res);
-  for (int py = 0; py < res; ++py)
-    for (int px = 0; px < res; ++px) {
-      double sum = 0;
-      for (int i = 0; i < 8; ++i)
-        for (int j = 0; j < 8; ++j) {
-          vec3f o, d;
-          camera_ray(v.camera, px + (i + 0.5f) / 8, py + (j + 0.5f) / 8, o, d);
-          const double t = -double(o.y) / d.y, x = o.x + t * d.x, z = o.z + t * d.z;
-          const double d2 = x * x + 1 + z * z;
-          sum += 0.5 / 3.14159265358979 * 1e29 * 3.14159265358979 * 1e-30 / d2 * (1 / std::sqrt(d2));
-        }
-      exact[static_cast<size_t>(py) * res + px] = sum / 64;
-    }
+  const std::vector<double> exact = floor_pixel_means(p.scene, 8, [](double x, double z, double) {
+    const double d2 = x * x + 1 + z * z;
+    return 0.5 / 3.14159265358979 * 1e29 * 3.14159265358979 * 1e-30 / d2 * (1 / std::sqrt(d2));
+  });
   for (const Est& e : {light_sa, mis_sa}) {
     const RenderOptions o = options(e, 16, 23);
     expect_exact(render_scene(p.scene, o), exact, 3.0, name_of(o), 0.01);

@@ -18,6 +18,7 @@
 #include "scene/scene.h"
 #include "wave/accumulate.h"
 #include "wave/emitter_hits.h"
+#include "wave/escaped.h"
 #include "wave/generate.h"
 #include "wave/surface_bsdf.h"
 #include "wave/surface_hits.h"
@@ -28,11 +29,18 @@ namespace {
 
 using V3 = Vec3<float>;
 using Bsdf = SurfaceBsdf<float, bsdf_all>;
+using Sky = LightKindOps<LightKind::infinite>;
 
 bool area_kind(int32_t type) {
   return type == static_cast<int32_t>(LightKind::triangle) || type == static_cast<int32_t>(LightKind::parallelogram) ||
          type == static_cast<int32_t>(LightKind::sphere);
 }
+bool at_infinity(int32_t type) {
+  return type == static_cast<int32_t>(LightKind::distant) || type == static_cast<int32_t>(LightKind::infinite);
+}
+// A source no strategy meets from the camera's side: a point, a spot, a distant source.
+bool delta_source(int32_t type) { return positional_light(type) || type == static_cast<int32_t>(LightKind::distant); }
+
 // A subpath's vertex. z0 is the camera (p its position, ng zero); y0 a point on a source
 // (ng its normal on the side it emits to). fwd: the density of this vertex from the one
 // before on its subpath, rev: from the one after, both per unit area (0 for a delta
@@ -45,6 +53,7 @@ struct Vertex {
   float eps = 0.f;     // ray offset
   int32_t light = -1;  // camera subpath: the source this point is on, facing the vertex before; y0: its source
   bool delta = false;  // the direction sampled here was a delta lobe's
+  bool infinite = false;  // y0 of a source at infinity (p: where its ray starts on the disc)
   float mis = 0.f;     // the prefix sum of the balance heuristic's ratios up to here (bdpt_mis.h)
 };
 
@@ -64,12 +73,25 @@ Bsdf viewed_from(const Vertex& v, const V3& w) {
   return b;
 }
 
+// The density of reaching vertex `to` from `from` along a direction of density pdf: per unit
+// area at `to` (pdf cos / d^2), per unit solid angle where `to` is at infinity (pdf), and
+// where `from` is, pdf is per unit area of its disc (pdf cos).
+float to_area(float pdf, const Vertex& from, const Vertex& to);
+
 // |cos| of the unit-less direction e at vertex v, over |e| (1 at a point on no surface: the
 // camera, a point or spot source, whose densities per unit area are per unit solid angle
 // over d^2, as pbrt-v4's ConvertDensity).
 float cosine_over_length(const Vertex& v, const V3& e, float len) {
   if (v.ng.x == 0.f && v.ng.y == 0.f && v.ng.z == 0.f) return 1.f;
   return std::abs(dot(v.ng, e)) / len;
+}
+
+float to_area(float pdf, const Vertex& from, const Vertex& to) {
+  if (to.infinite) return pdf;
+  const V3 e = to.p - from.p;
+  const float d2 = dot(e, e);
+  const float c = cosine_over_length(to, e, std::sqrt(d2));
+  return from.infinite ? pdf * c : pdf * c / d2;
 }
 
 // A light vertex y joined along the unit w (from y): its BSDF's factor as importance carries
@@ -112,6 +134,11 @@ struct Bdpt::Scratch {
   std::vector<int> ncam, nlight;
   std::vector<float> br, bg, bb, pend, m0, u0, u1, u2, u3, u4, u5, sr, sg, sb;
   std::vector<int32_t> pend_light;
+  // per lane: the camera subpath's ray that escaped the scene (t: its vertex at infinity's
+  // index + 1, 0 if none), its direction, density and throughput
+  std::vector<int> esc_t;
+  std::vector<V3> esc_d;
+  std::vector<float> esc_pdf, esc_r, esc_g, esc_b;
   std::vector<Job> jobs;
 };
 
@@ -123,16 +150,11 @@ std::string bdpt_refusal(const Scene& scene) {
   if ((scene.features & feat_media) != 0) return "the scene has participating media, which bdpt does not render yet";
   if (!scene.curves.empty()) return "the scene has curves (hair), which bdpt does not render yet";
   if (alpha_cut_emitter(scene)) return "the scene has an emitter with an alpha cut-out, which bdpt does not sample yet";
-  int other = 0;
-  for (const Light& l : scene.lights)
-    other += !area_kind(static_cast<int32_t>(l.type)) && !positional_light(static_cast<int32_t>(l.type));
-  if (other > 0)
-    return "the scene has " + std::to_string(other) +
-           " distant source(s) or environment map(s), which bdpt does not sample yet";
   return "";
 }
 
-Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int width, int height)
+Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int width, int height, const float* lo,
+           const float* hi)
     : v_(v), est_(est), width_(width), height_(height), cam_(v.camera, width, height, "--bdpt"),
       pool_(std::make_unique<BdptPool>()) {
   const LightView& L = v.lights;
@@ -141,8 +163,15 @@ Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int wi
   if (!why.empty()) throw std::invalid_argument("--bdpt: " + why + " (render it without --bdpt)");
   if (G.has_media || G.has_hair || L.alpha_shape) throw std::invalid_argument("--bdpt: the scene's views hold what it refuses");
   for (int32_t i = 0; i < L.count; ++i)
-    if (!area_kind(L.type[i]) && !positional_light(L.type[i]))
+    if (!area_kind(L.type[i]) && !positional_light(L.type[i]) && !at_infinity(L.type[i]))
       throw std::invalid_argument("--bdpt: the scene's light table holds a source it does not sample");
+  double r2 = 0;
+  for (int a = 0; a < 3; ++a) {
+    centre_[a] = 0.5f * (lo[a] + hi[a]);
+    r2 += 0.25 * static_cast<double>(hi[a] - lo[a]) * static_cast<double>(hi[a] - lo[a]);
+  }
+  radius_ = static_cast<float>(std::sqrt(r2));
+  if (!(radius_ > 0.f) || !std::isfinite(radius_)) radius_ = 1.f;  // (nothing to hit: the disc is any disc)
   pmf_.assign(static_cast<size_t>(L.count), 0.f);
   double total = 0;
   std::vector<double> power;
@@ -152,6 +181,9 @@ Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int wi
     double p = 0;
     if (area_kind(L.type[i])) {
       p = lum * L.area[i] * (L.two_sided[i] > 0.5f ? 2 : 1);
+    } else if (at_infinity(L.type[i])) {  // the scene's (light/kinds: pi R^2 times the irradiance)
+      p = static_cast<double>(scene.lights[static_cast<size_t>(i)].power);
+      if (L.type[i] == static_cast<int32_t>(LightKind::infinite)) skies_.push_back(i);
     } else {
       p = positional_power(L.type[i], broadcast_light<float>(L, i), lum);
     }
@@ -196,6 +228,9 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
   for (auto* a : {&S.br, &S.bg, &S.bb, &S.pend, &S.m0, &S.u0, &S.u1, &S.u2, &S.u3, &S.u4, &S.u5, &S.sr, &S.sg, &S.sb})
     a->resize(lane_array);
   S.pend_light.resize(lane_array);
+  for (auto* a : {&S.esc_pdf, &S.esc_r, &S.esc_g, &S.esc_b}) a->resize(lane_array);
+  S.esc_t.resize(lane_array);
+  S.esc_d.resize(lane_array);
   S.ncam.resize(lane_array);
   S.nlight.resize(lane_array);
   auto layer = [](std::vector<std::vector<Vertex>>& path, int j) {
@@ -244,6 +279,18 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
           const int lane = P.lane[k];
           S.pend_light[lane] = -1;
           if (!tb.tech.valid[k]) continue;
+          if (!skies_.empty() && static_cast<int32_t>(tb.bounce[k / packet_width].geomID[k % packet_width]) < 0) {
+            const RayHit16& r = tb.bounce[k / packet_width];  // escaped: the skies' vertex z(j)
+            const int ln = k % packet_width;
+            const size_t li = static_cast<size_t>(lane);
+            S.esc_t[li] = j + 1;
+            S.esc_d[li] = V3(r.ray.dir_x[ln], r.ray.dir_y[ln], r.ray.dir_z[ln]);
+            S.esc_pdf[li] = S.pend[li];
+            S.esc_r[li] = S.br[li];
+            S.esc_g[li] = S.bg[li];
+            S.esc_b[li] = S.bb[li];
+            continue;
+          }
           const int32_t l = bounce_hit_light<float>(G, tb, k, true);
           if (l < 0 || pmf_[static_cast<size_t>(l)] == 0.f) continue;
           const RayHit16& r = tb.bounce[k / packet_width];
@@ -268,9 +315,8 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         v.beta[1] = S.bg[lane];
         v.beta[2] = S.bb[lane];
         v.light = from_light ? -1 : S.pend_light[lane];
-        const V3 e = v.p - prev.p;
-        const float d2 = dot(e, e);
-        v.fwd = S.pend[lane] * cosine_over_length(v, e, std::sqrt(d2)) / d2;
+        v.infinite = false;
+        v.fwd = to_area(S.pend[lane], prev, v);
         v.rev = 0.f;
         v.delta = false;
         n[static_cast<size_t>(lane)] = j + 1;
@@ -316,9 +362,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         if (bs.delta) {
           prev.rev = 0.f;
         } else {  // the vertex before, as the next one's BSDF would sample it
-          const V3 e = prev.p - v.p;
-          const float d2 = dot(e, e);
-          prev.rev = viewed_from(v, bs.wi).eval(wo).pdf * cosine_over_length(prev, e, std::sqrt(d2)) / d2;
+          prev.rev = to_area(viewed_from(v, bs.wi).eval(wo).pdf, v, prev);
         }
         set_light_ray(tb, k, offset(v.p, v.ng, v.eps, bs.wi), bs.wi);
       }
@@ -361,6 +405,35 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
     c[1] = L.Lg[sl];
     c[2] = L.Lb[sl];
   };
+  // a source at infinity's direction towards it (wi), its density per unit solid angle (1
+  // for a distant source's one direction) and its radiance along it (le, the table's on entry)
+  auto infinite_direction = [&](int32_t l, float u1, float u2, V3& wi, float le[3]) {
+    LightGeom<float> g = broadcast_light<float>(L, l);
+    if (L.type[l] == static_cast<int32_t>(LightKind::distant)) {
+      wi = g.e1;
+      return 1.f;
+    }
+    g.sky_dist = sky_dist_full;  // (every direction: the camera's side draws none of them alone)
+    const SkySample<float> ss = Sky::sample_direction(g, u1, u2);
+    wi = ss.wi;
+    if (ss.texel >= 0) Sky::apply_texel(g, ss.texel, le[0], le[1], le[2]);
+    return ss.pdf;
+  };
+  // the density with which the light side draws the direction wi towards the skies: each
+  // sky's pick times its density, summed (pbrt-v4's InfiniteLightDensity)
+  auto sky_density = [&](const V3& wi) {
+    float d = 0.f;
+    for (const int32_t l : skies_) {
+      const float pmf = pmf_[static_cast<size_t>(l)];
+      if (pmf == 0.f) continue;
+      LightGeom<float> g = broadcast_light<float>(L, l);
+      g.sky_dist = sky_dist_full;
+      d += pmf * Sky::pdf_direction(g, wi);
+    }
+    return d;
+  };
+  const float disc_pdf = 1.f / (pi_f * radius_ * radius_);  // per unit area of the disc
+  const V3 centre{centre_[0], centre_[1], centre_[2]};
   auto finite3 = [](const float c[3]) { return std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]); };
   auto nonzero3 = [](const float c[3]) { return c[0] > 0.f || c[1] > 0.f || c[2] > 0.f; };
 
@@ -385,6 +458,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       z0 = Vertex{};
       z0.p = eye;
       S.ncam[static_cast<size_t>(i)] = 1;
+      S.esc_t[static_cast<size_t>(i)] = 0;
     }
     walk(s, false, S.cam, S.ncam, D + 1, true);
 
@@ -400,6 +474,37 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       S.nlight[li] = 0;
       if (i >= lanes) continue;
       const int32_t l = pick(S.u0[li]);
+      if (at_infinity(L.type[l])) {  // y0 on the disc facing the direction, beyond the scene
+        const float pmf = pmf_[static_cast<size_t>(l)];
+        float le[3];
+        radiance(l, le);
+        V3 wi;
+        const float pdf_dir = infinite_direction(l, S.u4[li], S.u5[li], wi, le);
+        if (!(pdf_dir > 0.f)) continue;
+        V3 t, b;
+        make_basis(wi, t, b);
+        const float rr = radius_ * std::sqrt(S.u2[li]), phi = 2.f * pi_f * S.u3[li];
+        const V3 o = centre + t * (rr * std::cos(phi)) + b * (rr * std::sin(phi)) + wi * (radius_ * 1.01f + 1e-3f * (radius_ + 1.f));
+        const bool distant = L.type[l] == static_cast<int32_t>(LightKind::distant);
+        Vertex& y0 = S.light[0][li];
+        y0 = Vertex{};
+        y0.p = o;
+        y0.light = l;
+        y0.infinite = true;
+        for (int c = 0; c < 3; ++c) y0.beta[c] = le[c] / pmf;
+        y0.fwd = distant ? pmf : sky_density(wi);
+        S.nlight[li] = 1;
+        const float scale = 1.f / (pmf * disc_pdf * pdf_dir);
+        S.br[li] = le[0] * scale;
+        S.bg[li] = le[1] * scale;
+        S.bb[li] = le[2] * scale;
+        const float m0 = std::max(std::max(S.br[li], S.bg[li]), S.bb[li]);
+        if (!(m0 > 0.f) || !std::isfinite(m0)) continue;
+        S.m0[li] = 1.f / m0;
+        S.pend[li] = disc_pdf;
+        set_light_ray(tb, i, o, V3(0.f, 0.f, 0.f) - wi);
+        continue;
+      }
       if (positional_light(L.type[l])) {  // a point or spot source: y0 its position, on no surface
         const LightGeom<float> g = broadcast_light<float>(L, l);
         const float pmf = pmf_[static_cast<size_t>(l)];
@@ -473,7 +578,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       for (int k = 0; k < S.nlight[ln]; ++k) {
         Vertex& y = S.light[static_cast<size_t>(k)][ln];
         p = bdpt_prefix(p, {y.fwd, y.rev, y.delta},
-                        k > 0 ? S.light[static_cast<size_t>(k - 1)][ln].delta : positional_light(L.type[y.light]));
+                        k > 0 ? S.light[static_cast<size_t>(k - 1)][ln].delta : delta_source(L.type[y.light]));
         y.mis = p;
       }
     }
@@ -490,7 +595,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
     };
     // one side of a join: its n vertices, the reverse densities through the join of its
     // last two (rev2 unused where there is one), whether a delta light stands before y0
-    auto delta_light = [&](int lane) { return positional_light(L.type[S.light[0][static_cast<size_t>(lane)].light]); };
+    auto delta_light = [&](int lane) { return delta_source(L.type[S.light[0][static_cast<size_t>(lane)].light]); };
     auto side = [&](const std::vector<std::vector<Vertex>>& path, int lane, int n, float fwd1, float rev1, float rev2,
                     bool dl) {
       const size_t ln = static_cast<size_t>(lane);
@@ -510,6 +615,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
     const BdptSide none{0, 0.f, 0.f, 0.f, 0.f, false, false, 0.f};
     // the density of reaching `to` from `from` along a direction of solid-angle density pdf
     auto area = [](float pdf, const V3& from, const Vertex& to) {
+      if (to.infinite) return pdf;
       const V3 e = to.p - from;
       const float d2 = dot(e, e);
       return pdf * cosine_over_length(to, e, std::sqrt(d2)) / d2;
@@ -559,6 +665,37 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         add_lane(i, c);
       }
     }
+    // s = 0 at infinity: the camera subpath's ray that escaped meets every sky along it
+    if (!skies_.empty())
+      for (int i = 0; i < lanes; ++i) {
+        const size_t ln = static_cast<size_t>(i);
+        const int t = S.esc_t[ln];
+        if (t < 2) continue;
+        const V3 d = S.esc_d[ln];
+        float c[3] = {0.f, 0.f, 0.f};
+        for (const int32_t l : skies_) {
+          float r, g, b;
+          sky_radiance<float>(L, l, d, r, g, b);
+          c[0] += r;
+          c[1] += g;
+          c[2] += b;
+        }
+        c[0] *= S.esc_r[ln];
+        c[1] *= S.esc_g[ln];
+        c[2] *= S.esc_b[ln];
+        if (!nonzero3(c)) continue;
+        float w = 1.f;
+        if (t > 2) {  // z(t-2) as y1 of a light subpath from the disc: its density per area times its cosine
+          const Vertex& zm = S.cam[static_cast<size_t>(t - 2)][ln];
+          w = bdpt_mis(none, side(S.cam, i, t, S.esc_pdf[ln], sky_density(d), disc_pdf * std::abs(dot(zm.ng, d)), false));
+        }
+        for (int k = 0; k < 3; ++k) c[k] *= w;
+        if (!finite3(c)) {
+          ++rejected;
+          continue;
+        }
+        add_lane(i, c);
+      }
     // s = 1: a point on a source joined to z(t-1), t - 1 in 1..D
     for (int j = 1; j < most && j <= D; ++j) {
       pairs(s, cam_pair(j, 2), S.u0.data(), S.u1.data());
@@ -569,6 +706,36 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         const int t = j + 1;
         const Vertex& z = S.cam[static_cast<size_t>(j)][ln];
         const int32_t l = pick(S.u0[ln]);
+        if (at_infinity(L.type[l])) {  // a direction towards it, a shadow ray to infinity
+          float le[3];
+          radiance(l, le);
+          V3 w;
+          const float pdf_dir = infinite_direction(l, S.u2[ln], S.u3[ln], w, le);
+          if (!(pdf_dir > 0.f)) continue;
+          const BsdfEval<float> fz = z.bsdf.eval(w);
+          const float pmf = pmf_[static_cast<size_t>(l)];
+          Job job{};
+          job.lane = i;
+          job.s = 1;
+          job.t = t;
+          const float gg = std::abs(dot(z.bsdf.n, w)) / (pmf * pdf_dir);
+          job.c[0] = z.beta[0] * fz.f.r * le[0] * gg;
+          job.c[1] = z.beta[1] * fz.f.g * le[1] * gg;
+          job.c[2] = z.beta[2] * fz.f.b * le[2] * gg;
+          if (!nonzero3(job.c)) continue;
+          const bool distant = L.type[l] == static_cast<int32_t>(LightKind::distant);
+          const BdptSide ls{1, distant ? pmf : sky_density(w), fz.pdf, 0.f, 0.f, distant, false, 0.f};
+          const float zrev = disc_pdf * std::abs(dot(z.ng, w));
+          const float zmrev =
+              t > 2 ? area(viewed_from(z, w).eval(z.bsdf.wo).pdf, z.p, S.cam[static_cast<size_t>(t - 2)][ln]) : 0.f;
+          const float wgt = bdpt_mis(ls, side(S.cam, i, t, z.fwd, zrev, zmrev, false));
+          for (float& c : job.c) c *= wgt;
+          job.org = offset(z.p, z.ng, z.eps, w);
+          job.dir = w;
+          job.tfar = INFINITY;
+          push(job);
+          continue;
+        }
         if (positional_light(L.type[l])) {  // its position, the falloff's intensity towards z
           const LightGeom<float> g = broadcast_light<float>(L, l);
           const V3 e = g.p0 - z.p;

@@ -25,9 +25,20 @@
 // meets them from the camera's side); the camera's as Pinhole::ray_density. A vertex's reverse density is its
 // neighbour's BSDF density with the viewer and the sampled direction exchanged.
 //
+// Sources at infinity (pbrt-v4's infinite and distant lights in its bdpt): a light subpath
+// from one starts on the disc of the scene's bounding sphere (radius R) facing its
+// direction, uniform on it (density 1 / (pi R^2) per unit area of the disc, so the next
+// vertex's density is that times its cosine, without 1 / d^2), its direction drawn from the
+// sky's map (or a distant source's one direction). The vertex at infinity's densities are
+// per unit solid angle: forward, the density with which the light side draws that direction
+// (the pick times the map's density, summed over the skies); reverse, the BSDF's. A camera
+// subpath that escapes the scene meets every sky along its ray (s = 0); s = 1 draws a
+// direction from the picked sky, or takes the distant source's, and traces a shadow ray to
+// infinity. A distant source is a delta light (no strategy meets it from the camera's side).
+//
 // What it renders: surfaces of every material the path tracer knows but hair, lit by area
-// sources (triangles, parallelograms, spheres), point and spot sources. It refuses
-// (std::invalid_argument) distant sources, environment maps, participating media, curves
+// sources (triangles, parallelograms, spheres), point, spot and distant sources and skies
+// (constant or with a map). It refuses (std::invalid_argument) participating media, curves
 // and emitters with an alpha cut-out, which its strategies do not cover yet.
 //
 // Determinism: as the light tracer's splats (the renderer adds a tile's splats in tile
@@ -51,14 +62,16 @@ namespace tuile {
 struct Scene;
 struct BdptPool;  // the threads' scratch (bdpt.cpp)
 
-// Why bdpt does not render this scene ("" where it does): distant sources, environment
-// maps, media, curves or an emitter with an alpha cut-out.
+// Why bdpt does not render this scene ("" where it does): media, curves or an emitter with
+// an alpha cut-out.
 std::string bdpt_refusal(const Scene& scene);
 
 class Bdpt {
  public:
-  // Throws std::invalid_argument naming what the scene has that bdpt does not render.
-  Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int width, int height);
+  // Throws std::invalid_argument naming what the scene has that bdpt does not render. lo, hi:
+  // the scene's bounds (the sources at infinity emit through its bounding sphere's disc).
+  Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int width, int height, const float* lo,
+       const float* hi);
   ~Bdpt();
   // The paths of the pixels of tile `tile` for samples [begin, end): every contribution
   // appended to out (the camera side's one per pixel and sample, the light tracer's where
@@ -76,6 +89,8 @@ class Bdpt {
   std::vector<int32_t> lights_;  // the sources with power, in table order
   std::vector<float> cdf_;       // their power, cumulated (last 1)
   std::vector<float> pmf_;       // per source of the table: its pick probability
+  std::vector<int32_t> skies_;   // the table's skies (LightKind::infinite)
+  float centre_[3] = {0.f, 0.f, 0.f}, radius_ = 1.f;  // the scene's bounding sphere
   std::unique_ptr<BdptPool> pool_;
 };
 

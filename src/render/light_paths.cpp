@@ -409,8 +409,8 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
     any_area |= is_area(L.type[i]);
   }
   area_glossy_ = any_area && est.light_paths_glossy;
-  sun_delta_ = any_distant && !G.has_media && !G.has_instances;
-  if ((any_distant || area_glossy_) && !G.has_media && !G.has_instances) flag_glossy(scene, v, sun_delta_);
+  sun_through_glass_ = any_distant && !G.has_media && !G.has_instances;
+  if ((any_distant || area_glossy_) && !G.has_media && !G.has_instances) flag_glossy(scene, v, sun_through_glass_);
   area_glossy_ = area_glossy_ && glossy_discs_;
   v.lt_glossy.assign(static_cast<size_t>(L.count), 0);
   // area sources, where some surface can scatter by a delta lobe (or is near-specular)
@@ -542,20 +542,20 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
 // one per mesh or sphere that carries such a material (through a mix too), its bounding
 // sphere. A material on another kind of geometry (curves) is not flagged: its paths stay
 // the path tracer's.
-void LightPaths::flag_glossy(const Scene& scene, SceneViews& v, bool sun_delta) {
+void LightPaths::flag_glossy(const Scene& scene, SceneViews& v, bool sun_through_glass) {
   const GeomView& G = v.geom;
   const size_t nm = v.mat_kind.size();
   std::vector<int32_t>& flag = v.mat_lt_glossy;
   flag.assign(nm, 0);
-  std::vector<uint8_t>& delta = sun_glass_;  // (glass: thin, or smooth: constant alphas below smooth_alpha)
-  delta.assign(nm, 0);
+  std::vector<uint8_t>& glass = sun_glass_;  // (glass: thin, or smooth: constant alphas below smooth_alpha)
+  glass.assign(nm, 0);
   for (size_t m = 0; m < nm; ++m) {
-    if (v.mat_kind[m] == static_cast<int32_t>(MaterialKind::thin_dielectric) && v.mat_mix0[m] < 0) delta[m] = sun_delta;
+    if (v.mat_kind[m] == static_cast<int32_t>(MaterialKind::thin_dielectric) && v.mat_mix0[m] < 0) glass[m] = sun_through_glass;
     if (!microfacet_kind(v.mat_kind[m]) || v.mat_mix0[m] >= 0) continue;
     if (2 * m + 1 < v.mat_alpha_tex.size() && (v.mat_alpha_tex[2 * m] >= 0 || v.mat_alpha_tex[2 * m + 1] >= 0)) continue;
     const float a = std::max(G.mat_param[mp_ax][m], G.mat_param[mp_ay][m]);
     flag[m] = a >= smooth_alpha && a <= (area_glossy_ ? light_traced_alpha : sun_glossy_alpha) ? 1 : 0;
-    delta[m] = sun_delta && a < smooth_alpha && v.mat_kind[m] == static_cast<int32_t>(MaterialKind::dielectric);
+    glass[m] = sun_through_glass && a < smooth_alpha && v.mat_kind[m] == static_cast<int32_t>(MaterialKind::dielectric);
   }
   for (size_t m = 0; m < nm && m < v.mat_reg.size(); ++m)  // (--regularize's twins: as their originals)
     if (v.mat_reg[m] != static_cast<int32_t>(m)) flag[static_cast<size_t>(v.mat_reg[m])] = flag[m];
@@ -580,12 +580,12 @@ void LightPaths::flag_glossy(const Scene& scene, SceneViews& v, bool sun_delta) 
   glossy_discs_ = false;
   for (int32_t g = 0; g < G.geom_count; ++g) {
     if (!supported(g)) continue;
-    bool flagged = false, deltas = false;
+    bool flagged = false, glassy = false;
     reach(G.geom_material[g], [&](int32_t m) {
       flagged |= flag[static_cast<size_t>(m)] != 0;
-      deltas |= delta[static_cast<size_t>(m)] != 0;
+      glassy |= glass[static_cast<size_t>(m)] != 0;
     });
-    if (!flagged && !deltas) continue;
+    if (!flagged && !glassy) continue;
     glossy_discs_ |= flagged;
     near_specular_surfaces_ += flagged;
     glass_surfaces_ += !flagged;

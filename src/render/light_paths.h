@@ -212,17 +212,17 @@ class LightPaths {
   std::vector<Disc> discs_;
   std::vector<float> disc_cdf_;
   double disc_area_ = 0;
-  bool area_glossy_ = false;  // area sources' light at near-specular vertices is the light tracer's too
-  bool sun_delta_ = false;    // distant sources' light through smooth glass is the light tracer's (no media, instances)
-  bool glossy_discs_ = false; // some disc is round a near-specular surface
+  bool area_glossy_ = false;        // area sources' light at near-specular vertices is the light tracer's too
+  bool sun_through_glass_ = false;  // distant sources' light through smooth glass is the light tracer's (no media, instances)
+  bool glossy_discs_ = false;       // some disc is round a near-specular surface
   int near_specular_surfaces_ = 0, glass_surfaces_ = 0;  // the discs' surfaces (before merging)
-  std::vector<uint8_t> sun_glass_;  // per material: smooth glass a distant source's light paths go through (sun_delta_)
+  std::vector<uint8_t> sun_glass_;  // per material: smooth glass a distant source's light paths go through (sun_through_glass_)
   float scene_c_[3] = {}, scene_r_ = 0;
   std::optional<Pinhole> cam_;  // the camera (set where active)
 
-  // mat_lt_glossy and the discs (round the flagged surfaces, and with sun_delta round those
-  // of smooth glass too: sun_glass_)
-  void flag_glossy(const Scene& scene, SceneViews& v, bool sun_delta);
+  // mat_lt_glossy and the discs (round the flagged surfaces, and with sun_through_glass
+  // round those of smooth glass too: sun_glass_)
+  void flag_glossy(const Scene& scene, SceneViews& v, bool sun_through_glass);
   void emit_distant(int32_t l, float pmf, float u, float u2, float u3, TileBuffers& tb, int i) const;
 };
 

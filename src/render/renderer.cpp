@@ -83,7 +83,11 @@ Renderer::Renderer(const Scene& scene, const Accel& accel, const RenderOptions& 
     light_paths_ = std::make_unique<LightPaths>(scene, *views_, opt_.est, scene.camera.width, scene.camera.height, lo, hi);
     if (!light_paths_->active()) light_paths_.reset();
   }
-  if (opt_.est.bdpt) bdpt_ = std::make_unique<Bdpt>(scene, *views_, opt_.est, scene.camera.width, scene.camera.height);
+  if (opt_.est.bdpt) {
+    float lo[3], hi[3];
+    accel_.bounds(lo, hi);
+    bdpt_ = std::make_unique<Bdpt>(scene, *views_, opt_.est, scene.camera.width, scene.camera.height, lo, hi);
+  }
 }
 
 Renderer::~Renderer() = default;
