@@ -166,12 +166,17 @@ Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int wi
     if (!area_kind(L.type[i]) && !positional_light(L.type[i]) && !at_infinity(L.type[i]))
       throw std::invalid_argument("--bdpt: the scene's light table holds a source it does not sample");
   double r2 = 0;
+  bool bounded = true;
   for (int a = 0; a < 3; ++a) {
+    bounded = bounded && std::isfinite(lo[a]) && std::isfinite(hi[a]) && lo[a] <= hi[a];
     centre_[a] = 0.5f * (lo[a] + hi[a]);
     r2 += 0.25 * static_cast<double>(hi[a] - lo[a]) * static_cast<double>(hi[a] - lo[a]);
   }
   radius_ = static_cast<float>(std::sqrt(r2));
-  if (!(radius_ > 0.f) || !std::isfinite(radius_)) radius_ = 1.f;  // (nothing to hit: the disc is any disc)
+  if (!bounded || !(radius_ > 0.f) || !std::isfinite(radius_)) {  // (nothing to hit: the disc is any disc)
+    centre_[0] = centre_[1] = centre_[2] = 0.f;
+    radius_ = 1.f;
+  }
   pmf_.assign(static_cast<size_t>(L.count), 0.f);
   double total = 0;
   std::vector<double> power;
