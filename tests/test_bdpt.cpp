@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <fstream>
 #include <random>
 #include <stdexcept>
 #include <vector>
@@ -22,6 +23,7 @@
 #include "app/cli.h"
 #include "caustic_room.h"
 #include "media_util.h"
+#include "output_files.h"
 #include "render/bdpt.h"
 #include "render/bdpt_mis.h"
 #include "render/options.h"
@@ -290,6 +292,32 @@ TEST(Bdpt, AutoIsOnWhereTheFileAsksForIt) {
   sun.file_integrator = "bdpt";
   EXPECT_EQ(bdpt_refusal(sun), "");
   EXPECT_TRUE(resolve_options(plain, sun).est.bdpt);
+}
+
+// `tuile info` says what bdpt runs: its pipeline, the sources its light subpaths start from,
+// and not the path tracer's picker or pipeline.
+TEST(Bdpt, InfoSaysWhatItRuns) {
+  tuile::testing::TempDir dir;
+  const std::string scene = dir / "bdpt-sky.pbrt";
+  std::ofstream(scene) << "LookAt 0 1 4  0 0.5 0  0 1 0\nCamera \"perspective\" \"float fov\" [ 45 ]\n"
+                          "Integrator \"bdpt\" \"integer maxdepth\" [ 5 ]\nWorldBegin\n"
+                          "LightSource \"infinite\" \"rgb L\" [ 0.2 0.2 0.2 ]\n"
+                          "LightSource \"distant\" \"point3 to\" [ 0 -1 0 ] \"rgb L\" [ 1 1 1 ]\n"
+                          "LightSource \"point\" \"point3 from\" [ 0 2 0 ] \"rgb I\" [ 1 1 1 ]\n"
+                          "Shape \"trianglemesh\" \"point3 P\" [ -2 0 -2  2 0 -2  2 0 2  -2 0 2 ] "
+                          "\"integer indices\" [ 0 2 1  0 3 2 ]\n";
+  const tuile::testing::CmdResult r = tuile::testing::run_command(TUILE_BINARY, "info " + scene);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("bdpt=on"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("pipeline: bdpt"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("bdpt: 3 source(s) with power"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("0 area, 1 point or spot, 1 distant, 1 sky"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("start on a disc of radius 2.828"), std::string::npos) << r.out;  // (a 4 x 4 m floor: 2 sqrt 2)
+  EXPECT_EQ(r.out.find("light picker:"), std::string::npos) << r.out;
+  const tuile::testing::CmdResult off = tuile::testing::run_command(TUILE_BINARY, "info " + scene + " --bdpt=off");
+  ASSERT_EQ(off.code, 0) << off.out;
+  EXPECT_EQ(off.out.find("pipeline: bdpt"), std::string::npos) << off.out;
+  EXPECT_NE(off.out.find("light picker:"), std::string::npos) << off.out;
 }
 
 TEST(Bdpt, RefusesWhatItCannotDo) {

@@ -154,7 +154,9 @@ TEST(Mpi, BdptRendersTheSingleProcessBits) {
                           "Shape \"trianglemesh\" \"point3 P\" [ -3 0 -3  3 0 -3  3 0 3  -3 0 3 ] "
                           "\"integer indices\" [ 0 2 1  0 3 2 ]\n"
                           "Material \"dielectric\" \"float eta\" [ 1.5 ]\n"
-                          "AttributeBegin\nTranslate 0 0.5 0\nShape \"sphere\" \"float radius\" [ 0.5 ]\nAttributeEnd\n";
+                          "AttributeBegin\nTranslate 0 0.5 0\nShape \"sphere\" \"float radius\" [ 0.5 ]\nAttributeEnd\n"
+                          "LightSource \"infinite\" \"rgb L\" [ 0.1 0.12 0.15 ]\n"  // (a sky and a sun: bdpt's too)
+                          "LightSource \"distant\" \"point3 from\" [ 1 3 2 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 0.5 0.5 0.5 ]\n";
   const std::string args = " render " + scene + " --res 128x64 --spp 6 --quiet -o ";
   std::string out;
   ASSERT_EQ(run(std::string(TUILE_BINARY) + args + (dir / "auto.exr"), out), 0) << out;

@@ -178,61 +178,70 @@ std::string info_text(const Prepared& p) {
     Renderer r(scene, accel, opt);
     std::string why;
     const std::string name = r.pipeline_name(&why);
-    say("pipeline: %s (%s)\n", name.c_str(), why.c_str());
-    // which picker chooses the source of each light sample
-    if (const LightBvh* b = r.light_bvh()) {
-      const LightBvhView bv = b->view();
-      const size_t in_tree = static_cast<size_t>(bv.nodes + 1) / 2, distant = static_cast<size_t>(bv.distant);
-      say("light picker: bvh (a light BVH over %zu sources, depth %d, %.1f bytes per source, built in %.3f s; "
-                  "%zu distant sources picked beside it)\n",
-                  in_tree, b->depth,
-                  static_cast<double>(b->bytes()) / static_cast<double>(std::max<size_t>(1, scene.lights.size())),
-                  r.light_bvh_seconds(), distant);
-    } else if (opt.est.pick == LightPick::all) {
-      say("light picker: all (every source takes the light samples)\n");
+    if (opt.est.bdpt) {  // no tile pipeline, no picker of the path tracer's
+      say("pipeline: bdpt (bidirectional path tracing, no tile pipeline: a camera and a light subpath per pixel and "
+          "sample, every join weighted by the balance heuristic)\n");
+      say("bdpt: %s\n", r.bdpt_sources().c_str());
+      say("paths: up to %d vertices a path, Russian roulette after vertex %d below throughput %g on both subpaths; every "
+          "ray against the whole scene\n",
+          opt.est.max_depth, opt.est.rr_depth + 1, static_cast<double>(opt.est.rr_threshold));
     } else {
-      static const char* names[] = {"all", "uniform", "area", "power", "bvh"};
-      say("light picker: %s (an alias table: the same probabilities at every shading point)%s\n",
-                  names[static_cast<int>(opt.est.pick)],
-                  opt.est.pick == LightPick::bvh ? "; bvh needs two sources or more" : "");
-      // the sources at infinity's shares, where they share the picks (under MIS a sky weighs
-      // the compensated part of its map: light/kinds/infinite.h)
-      double at_infinity = 0;
-      size_t others = 0;
-      std::string shares;
-      for (size_t i = 0; i < scene.lights.size(); ++i) {
-        const LightKind k = scene.lights[i].type;
-        if (k != LightKind::distant && !is_sky(k)) {
-          ++others;
-          continue;
+      say("pipeline: %s (%s)\n", name.c_str(), why.c_str());
+      // which picker chooses the source of each light sample
+      if (const LightBvh* b = r.light_bvh()) {
+        const LightBvhView bv = b->view();
+        const size_t in_tree = static_cast<size_t>(bv.nodes + 1) / 2, distant = static_cast<size_t>(bv.distant);
+        say("light picker: bvh (a light BVH over %zu sources, depth %d, %.1f bytes per source, built in %.3f s; "
+                    "%zu distant sources picked beside it)\n",
+                    in_tree, b->depth,
+                    static_cast<double>(b->bytes()) / static_cast<double>(std::max<size_t>(1, scene.lights.size())),
+                    r.light_bvh_seconds(), distant);
+      } else if (opt.est.pick == LightPick::all) {
+        say("light picker: all (every source takes the light samples)\n");
+      } else {
+        static const char* names[] = {"all", "uniform", "area", "power", "bvh"};
+        say("light picker: %s (an alias table: the same probabilities at every shading point)%s\n",
+                    names[static_cast<int>(opt.est.pick)],
+                    opt.est.pick == LightPick::bvh ? "; bvh needs two sources or more" : "");
+        // the sources at infinity's shares, where they share the picks (under MIS a sky weighs
+        // the compensated part of its map: light/kinds/infinite.h)
+        double at_infinity = 0;
+        size_t others = 0;
+        std::string shares;
+        for (size_t i = 0; i < scene.lights.size(); ++i) {
+          const LightKind k = scene.lights[i].type;
+          if (k != LightKind::distant && !is_sky(k)) {
+            ++others;
+            continue;
+          }
+          const float p = r.light_pick_probability(static_cast<int>(i));
+          at_infinity += p;
+          char buf[64];
+          std::snprintf(buf, sizeof buf, "%s%s %.3g", shares.empty() ? "" : ", ", is_sky(k) ? "sky" : "distant", p);
+          shares += buf;
         }
-        const float p = r.light_pick_probability(static_cast<int>(i));
-        at_infinity += p;
-        char buf[64];
-        std::snprintf(buf, sizeof buf, "%s%s %.3g", shares.empty() ? "" : ", ", is_sky(k) ? "sky" : "distant", p);
-        shares += buf;
+        if (!shares.empty() && scene.lights.size() > 1) {
+          say("  picks of the sources at infinity: %s", shares.c_str());
+          if (others > 0) say("; the other %zu source(s) %.3g", others, std::max(0.0, 1.0 - at_infinity));
+          say("\n");
+        }
       }
-      if (!shares.empty() && scene.lights.size() > 1) {
-        say("  picks of the sources at infinity: %s", shares.c_str());
-        if (others > 0) say("; the other %zu source(s) %.3g", others, std::max(0.0, 1.0 - at_infinity));
-        say("\n");
-      }
+      // (under a sky the rays that find no emitter take an occlusion ray to infinity; in a
+      // medium the rays see the whole scene)
+      const bool emitters = r.bounce_against_emitters();
+      const std::string per_ray = std::string(emitters && (scene.features & feat_sky) ? ", to infinity where they find none" : "") +
+                                  (emitters && (scene.features & feat_media) ? "; those that start in a medium against the whole scene" : "");
+      if (opt.est.max_depth > 1)
+        say("paths: up to %d vertices, Russian roulette after vertex %d below throughput %g (pbrt-v4's rule: 1); "
+                    "bounce rays against the whole scene, %s%s\n",
+                    opt.est.max_depth, opt.est.rr_depth + 1, static_cast<double>(opt.est.rr_threshold),
+                    emitters ? "those of the paths that end at a vertex (Russian roulette) and the last vertex's against the "
+                               "emitters, then occlusion rays"
+                             : "the last vertex's against the whole scene",
+                    per_ray.c_str());
+      else
+        say("bounce rays: against the %s%s\n", emitters ? "emitters, then occlusion rays" : "whole scene", per_ray.c_str());
     }
-    // (under a sky the rays that find no emitter take an occlusion ray to infinity; in a
-    // medium the rays see the whole scene)
-    const bool emitters = r.bounce_against_emitters();
-    const std::string per_ray = std::string(emitters && (scene.features & feat_sky) ? ", to infinity where they find none" : "") +
-                                (emitters && (scene.features & feat_media) ? "; those that start in a medium against the whole scene" : "");
-    if (opt.est.max_depth > 1)
-      say("paths: up to %d vertices, Russian roulette after vertex %d below throughput %g (pbrt-v4's rule: 1); "
-                  "bounce rays against the whole scene, %s%s\n",
-                  opt.est.max_depth, opt.est.rr_depth + 1, static_cast<double>(opt.est.rr_threshold),
-                  emitters ? "those of the paths that end at a vertex (Russian roulette) and the last vertex's against the "
-                             "emitters, then occlusion rays"
-                           : "the last vertex's against the whole scene",
-                  per_ray.c_str());
-    else
-      say("bounce rays: against the %s%s\n", emitters ? "emitters, then occlusion rays" : "whole scene", per_ray.c_str());
     // --light-paths: what runs, and the figure auto's glossy choice rests on
     if (opt.est.light_paths)
       say("light paths: %s, %s%s\n", opt.est.light_paths_glossy ? "glossy" : "on",

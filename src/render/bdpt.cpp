@@ -5,8 +5,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iterator>
 #include <stdexcept>
+#include <string>
 
 #include "light/kinds.h"
 #include "light/table.h"
@@ -207,6 +209,28 @@ Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int wi
 }
 
 Bdpt::~Bdpt() = default;
+
+std::string Bdpt::describe() const {
+  const LightView& L = v_.lights;
+  int area = 0, positional = 0, distant = 0, skies = 0;
+  for (const int32_t l : lights_) {
+    area += area_kind(L.type[l]);
+    positional += positional_light(L.type[l]);
+    distant += L.type[l] == static_cast<int32_t>(LightKind::distant);
+    skies += L.type[l] == static_cast<int32_t>(LightKind::infinite);
+  }
+  std::string s = std::to_string(lights_.size()) + " source(s) with power, picked by power for the light subpaths and "
+                  "the s = 1 joins alike (" + std::to_string(area) + " area, " + std::to_string(positional) +
+                  " point or spot, " + std::to_string(distant) + " distant, " + std::to_string(skies) + " sky)";
+  if (distant + skies > 0) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "; the light subpaths from the sources at infinity start on a disc of radius %.4g round (%.4g, %.4g, %.4g)",
+                  static_cast<double>(radius_), static_cast<double>(centre_[0]), static_cast<double>(centre_[1]),
+                  static_cast<double>(centre_[2]));
+    s += buf;
+  }
+  return s;
+}
 
 void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_size, int tiles_x, uint32_t begin,
                       uint32_t end, std::vector<LightPathSplat>& out, uint64_t& rejected) const {

@@ -78,6 +78,10 @@ class Bdpt {
   // they land); rejected counts contributions that were not finite.
   void trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_size, int tiles_x, uint32_t begin, uint32_t end,
                   std::vector<LightPathSplat>& out, uint64_t& rejected) const;
+  // What its light subpaths start from, for `tuile info`: the sources picked (by power, for
+  // the light subpaths and the s = 1 joins alike) by kind, and the disc of the sources at
+  // infinity.
+  std::string describe() const;
 
   struct Scratch;
 

@@ -99,6 +99,8 @@ class Renderer {
   bool has_light_paths() const { return light_paths_ != nullptr || bdpt_ != nullptr; }
   // What the light tracer emits from (LightPaths::describe), or "" without one.
   std::string light_paths_sources() const;
+  // What bdpt's light subpaths start from (Bdpt::describe), or "" without bdpt.
+  std::string bdpt_sources() const;
   uint32_t light_chunk_samples() const;
   RenderStats render_light_chunk(std::vector<double>& sums, uint32_t begin, uint32_t end);
   void set_light_paths_apart(bool apart) { light_paths_apart_ = apart; }

@@ -227,6 +227,7 @@ SampleLayout Renderer::sample_layout() const {
 }
 
 std::string Renderer::light_paths_sources() const { return light_paths_ ? light_paths_->describe() : std::string(); }
+std::string Renderer::bdpt_sources() const { return bdpt_ ? bdpt_->describe() : std::string(); }
 
 uint32_t Renderer::light_chunk_samples() const {
   const uint64_t pixels = static_cast<uint64_t>(scene_.camera.width) * static_cast<uint64_t>(scene_.camera.height);
