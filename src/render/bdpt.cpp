@@ -19,6 +19,7 @@
 #include "sample/sampling.h"
 #include "scene/scene.h"
 #include "wave/accumulate.h"
+#include "wave/alpha.h"
 #include "wave/emitter_hits.h"
 #include "wave/escaped.h"
 #include "wave/generate.h"
@@ -151,7 +152,6 @@ struct BdptPool {
 std::string bdpt_refusal(const Scene& scene) {
   if ((scene.features & feat_media) != 0) return "the scene has participating media, which bdpt does not render yet";
   if (!scene.curves.empty()) return "the scene has curves (hair), which bdpt does not render yet";
-  if (alpha_cut_emitter(scene)) return "the scene has an emitter with an alpha cut-out, which bdpt does not sample yet";
   return "";
 }
 
@@ -163,7 +163,7 @@ Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int wi
   const GeomView& G = v.geom;
   const std::string why = bdpt_refusal(scene);
   if (!why.empty()) throw std::invalid_argument("--bdpt: " + why + " (render it without --bdpt)");
-  if (G.has_media || G.has_hair || L.alpha_shape) throw std::invalid_argument("--bdpt: the scene's views hold what it refuses");
+  if (G.has_media || G.has_hair) throw std::invalid_argument("--bdpt: the scene's views hold what it refuses");
   for (int32_t i = 0; i < L.count; ++i)
     if (!area_kind(L.type[i]) && !positional_light(L.type[i]) && !at_infinity(L.type[i]))
       throw std::invalid_argument("--bdpt: the scene's light table holds a source it does not sample");
@@ -434,6 +434,15 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
     c[1] = L.Lg[sl];
     c[2] = L.Lb[sl];
   };
+  // an area source's emission at its point y times its alpha there (a cut-out emitter: the
+  // path tracer's light samples weigh theirs alike; the rays that meet it pass its holes)
+  auto cut = [&](int32_t l, const V3& y, float le[3]) {
+    if (!L.alpha_shape || L.alpha_shape[l] < 0) return;
+    const float a = std::clamp(
+        alpha_at_point(L.alpha_shapes[L.alpha_shape[l]], static_cast<uint32_t>(std::max(L.alpha_prim[l], 0)), y.x, y.y, y.z),
+        0.f, 1.f);
+    for (int c = 0; c < 3; ++c) le[c] *= a;
+  };
   // a source at infinity's direction towards it (wi), its density per unit solid angle (1
   // for a distant source's one direction) and its radiance along it (le, the table's on entry)
   auto infinite_direction = [&](int32_t l, float u1, float u2, V3& wi, float le[3]) {
@@ -568,6 +577,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       const float pdf_pos = pmf / L.area[l];
       float le[3];
       radiance(l, le);
+      cut(l, y, le);
       Vertex& y0 = S.light[0][li];
       y0 = Vertex{};
       y0.p = y;
@@ -810,6 +820,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         const float pdf_pos = pmf_[static_cast<size_t>(l)] / L.area[l];
         float le[3];
         radiance(l, le);
+        cut(l, y, le);
         Job job{};
         job.lane = i;
         job.s = 1;

@@ -38,8 +38,13 @@
 //
 // What it renders: surfaces of every material the path tracer knows but hair, lit by area
 // sources (triangles, parallelograms, spheres), point, spot and distant sources and skies
-// (constant or with a map). It refuses (std::invalid_argument) participating media, curves
-// and emitters with an alpha cut-out, which its strategies do not cover yet.
+// (constant or with a map); an emitter with an alpha cut-out emits its alpha times its
+// radiance where a point is drawn on it (as the path tracer's light samples weigh it), and
+// the rays that meet it pass its holes. It refuses (std::invalid_argument) participating
+// media and curves: pbrt-v4's hair BSDF is not reciprocal (its offset h belongs to the ray
+// that arrived, which on a light subpath is the light's), and under a white sky a furnace of
+// fibers, which the path tracer renders at exactly 1, came out 1.04 through bdpt's light
+// subpaths.
 //
 // Determinism: as the light tracer's splats (the renderer adds a tile's splats in tile
 // order), each lane's camera-side contributions summed in strategy order into one splat per
@@ -62,8 +67,7 @@ namespace tuile {
 struct Scene;
 struct BdptPool;  // the threads' scratch (bdpt.cpp)
 
-// Why bdpt does not render this scene ("" where it does): media, curves or an emitter with
-// an alpha cut-out.
+// Why bdpt does not render this scene ("" where it does): media or curves.
 std::string bdpt_refusal(const Scene& scene);
 
 class Bdpt {
