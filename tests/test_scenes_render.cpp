@@ -38,7 +38,7 @@ RenderResult small_render(const std::string& path, uint32_t spp, int res, uint32
   // the file's depth, and --light-paths as auto chooses it (sun-window's light comes in
   // through glass alone)
   o.est.max_depth = std::max(1, std::min(s.file_max_depth, 8));
-  const LightPathsPay pay = o.est.max_depth >= 2 && !alpha_cut_emitter(s) ? light_paths_pay(s, true) : LightPathsPay::no;
+  const LightPathsPay pay = o.est.max_depth >= 2 ? light_paths_pay(s, true) : LightPathsPay::no;
   o.est.light_paths = pay != LightPathsPay::no;
   o.est.light_paths_glossy = pay == LightPathsPay::glossy;
   return render_scene(s, o);

@@ -81,7 +81,7 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                "the area lights' power or more falls on smooth glass or a mirror from a light that looks small from it "
                "(a lamp's caustics through glass onto surfaces); glossy where 1% "
                "of the area lights' power or more falls on such a surface from a light that looks small from it; unless "
-               "--max-depth 1, --aov variance, --target-error or an emitter with an alpha cut-out");
+               "--max-depth 1, --aov variance or --target-error");
   app.add_option("--equiangular", f.equiangular,
                  "auto | on | off: in scenes with media, a light sample more per ray through a medium, at a distance "
                  "drawn by equiangular sampling towards a source (Kulla & Fajardo 2012) and MIS-weighted against the "
@@ -273,7 +273,7 @@ RenderOptions resolve_options(const RenderFlags& f, Scene& scene) {
   else if (f.light_paths == "off" || f.light_paths == "false") e.light_paths = false;
   else if (f.light_paths.empty() || f.light_paths == "auto") {
     const LightPathsPay pay =
-        e.max_depth >= 2 && !o.aov_variance && !(f.target_error > 0) && !alpha_cut_emitter(scene)
+        e.max_depth >= 2 && !o.aov_variance && !(f.target_error > 0)
             ? light_paths_pay(scene, e.strategy != Strategy::ris)
             : LightPathsPay::no;
     e.light_paths = pay != LightPathsPay::no;

@@ -19,7 +19,6 @@
 #include "sample/sampling.h"
 #include "scene/scene.h"
 #include "wave/accumulate.h"
-#include "wave/alpha.h"
 #include "wave/emitter_hits.h"
 #include "wave/escaped.h"
 #include "wave/generate.h"
@@ -434,13 +433,9 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
     c[1] = L.Lg[sl];
     c[2] = L.Lb[sl];
   };
-  // an area source's emission at its point y times its alpha there (a cut-out emitter: the
-  // path tracer's light samples weigh theirs alike; the rays that meet it pass its holes)
+  // an area source's emission at its point y times its alpha there (emitter_alpha)
   auto cut = [&](int32_t l, const V3& y, float le[3]) {
-    if (!L.alpha_shape || L.alpha_shape[l] < 0) return;
-    const float a = std::clamp(
-        alpha_at_point(L.alpha_shapes[L.alpha_shape[l]], static_cast<uint32_t>(std::max(L.alpha_prim[l], 0)), y.x, y.y, y.z),
-        0.f, 1.f);
+    const float a = emitter_alpha(L, l, y);
     for (int c = 0; c < 3; ++c) le[c] *= a;
   };
   // a source at infinity's direction towards it (wi), its density per unit solid angle (1

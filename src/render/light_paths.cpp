@@ -11,6 +11,7 @@
 #include "sample/rng.h"
 #include "sample/sampling.h"
 #include "wave/accumulate.h"
+#include "wave/alpha.h"
 #include "wave/media.h"
 #include "wave/path.h"
 #include "wave/surface_bsdf.h"
@@ -377,14 +378,11 @@ LightPathsPay light_paths_pay(const Scene& scene, bool glossy_allowed) {
   return caustics ? LightPathsPay::on : LightPathsPay::no;
 }
 
-bool alpha_cut_emitter(const Scene& scene) {
-  for (const Light& l : scene.lights) {
-    if (l.mesh >= 0 && static_cast<size_t>(l.mesh) < scene.meshes.size() && scene.meshes[static_cast<size_t>(l.mesh)].has_alpha())
-      return true;
-    if (l.sphere >= 0 && static_cast<size_t>(l.sphere) < scene.spheres.size() && scene.spheres[static_cast<size_t>(l.sphere)].alpha < 1)
-      return true;
-  }
-  return false;
+float emitter_alpha(const LightView& L, int32_t l, const Vec3<float>& y) {
+  if (!L.alpha_shape || L.alpha_shape[l] < 0) return 1.f;
+  return std::clamp(
+      alpha_at_point(L.alpha_shapes[L.alpha_shape[l]], static_cast<uint32_t>(std::max(L.alpha_prim[l], 0)), y.x, y.y, y.z), 0.f,
+      1.f);
 }
 
 LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, int width, int height, const float lo[3],
@@ -392,9 +390,6 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
     : v_(v), est_(est), width_(width), height_(height) {
   const LightView& L = v.lights;
   const GeomView& G = v.geom;
-  if (L.alpha_shape)
-    throw std::invalid_argument("--light-paths: the scene has an emitter with an alpha cut-out, which the light tracer "
-                                "does not sample yet");
   double total = 0;
   auto add_source = [&](int32_t i, double power) {
     if (!(power > 0) || !std::isfinite(power)) return;
@@ -774,7 +769,7 @@ void LightPaths::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int t
       const Vec3<float> dl = sample_cosine_hemisphere<float>(tb.ris.cr[i], tb.ris.cg[i]);
       const Vec3<float> d = normalize(t * dl.x + b * dl.y + n * dl.z);
       const int32_t sl = L.one_radiance ? 0 : l;
-      const float scale = g.area * pi_f * (two ? 2.f : 1.f) / pmf_[pick];
+      const float scale = g.area * pi_f * (two ? 2.f : 1.f) / pmf_[pick] * emitter_alpha(L, l, y);
       const float br = L.Lr[sl] * scale, bg = L.Lg[sl] * scale, bb = L.Lb[sl] * scale;
       const float m0 = std::max(std::max(br, bg), bb);
       if (!(m0 > 0.f) || !std::isfinite(m0) || !(dl.z > 0.f)) continue;

@@ -145,10 +145,6 @@ double area_glint_share(const Scene& scene);
 // of the area sources' power that falls on smooth glass and mirrors from a source that looks
 // small from them (light_paths_pay's caustics onto surfaces).
 double area_caustic_share(const Scene& scene);
-// An emitter with an alpha cut-out (a mesh's alpha or a sphere's below 1), which the light
-// tracer refuses.
-bool alpha_cut_emitter(const Scene& scene);
-
 // Lane i's ray (a light path's next segment) from org along the unit d, traced to the
 // nearest hit (tb.bounce, tb.tech.valid): the light tracer's and bdpt's.
 void set_light_ray(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<float>& d);
@@ -159,6 +155,12 @@ void set_light_ray(TileBuffers& tb, int i, const Vec3<float>& org, const Vec3<fl
 // (importance carries no 1 / eta^2).
 float adjoint_factor(const GeomView& G, int32_t mat, int32_t kind, float side, const Vec3<float>& ng, const Vec3<float>& ns,
                      const Vec3<float>& wo, const Vec3<float>& wi);
+
+// An area source's alpha at its point y (1 without a cut-out): a point drawn on a cut-out
+// emitter emits its alpha times the radiance, as the path tracer's light samples weigh it
+// (wave/sample_lights.h apply_light_alpha); the rays that meet it pass its holes (Embree's
+// filters). The light tracer's and bdpt's.
+float emitter_alpha(const LightView& L, int32_t l, const Vec3<float>& y);
 
 // Point and spot sources (positional: on no surface, a delta in position).
 bool positional_light(int32_t type);
@@ -175,8 +177,6 @@ double positional_power(int32_t type, const LightGeom<float>& g, double lum);
 
 class LightPaths {
  public:
-  // Throws std::invalid_argument where the scene has what the light tracer cannot trace
-  // yet (emitters with an alpha cut-out).
   // Sets v's mat_lt_glossy and lt_glossy where distant sources are traced (the path
   // tracer's stages read them); lo, hi: the scene's bounds.
   LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, int width, int height, const float lo[3],
