@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -12,6 +14,7 @@
 #include "light/polygon_irradiance.h"
 #include "render/render.h"
 #include "scene/scene.h"
+#include "scene/sky_map.h"
 #include "test_scale.h"
 #include "wave/generate.h"
 
@@ -79,6 +82,23 @@ inline Light distant_light(vec3f towards, Rgb L) {
 }
 
 // Smooth glass (a delta lobe), pbrt-v4's dielectric of index eta.
+// A sky with an environment map made of img (light/kinds/infinite.h) added to s: radiance
+// scale L, its frame turned so that its x axis is along x (its y axis across x and world z).
+inline void add_map_sky(Scene& s, const RgbImage& img, Rgb L, vec3f x) {
+  SkyMap map;
+  std::string why;
+  if (!make_sky_map("test sky", img, map, why)) throw std::runtime_error(why);
+  s.sky_maps.push_back(std::move(map));
+  Light env;
+  env.type = LightKind::infinite;
+  env.radiance = L;
+  env.sky_map = static_cast<int>(s.sky_maps.size()) - 1;
+  env.e1 = normalize(x);
+  env.e2 = normalize(cross(vec3f{0, 0, 1}, env.e1));
+  env.p0 = cross(env.e1, env.e2);
+  s.lights.push_back(env);
+}
+
 inline Material glass_material(float eta = 1.5f) {
   Material g;
   g.kind = MaterialKind::dielectric;

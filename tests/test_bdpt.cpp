@@ -28,7 +28,6 @@
 #include "render/bdpt_mis.h"
 #include "render/options.h"
 #include "render_util.h"
-#include "scene/sky_map.h"
 
 using namespace tuile;
 using namespace tuile::test;
@@ -224,18 +223,7 @@ TEST(Bdpt, RendersThePathTracersMeanUnderASkyAndASun) {
   img.width = img.height = 8;
   for (int t = 0; t < 64; ++t)
     for (int c = 0; c < 3; ++c) img.rgb.push_back((t == 19 || t == 27 ? 6.f : 0.2f) * (1.f + 0.2f * static_cast<float>(c)));
-  SkyMap map;
-  std::string why;
-  ASSERT_TRUE(make_sky_map("bdpt test", img, map, why)) << why;
-  s.sky_maps.push_back(std::move(map));
-  Light env;
-  env.type = LightKind::infinite;
-  env.radiance = {0.5f, 0.5f, 0.5f};
-  env.sky_map = 0;
-  env.e1 = normalize(vec3f{1, 0.2f, 0});
-  env.e2 = normalize(cross(vec3f{0, 0, 1}, env.e1));
-  env.p0 = cross(env.e1, env.e2);
-  s.lights.push_back(env);
+  add_map_sky(s, img, {0.5f, 0.5f, 0.5f}, {1, 0.2f, 0});
   s.lights.push_back(distant_light({0.3f, 1, -0.4f}, {1.5f, 1.4f, 1.2f}));
   finalize_scene(s);
   expect_same_mean_over_seeds(s, bdpt_options(true, static_cast<uint32_t>(scaled(48)), 0, 4),

@@ -68,18 +68,7 @@ Scene all_lights_scene(bool extras = false, bool sky = false) {
     img.width = img.height = 8;
     for (int t = 0; t < 64; ++t)
       for (int c = 0; c < 3; ++c) img.rgb.push_back(static_cast<float>((t * 7 + c * 3) % 11) * (t == 19 ? 30.f : 0.1f));
-    SkyMap map;
-    std::string why;
-    if (!make_sky_map("lanes", img, map, why)) throw std::runtime_error(why);
-    s.sky_maps.push_back(std::move(map));
-    Light env;
-    env.type = LightKind::infinite;
-    env.radiance = {0.5f, 0.5f, 0.5f};
-    env.sky_map = 0;
-    env.e1 = normalize(vec3f{1, 0.2f, 0});
-    env.e2 = normalize(cross(vec3f{0, 0, 1}, env.e1));
-    env.p0 = cross(env.e1, env.e2);
-    s.lights.push_back(env);
+    test::add_map_sky(s, img, {0.5f, 0.5f, 0.5f}, {1, 0.2f, 0});
   }
   if (extras) {
     Texture tex;

@@ -495,6 +495,20 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
     }
     walk(s, false, S.cam, S.ncam, D + 1, true);
 
+    // lane i's light subpath after y0: its throughput le times scale (Russian roulette's
+    // reference), the density pend of its first ray's direction (the disc's, from a source
+    // at infinity), that ray; none where the throughput is zero or not finite
+    auto start = [&](int i, const float le[3], float scale, float pend, const V3& org, const V3& dir) {
+      const size_t li = static_cast<size_t>(i);
+      S.br[li] = le[0] * scale;
+      S.bg[li] = le[1] * scale;
+      S.bb[li] = le[2] * scale;
+      const float m0 = std::max(std::max(S.br[li], S.bg[li]), S.bb[li]);
+      if (!(m0 > 0.f) || !std::isfinite(m0)) return;
+      S.m0[li] = 1.f / m0;
+      S.pend[li] = pend;
+      set_light_ray(tb, i, org, dir);
+    };
     // the light subpaths: y0 on a source picked by power, uniform in area, its direction
     // cosine-weighted (either side of a two-sided source, by u1)
     pairs(s, light_base, S.u0.data(), S.u1.data());
@@ -527,15 +541,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         for (int c = 0; c < 3; ++c) y0.beta[c] = le[c] / pmf;
         y0.fwd = distant ? pmf : sky_density(wi);
         S.nlight[li] = 1;
-        const float scale = 1.f / (pmf * disc_pdf * pdf_dir);
-        S.br[li] = le[0] * scale;
-        S.bg[li] = le[1] * scale;
-        S.bb[li] = le[2] * scale;
-        const float m0 = std::max(std::max(S.br[li], S.bg[li]), S.bb[li]);
-        if (!(m0 > 0.f) || !std::isfinite(m0)) continue;
-        S.m0[li] = 1.f / m0;
-        S.pend[li] = disc_pdf;
-        set_light_ray(tb, i, o, V3(0.f, 0.f, 0.f) - wi);
+        start(i, le, 1.f / (pmf * disc_pdf * pdf_dir), disc_pdf, o, V3(0.f, 0.f, 0.f) - wi);
         continue;
       }
       if (positional_light(L.type[l])) {  // a point or spot source: y0 its position, on no surface
@@ -553,15 +559,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         V3 d;
         float falloff;
         const float pdf_dir = sample_positional_direction(L.type[l], g, S.u4[li], S.u5[li], d, falloff);
-        const float scale = falloff / (pmf * pdf_dir);
-        S.br[li] = le[0] * scale;
-        S.bg[li] = le[1] * scale;
-        S.bb[li] = le[2] * scale;
-        const float m0 = std::max(std::max(S.br[li], S.bg[li]), S.bb[li]);
-        if (!(m0 > 0.f) || !std::isfinite(m0)) continue;
-        S.m0[li] = 1.f / m0;
-        S.pend[li] = pdf_dir;
-        set_light_ray(tb, i, g.p0, d);
+        start(i, le, falloff / (pmf * pdf_dir), pdf_dir, g.p0, d);
         continue;
       }
       V3 n;
@@ -588,15 +586,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       if (!(dl.z > 0.f)) continue;
       const V3 d = normalize(t * dl.x + b * dl.y + n * dl.z);
       const float pdf_dir = dl.z * ((two ? 0.5f : 1.f) / pi_f);
-      const float scale = 1.f / (pdf_pos * pdf_dir) * dl.z;
-      S.br[li] = le[0] * scale;
-      S.bg[li] = le[1] * scale;
-      S.bb[li] = le[2] * scale;
-      const float m0 = std::max(std::max(S.br[li], S.bg[li]), S.bb[li]);
-      if (!(m0 > 0.f) || !std::isfinite(m0)) continue;
-      S.m0[li] = 1.f / m0;
-      S.pend[li] = pdf_dir;
-      set_light_ray(tb, i, y + n * y0.eps, d);
+      start(i, le, 1.f / (pdf_pos * pdf_dir) * dl.z, pdf_dir, y + n * y0.eps, d);
     }
     walk(s, true, S.light, S.nlight, D, false);
     // each subpath vertex's prefix sum of the weights' ratios (bdpt_mis.h)
