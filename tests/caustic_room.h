@@ -168,4 +168,31 @@ inline void expect_same_bits_on_any_thread_count(const Scene& s, RenderOptions o
   EXPECT_GT(differ_plain, two.size() / 4);
 }
 
+// The room filled with a fog (inside an interface box that also holds the light and the
+// glass), the camera outside it: the glass throws a caustic into the fog, which the light
+// tracer's vertices in the medium join to the camera through the interface. With
+// camera_inside, the box reaches past the camera, which sits in the fog (Scene::camera_medium).
+inline Scene caustic_fog_room(int res, Rgb sigma_s, bool camera_inside = false) {
+  Scene s = caustic_room(res, false, false);
+  s.media.push_back(homogeneous({0.05f, 0.05f, 0.08f}, sigma_s, 0.3f));
+  const int fog = 0;
+  const int iface = static_cast<int>(s.materials.size());
+  s.materials.push_back(interface_material());
+  Mesh box = media_box({-1.45f, 0.01f, -1.45f}, {1.45f, 1.98f, camera_inside ? 2.95f : 2.5f});
+  box.material = iface;
+  box.medium_inside = fog;
+  s.meshes.push_back(box);
+  if (camera_inside) s.camera_medium = fog;
+  for (Sphere& sp : s.spheres) sp.medium_outside = fog;  // the glass: vacuum inside, fog outside
+  // the light just under the ceiling, inside the fog: a MediumInterface says so
+  for (Mesh& m : s.meshes)
+    if (m.name == "light") {
+      for (size_t k = 1; k < m.positions.size(); k += 3) m.positions[k] = 1.95f;
+      m.medium_inside = fog;
+      m.medium_outside = fog;
+    }
+  finalize_scene(s);
+  return s;
+}
+
 }  // namespace tuile::test

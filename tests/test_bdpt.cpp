@@ -244,6 +244,25 @@ TEST(Bdpt, RendersThePathTracersMeanUnderACutOutEmitter) {
                               bdpt_options(false, static_cast<uint32_t>(scaled(96)), 0), 24, "bdpt, cut-out emitter");
 }
 
+// Media: the caustic room in a fog inside an interface box (the light in it, the glass ball's
+// outside fog, the camera outside the box: its joins to vertices in the fog cross the
+// interface), then with the camera inside the fog and the glass ball full of a medium that
+// absorbs, scatters and emits (its emission gathered along the camera subpath's rays, s = 0).
+TEST(Bdpt, RendersThePathTracersMeanInMedia) {
+  const Scene s = caustic_fog_room(20, {0.4f, 0.35f, 0.3f});
+  ASSERT_EQ(bdpt_refusal(s), "");
+  expect_same_mean_over_seeds(s, bdpt_options(true, static_cast<uint32_t>(scaled(32)), 0, 5),
+                              bdpt_options(false, static_cast<uint32_t>(scaled(128)), 0, 5), 24, "bdpt, fog");
+  Scene in = caustic_fog_room(20, {0.5f, 0.3f, 0.2f}, true);
+  in.media.push_back(homogeneous({0.6f, 0.4f, 0.2f}, {0.5f, 0.5f, 0.5f}, -0.3f, {1.5f, 1.f, 0.5f}));
+  for (Sphere& sp : in.spheres) sp.medium_inside = 1;
+  finalize_scene(in);
+  ASSERT_EQ(bdpt_refusal(in), "");
+  expect_same_mean_over_seeds(in, bdpt_options(true, static_cast<uint32_t>(scaled(32)), 0, 5),
+                              bdpt_options(false, static_cast<uint32_t>(scaled(128)), 0, 5), 24,
+                              "bdpt, camera in a fog, an emitting ball");
+}
+
 TEST(Bdpt, SameBitsOnAnyThreadCount) {
   expect_same_bits_on_any_thread_count(caustic_room(20), bdpt_options(true, 6, 5), bdpt_options(false, 6, 5), 6);
 }
@@ -278,15 +297,19 @@ TEST(Bdpt, AutoIsOnWhereTheFileAsksForIt) {
   f = RenderFlags{};
   f.bdpt = "on";
   EXPECT_TRUE(resolve_options(f, path).est.bdpt);
-  // a medium: the path tracer renders the file (with a warning)
-  Scene fog = caustic_room(16, false, false);
-  fog.media.push_back(homogeneous({0.05f, 0.05f, 0.05f}, {0.3f, 0.3f, 0.3f}));
-  for (Sphere& sp : fog.spheres) sp.medium_inside = 0;
-  finalize_scene(fog);
+  // a medium: bdpt's, without the segment light samples (its own strategies sample it)
+  Scene fog = caustic_fog_room(16, {0.3f, 0.3f, 0.3f}, true);
   fog.file_integrator = "bdpt";
-  EXPECT_NE(bdpt_refusal(fog), "");
+  EXPECT_EQ(bdpt_refusal(fog), "");
   EXPECT_EQ(bdpt_refusal(s), "");
-  EXPECT_FALSE(resolve_options(plain, fog).est.bdpt);
+  EXPECT_TRUE(resolve_options(plain, fog).est.bdpt);
+  EXPECT_FALSE(resolve_options(plain, fog).est.equiangular);
+  // a sky with the camera in the medium: the path tracer renders the file (with a warning)
+  Scene fog_sky = fog;
+  fog_sky.lights.push_back(distant_light({0.3f, 1, -0.4f}, {1, 1, 1}));
+  finalize_scene(fog_sky);
+  EXPECT_NE(bdpt_refusal(fog_sky), "");
+  EXPECT_FALSE(resolve_options(plain, fog_sky).est.bdpt);
   // a distant source and a sky: bdpt's
   Scene sun = caustic_room(16, false, false);
   sun.lights.push_back(distant_light({0.3f, 1, -0.4f}, {1, 1, 1}));
@@ -353,9 +376,9 @@ TEST(Bdpt, RefusesWhatItCannotDo) {
     }
     return std::string();
   };
-  // a medium
-  Scene fog = caustic_room(16, false, false);
-  fog.media.push_back(homogeneous({0.05f, 0.05f, 0.05f}, {0.3f, 0.3f, 0.3f}));
-  for (Sphere& sp : fog.spheres) sp.medium_inside = 0;
-  EXPECT_NE(refused(fog).find("media"), std::string::npos);
+  // a source at infinity with the camera in a medium
+  Scene fog = caustic_fog_room(16, {0.3f, 0.3f, 0.3f}, true);
+  fog.lights.push_back(distant_light({0.3f, 1, -0.4f}, {1, 1, 1}));
+  EXPECT_NE(refused(fog).find("the camera sits in a medium"), std::string::npos);
+  EXPECT_EQ(refused(caustic_fog_room(16, {0.3f, 0.3f, 0.3f}, true)), "");
 }

@@ -72,31 +72,6 @@ TEST(LightPaths, RendersThePathTracersMeanWithShadingNormalsASphereSourceAndATri
   expect_same_mean_over_seeds(s, with, without, 24, "shading normals, triangle filter");
 }
 
-// The room filled with a fog (inside an interface box that also holds the light and the
-// glass), the camera outside it: the glass throws a caustic into the fog, which the light
-// tracer's vertices in the medium join to the camera through the interface.
-Scene caustic_fog_room(int res, Rgb sigma_s) {
-  Scene s = caustic_room(res, false, false);
-  s.media.push_back(homogeneous({0.05f, 0.05f, 0.08f}, sigma_s, 0.3f));
-  const int fog = 0;
-  const int iface = static_cast<int>(s.materials.size());
-  s.materials.push_back(interface_material());
-  Mesh box = media_box({-1.45f, 0.01f, -1.45f}, {1.45f, 1.98f, 2.5f});
-  box.material = iface;
-  box.medium_inside = fog;
-  s.meshes.push_back(box);
-  for (Sphere& sp : s.spheres) sp.medium_outside = fog;  // the glass: vacuum inside, fog outside
-  // the light just under the ceiling, inside the fog: a MediumInterface says so
-  for (Mesh& m : s.meshes)
-    if (m.name == "light") {
-      for (size_t k = 1; k < m.positions.size(); k += 3) m.positions[k] = 1.95f;
-      m.medium_inside = fog;
-      m.medium_outside = fog;
-    }
-  finalize_scene(s);
-  return s;
-}
-
 TEST(LightPaths, RendersThePathTracersMeanInAMedium) {
   const Scene s = caustic_fog_room(20, {0.4f, 0.35f, 0.3f});
   const uint32_t spp = static_cast<uint32_t>(scaled(64));

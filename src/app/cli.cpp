@@ -65,7 +65,8 @@ void add_render_flags(CLI::App& app, RenderFlags& f) {
                "[=auto|on|off] bidirectional path tracing (Veach; pbrt-v4's bdpt, unbiased) instead of the path tracer: "
                "a camera and a light subpath per pixel and sample, every join of a prefix of each weighted by the balance "
                "heuristic (the light of a small or hidden lamp that light samples rarely reach: veach-bidir); area, "
-               "point, spot and distant sources and skies, no media or curves yet; default auto: on where the scene file asks for Integrator "
+               "point, spot and distant sources and skies, homogeneous media (but a source at infinity with the camera in a "
+               "medium), no curves yet; default auto: on where the scene file asks for Integrator "
                "\"bdpt\", bdpt renders the scene and no path tracer's option (--guide, --light-paths, --equiangular "
                "on, --regularize on, --heuristic optimal, --aov, --target-error) is given");
   app.add_flag("--light-paths{on}", f.light_paths,

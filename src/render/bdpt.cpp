@@ -22,6 +22,7 @@
 #include "wave/emitter_hits.h"
 #include "wave/escaped.h"
 #include "wave/generate.h"
+#include "wave/media.h"
 #include "wave/surface_bsdf.h"
 #include "wave/surface_hits.h"
 
@@ -54,10 +55,27 @@ struct Vertex {
   float fwd = 0.f, rev = 0.f;
   float eps = 0.f;     // ray offset
   int32_t light = -1;  // camera subpath: the source this point is on, facing the vertex before; y0: its source
+  int32_t medf = -1, medb = -1;  // the media on the side of ng and behind it (a point in a medium: its medium, ng zero)
   bool delta = false;  // the direction sampled here was a delta lobe's
   bool infinite = false;  // y0 of a source at infinity (p: where its ray starts on the disc)
   float mis = 0.f;     // the prefix sum of the balance heuristic's ratios up to here (bdpt_mis.h)
 };
+
+// A point in a medium: its BSDF is the phase function, its normals zero.
+bool in_medium(const Vertex& v) { return v.bsdf.kind == static_cast<int32_t>(MaterialKind::phase); }
+
+// |cos| of the unit w at v against its geometric normal: 1 at a point on no surface (the
+// camera, a point or spot source, a point in a medium), as pbrt-v4's medium interactions.
+float cos_geo(const Vertex& v, const V3& w) {
+  return v.ng.x == 0.f && v.ng.y == 0.f && v.ng.z == 0.f ? 1.f : std::abs(dot(v.ng, w));
+}
+
+// |cos| of the unit w at surface or medium vertex v against its shading normal (1 in a
+// medium: the phase function has no cosine).
+float cos_shading(const Vertex& v, const V3& w) { return in_medium(v) ? 1.f : std::abs(dot(v.bsdf.n, w)); }
+
+// The medium a ray from vertex v along d starts in.
+int32_t ray_medium(const Vertex& v, const V3& d) { return dot(v.ng, d) >= 0.f ? v.medf : v.medb; }
 
 // The BSDF of surface vertex v with the viewer along the unit w (the path tracer's
 // convention: the normals on the viewer's side of the geometric normal, which side of the
@@ -100,6 +118,7 @@ float to_area(float pdf, const Vertex& from, const Vertex& to) {
 // it, times |ns.w|: Veach's shading-normal factor |ns.wo| |ng.w| / |ng.wo| and etap^2 on a
 // transmission through a dielectric; 0 where wo grazes the surface.
 float importance_join(const GeomView& G, const Vertex& y, const V3& w) {
+  if (in_medium(y)) return 1.f;
   const V3 wo = y.bsdf.wo;
   const float ngo = std::abs(dot(y.ng, wo));
   if (!(ngo > 0.f)) return 0.f;
@@ -127,6 +146,7 @@ struct Job {
   double rx, ry;
   V3 org, dir;
   float tfar;
+  int32_t med;  // the medium the shadow ray starts in
 };
 
 }  // namespace
@@ -142,6 +162,8 @@ struct Bdpt::Scratch {
   std::vector<V3> esc_d;
   std::vector<float> esc_pdf, esc_r, esc_g, esc_b;
   std::vector<Job> jobs;
+  std::vector<int32_t> jmed;          // the jobs' media, a batch's
+  std::vector<float> mr, mg, mb;      // per lane: the media's emission the camera subpath gathered (s = 0, weight 1)
 };
 
 struct BdptPool {
@@ -149,8 +171,12 @@ struct BdptPool {
 };
 
 std::string bdpt_refusal(const Scene& scene) {
-  if ((scene.features & feat_media) != 0) return "the scene has participating media, which bdpt does not render yet";
   if (!scene.curves.empty()) return "the scene has curves (hair), which bdpt does not render yet";
+  if (rendered_medium(scene, scene.camera_medium) >= 0)
+    for (const Light& l : scene.lights)
+      if (l.type == LightKind::distant || l.type == LightKind::infinite)
+        return "the camera sits in a medium and a source is at infinity (its light subpaths would start outside "
+               "that medium), which bdpt does not render";
   return "";
 }
 
@@ -162,7 +188,8 @@ Bdpt::Bdpt(const Scene& scene, const SceneViews& v, const Estimator& est, int wi
   const GeomView& G = v.geom;
   const std::string why = bdpt_refusal(scene);
   if (!why.empty()) throw std::invalid_argument("--bdpt: " + why + " (render it without --bdpt)");
-  if (G.has_media || G.has_hair) throw std::invalid_argument("--bdpt: the scene's views hold what it refuses");
+  if (G.has_hair) throw std::invalid_argument("--bdpt: the scene's views hold what it refuses");
+  source_media(scene, v, medium_out_, medium_in_);
   for (int32_t i = 0; i < L.count; ++i)
     if (!area_kind(L.type[i]) && !positional_light(L.type[i]) && !at_infinity(L.type[i]))
       throw std::invalid_argument("--bdpt: the scene's light table holds a source it does not sample");
@@ -253,8 +280,11 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
     tb.lanes.pixel[i] = static_cast<uint32_t>(y0 + j / tw) * static_cast<uint32_t>(width_) + static_cast<uint32_t>(x0 + j % tw);
   }
   tb.keys.keyed = 0;  // (no cached keys: every pair is drawn here)
-  for (auto* a : {&S.br, &S.bg, &S.bb, &S.pend, &S.m0, &S.u0, &S.u1, &S.u2, &S.u3, &S.u4, &S.u5, &S.sr, &S.sg, &S.sb})
+  for (auto* a : {&S.br, &S.bg, &S.bb, &S.pend, &S.m0, &S.u0, &S.u1, &S.u2, &S.u3, &S.u4, &S.u5, &S.sr, &S.sg, &S.sb,
+                  &S.mr, &S.mg, &S.mb})
     a->resize(lane_array);
+  S.jmed.resize(lane_array);
+  const bool media = G.has_media;
   S.pend_light.resize(lane_array);
   for (auto* a : {&S.esc_pdf, &S.esc_r, &S.esc_g, &S.esc_b}) a->resize(lane_array);
   S.esc_t.resize(lane_array);
@@ -272,6 +302,12 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
   const uint32_t light_base = 1 + 4 * static_cast<uint32_t>(D + 1);
   auto cam_pair = [](int j, int what) { return 1 + 4 * static_cast<uint32_t>(j - 1) + static_cast<uint32_t>(what); };
   auto light_pair = [&](int j, int what) { return light_base + 3 + 2 * static_cast<uint32_t>(j - 1) + static_cast<uint32_t>(what); };
+  // in a scene with media, one more per ray for its free flight (after the others, so that
+  // the pairs of a scene without media are as they were): the ray that leaves vertex j - 1
+  const uint32_t flight_base = light_base + 3 + 2 * static_cast<uint32_t>(D + 1);
+  auto flight_pair = [&](bool from_light, int j) {
+    return flight_base + (from_light ? static_cast<uint32_t>(D + 1) : 0u) + static_cast<uint32_t>(j - 1);
+  };
   auto pairs = [&](uint32_t s, uint32_t pair, float* u, float* w) {
     sample_pairs(est.sampler, est.seed, tb.lanes.pixel, s, est.spp, pair, padded, u, w);
   };
@@ -290,8 +326,12 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
   };
 
   // One subpath's walk from its first rays (set in tb.bounce and tb.tech.valid, one per
-  // lane): each hit becomes vertex j of the lane, then its BSDF samples the next direction,
-  // until vertex `last`. from_light: the adjoint's weights; else the emitters met are noted.
+  // lane; in a scene with media, tb.media.med the media they start in): each ray's free
+  // flight (its weight joins the throughput) ends at vertex j of the lane, a surface or a
+  // point in a medium, whose BSDF (or phase function) samples the next direction, until
+  // vertex `last`. from_light: the adjoint's weights; else the emitters met are noted, and
+  // the media's emission on the way is gathered (s = 0: no other strategy meets it), along
+  // the rays of the first D vertices (the path tracer's: the segments before the last vertex).
   auto walk = [&](uint32_t s, bool from_light, std::vector<std::vector<Vertex>>& path, std::vector<int>& n, int last,
                   bool traced) {
     for (int j = 1;; ++j) {
@@ -302,6 +342,26 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
           reset_hit(tb.bounce[p]);
           trace(tb.tech.valid + p * packet_width, tb.bounce[p]);
         }
+      if (media) {
+        pairs(s, flight_pair(from_light, j), S.u0.data(), S.u1.data());
+        for (int k = 0; k < count; ++k) {
+          tb.media.u0[k] = S.u0[static_cast<size_t>(P.lane[k])];
+          tb.media.u1[k] = S.u1[static_cast<size_t>(P.lane[k])];
+        }
+        medium_flights(G, tb.bounce, tb.tech.valid, count, tb.media, rejected, trace);
+        for (int k = 0; k < count; ++k) {
+          if (!tb.tech.valid[k]) continue;
+          const size_t ln = static_cast<size_t>(P.lane[k]);
+          if (!from_light && j <= D) {
+            S.mr[ln] += S.br[ln] * tb.media.er[k];
+            S.mg[ln] += S.bg[ln] * tb.media.eg[k];
+            S.mb[ln] += S.bb[ln] * tb.media.eb[k];
+          }
+          S.br[ln] *= tb.media.wr[k];
+          S.bg[ln] *= tb.media.wg[k];
+          S.bb[ln] *= tb.media.wb[k];
+        }
+      }
       if (!from_light)
         for (int k = 0; k < count; ++k) {
           const int lane = P.lane[k];
@@ -343,6 +403,8 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         v.beta[1] = S.bg[lane];
         v.beta[2] = S.bb[lane];
         v.light = from_light ? -1 : S.pend_light[lane];
+        v.medf = media ? P.medf[k] : -1;
+        v.medb = media ? P.medb[k] : -1;
         v.infinite = false;
         v.fwd = to_area(S.pend[lane], prev, v);
         v.rev = 0.f;
@@ -365,7 +427,9 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         if (!bs.valid) continue;
         const V3 wo = v.bsdf.wo;
         // the adjoint: Veach's shading-normal factor, no 1 / eta^2 on transmissions
-        const float adj = from_light ? adjoint_factor(G, v.bsdf.mat, v.bsdf.kind, v.bsdf.side, v.ng, v.bsdf.n, wo, bs.wi) : 1.f;
+        const float adj = from_light && !in_medium(v)
+                              ? adjoint_factor(G, v.bsdf.mat, v.bsdf.kind, v.bsdf.side, v.ng, v.bsdf.n, wo, bs.wi)
+                              : 1.f;
         float br = S.br[ln] * bs.weight.r * adj, bg = S.bg[ln] * bs.weight.g * adj, bb = S.bb[ln] * bs.weight.b * adj;
         const float m = std::max(std::max(br, bg), bb);
         if (!std::isfinite(m)) {
@@ -393,6 +457,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
           prev.rev = to_area(viewed_from(v, bs.wi).eval(wo).pdf, v, prev);
         }
         set_light_ray(tb, k, offset(v.p, v.ng, v.eps, bs.wi), bs.wi);
+        if (media) tb.media.med[k] = ray_medium(v, bs.wi);
       }
     }
   };
@@ -492,14 +557,17 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       z0.p = eye;
       S.ncam[static_cast<size_t>(i)] = 1;
       S.esc_t[static_cast<size_t>(i)] = 0;
+      S.mr[static_cast<size_t>(i)] = S.mg[static_cast<size_t>(i)] = S.mb[static_cast<size_t>(i)] = 0.f;
+      tb.media.med[i] = G.media.camera;
     }
     walk(s, false, S.cam, S.ncam, D + 1, true);
 
     // lane i's light subpath after y0: its throughput le times scale (Russian roulette's
     // reference), the density pend of its first ray's direction (the disc's, from a source
     // at infinity), that ray; none where the throughput is zero or not finite
-    auto start = [&](int i, const float le[3], float scale, float pend, const V3& org, const V3& dir) {
+    auto start = [&](int i, const float le[3], float scale, float pend, const V3& org, const V3& dir, int32_t med) {
       const size_t li = static_cast<size_t>(i);
+      tb.media.med[i] = med;
       S.br[li] = le[0] * scale;
       S.bg[li] = le[1] * scale;
       S.bb[li] = le[2] * scale;
@@ -541,7 +609,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         for (int c = 0; c < 3; ++c) y0.beta[c] = le[c] / pmf;
         y0.fwd = distant ? pmf : sky_density(wi);
         S.nlight[li] = 1;
-        start(i, le, 1.f / (pmf * disc_pdf * pdf_dir), disc_pdf, o, V3(0.f, 0.f, 0.f) - wi);
+        start(i, le, 1.f / (pmf * disc_pdf * pdf_dir), disc_pdf, o, V3(0.f, 0.f, 0.f) - wi, -1);
         continue;
       }
       if (positional_light(L.type[l])) {  // a point or spot source: y0 its position, on no surface
@@ -559,13 +627,14 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         V3 d;
         float falloff;
         const float pdf_dir = sample_positional_direction(L.type[l], g, S.u4[li], S.u5[li], d, falloff);
-        start(i, le, falloff / (pmf * pdf_dir), pdf_dir, g.p0, d);
+        start(i, le, falloff / (pmf * pdf_dir), pdf_dir, g.p0, d, medium_out_[static_cast<size_t>(l)]);
         continue;
       }
       V3 n;
       const V3 y = point_on(l, S.u2[li], S.u3[li], n);
       const bool two = L.two_sided[l] > 0.5f;
-      if (two && S.u1[li] >= 0.5f) n = V3(0.f, 0.f, 0.f) - n;
+      const bool back = two && S.u1[li] >= 0.5f;
+      if (back) n = V3(0.f, 0.f, 0.f) - n;
       const float pmf = pmf_[static_cast<size_t>(l)];
       const float pdf_pos = pmf / L.area[l];
       float le[3];
@@ -586,7 +655,8 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
       if (!(dl.z > 0.f)) continue;
       const V3 d = normalize(t * dl.x + b * dl.y + n * dl.z);
       const float pdf_dir = dl.z * ((two ? 0.5f : 1.f) / pi_f);
-      start(i, le, 1.f / (pdf_pos * pdf_dir) * dl.z, pdf_dir, y + n * y0.eps, d);
+      start(i, le, 1.f / (pdf_pos * pdf_dir) * dl.z, pdf_dir, y + n * y0.eps, d,
+            (back ? medium_in_ : medium_out_)[static_cast<size_t>(l)]);
     }
     walk(s, true, S.light, S.nlight, D, false);
     // each subpath vertex's prefix sum of the weights' ratios (bdpt_mis.h)
@@ -609,9 +679,9 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
 
     // the joins
     S.jobs.clear();
-    std::fill_n(S.sr.begin(), lanes, 0.f);
-    std::fill_n(S.sg.begin(), lanes, 0.f);
-    std::fill_n(S.sb.begin(), lanes, 0.f);
+    std::copy_n(S.mr.begin(), lanes, S.sr.begin());  // (the media's emission: zero without media)
+    std::copy_n(S.mg.begin(), lanes, S.sg.begin());
+    std::copy_n(S.mb.begin(), lanes, S.sb.begin());
     auto add_lane = [&](int lane, const float c[3]) {
       S.sr[static_cast<size_t>(lane)] += c[0];
       S.sg[static_cast<size_t>(lane)] += c[1];
@@ -711,7 +781,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         float w = 1.f;
         if (t > 2) {  // z(t-2) as y1 of a light subpath from the disc: its density per area times its cosine
           const Vertex& zm = S.cam[static_cast<size_t>(t - 2)][ln];
-          w = bdpt_mis(none, side(S.cam, i, t, S.esc_pdf[ln], sky_density(d), disc_pdf * std::abs(dot(zm.ng, d)), false));
+          w = bdpt_mis(none, side(S.cam, i, t, S.esc_pdf[ln], sky_density(d), disc_pdf * cos_geo(zm, d), false));
         }
         for (int k = 0; k < 3; ++k) c[k] *= w;
         if (!finite3(c)) {
@@ -742,14 +812,14 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
           job.lane = i;
           job.s = 1;
           job.t = t;
-          const float gg = std::abs(dot(z.bsdf.n, w)) / (pmf * pdf_dir);
+          const float gg = cos_shading(z, w) / (pmf * pdf_dir);
           job.c[0] = z.beta[0] * fz.f.r * le[0] * gg;
           job.c[1] = z.beta[1] * fz.f.g * le[1] * gg;
           job.c[2] = z.beta[2] * fz.f.b * le[2] * gg;
           if (!nonzero3(job.c)) continue;
           const bool distant = L.type[l] == static_cast<int32_t>(LightKind::distant);
           const BdptSide ls{1, distant ? pmf : sky_density(w), fz.pdf, 0.f, 0.f, distant, false, 0.f};
-          const float zrev = disc_pdf * std::abs(dot(z.ng, w));
+          const float zrev = disc_pdf * cos_geo(z, w);
           const float zmrev =
               t > 2 ? area(viewed_from(z, w).eval(z.bsdf.wo).pdf, z.p, S.cam[static_cast<size_t>(t - 2)][ln]) : 0.f;
           const float wgt = bdpt_mis(ls, side(S.cam, i, t, z.fwd, zrev, zmrev, false));
@@ -757,6 +827,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
           job.org = offset(z.p, z.ng, z.eps, w);
           job.dir = w;
           job.tfar = INFINITY;
+          job.med = ray_medium(z, w);
           push(job);
           continue;
         }
@@ -778,17 +849,18 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
           job.lane = i;
           job.s = 1;
           job.t = t;
-          const float gg = std::abs(dot(z.bsdf.n, w)) * falloff / (d2 * pmf);
+          const float gg = cos_shading(z, w) * falloff / (d2 * pmf);
           job.c[0] = z.beta[0] * fz.f.r * le[0] * gg;
           job.c[1] = z.beta[1] * fz.f.g * le[1] * gg;
           job.c[2] = z.beta[2] * fz.f.b * le[2] * gg;
           if (!nonzero3(job.c)) continue;
           const BdptSide ls{1, pmf, fz.pdf / d2, 0.f, 0.f, true, false, 0.f};  // (a delta light)
-          const float zrev = emit_sa(l, V3(0.f, 0.f, 0.f), V3(0.f, 0.f, 0.f) - w) * std::abs(dot(z.ng, w)) / d2;
+          const float zrev = emit_sa(l, V3(0.f, 0.f, 0.f), V3(0.f, 0.f, 0.f) - w) * cos_geo(z, w) / d2;
           const float zmrev =
               t > 2 ? area(viewed_from(z, w).eval(z.bsdf.wo).pdf, z.p, S.cam[static_cast<size_t>(t - 2)][ln]) : 0.f;
           const float wgt = bdpt_mis(ls, side(S.cam, i, t, z.fwd, zrev, zmrev, false));
           for (float& c : job.c) c *= wgt;
+          job.med = ray_medium(z, w);
           if (shadow(job, z.p, z.ng, z.eps, g.p0, V3(0.f, 0.f, 0.f), 0.f)) push(job);
           continue;
         }
@@ -810,17 +882,18 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         job.lane = i;
         job.s = 1;
         job.t = t;
-        const float g = std::abs(dot(z.bsdf.n, w)) * std::abs(cl) / (d2 * pdf_pos);
+        const float g = cos_shading(z, w) * std::abs(cl) / (d2 * pdf_pos);
         job.c[0] = z.beta[0] * fz.f.r * le[0] * g;
         job.c[1] = z.beta[1] * fz.f.g * le[1] * g;
         job.c[2] = z.beta[2] * fz.f.b * le[2] * g;
         if (!nonzero3(job.c)) continue;
         const V3 nf = cl < 0.f ? n : V3(0.f, 0.f, 0.f) - n;  // the source's normal on z's side
         const BdptSide ls{1, pdf_pos, fz.pdf * std::abs(cl) / d2, 0.f, 0.f, false, false, 0.f};
-        const float zrev = emit_sa(l, nf, V3(0.f, 0.f, 0.f) - w) * std::abs(dot(z.ng, w)) / d2;
+        const float zrev = emit_sa(l, nf, V3(0.f, 0.f, 0.f) - w) * cos_geo(z, w) / d2;
         const float zmrev = t > 2 ? area(viewed_from(z, w).eval(z.bsdf.wo).pdf, z.p, S.cam[static_cast<size_t>(t - 2)][ln]) : 0.f;
         const float wgt = bdpt_mis(ls, side(S.cam, i, t, z.fwd, zrev, zmrev, false));
         for (float& c : job.c) c *= wgt;
+        job.med = ray_medium(z, w);
         if (shadow(job, z.p, z.ng, z.eps, y, nf, offset_eps(y))) push(job);
       }
     }
@@ -849,11 +922,12 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         job.c[1] = y.beta[1] * fy.f.g * k0 * imp;
         job.c[2] = y.beta[2] * fy.f.b * k0 * imp;
         if (!nonzero3(job.c)) continue;
-        const float yrev = static_cast<float>(density) * std::abs(dot(y.ng, w)) / static_cast<float>(d2);
+        const float yrev = static_cast<float>(density) * cos_geo(y, w) / static_cast<float>(d2);
         const float wgt =
             bdpt_mis(side(S.light, i, sl, y.fwd, yrev, area(viewed_from(y, w).eval(wo).pdf, y.p, ym), delta_light(i)),
                      side(S.cam, i, 1, 0.f, 0.f, 0.f, false));
         for (float& c : job.c) c *= wgt;
+        job.med = ray_medium(y, w);
         if (shadow(job, y.p, y.ng, y.eps, eye, V3(0.f, 0.f, 0.f), 0.f)) push(job);
       }
       // s, t >= 2: y(s-1) joined to z(t-1)
@@ -876,7 +950,7 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
           const V3 wo = y.bsdf.wo;
           const float ky = importance_join(G, y, mw);
           if (!(ky > 0.f)) continue;
-          const float g = ky * std::abs(dot(z.bsdf.n, w)) / d2;
+          const float g = ky * cos_shading(z, w) / d2;
           Job job{};
           job.lane = i;
           job.s = sl;
@@ -886,15 +960,18 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
           job.c[2] = z.beta[2] * fz.f.b * y.beta[2] * fy.f.b * g;
           if (!nonzero3(job.c)) continue;
           const float zmrev = t > 2 ? area(viewed_from(z, w).eval(z.bsdf.wo).pdf, z.p, zm) : 0.f;
-          const float wgt = bdpt_mis(side(S.light, i, sl, y.fwd, fz.pdf * std::abs(dot(y.ng, w)) / d2,
+          const float wgt = bdpt_mis(side(S.light, i, sl, y.fwd, fz.pdf * cos_geo(y, w) / d2,
                                           area(viewed_from(y, mw).eval(wo).pdf, y.p, ym), delta_light(i)),
-                                     side(S.cam, i, t, z.fwd, fy.pdf * std::abs(dot(z.ng, w)) / d2, zmrev, false));
+                                     side(S.cam, i, t, z.fwd, fy.pdf * cos_geo(z, w) / d2, zmrev, false));
           for (float& c : job.c) c *= wgt;
+          job.med = ray_medium(z, w);
           if (shadow(job, z.p, z.ng, z.eps, y.p, y.ng, y.eps)) push(job);
         }
       }
     }
-    // the joins' shadow rays, in whole packets
+    // the joins' shadow rays, in whole packets; in a scene with media, through them and
+    // their interfaces (the path tracer's shadow stages: the contributions times the
+    // transmittance)
     const int cap = packet_width * static_cast<int>(std::size(tb.shadow));
     for (size_t j0 = 0; j0 < S.jobs.size(); j0 += static_cast<size_t>(cap)) {
       const int n = static_cast<int>(std::min(S.jobs.size() - j0, static_cast<size_t>(cap)));
@@ -912,13 +989,24 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         sh.dir_y[ln] = jb.dir.y;
         sh.dir_z[ln] = jb.dir.z;
         sh.tfar[ln] = jb.tfar;
+        tb.tech.cr[k] = jb.c[0];
+        tb.tech.cg[k] = jb.c[1];
+        tb.tech.cb[k] = jb.c[2];
+        S.jmed[static_cast<size_t>(k)] = jb.med;
       }
-      for (int p = 0; p < np / packet_width; ++p) accel.occluded16(tb.tech.valid + p * packet_width, tb.shadow[p], false, nullptr);
+      auto occlude = [&](const int32_t* valid, Ray16& sh, int32_t* crossed) { accel.occluded16(valid, sh, false, crossed); };
+      if (media)
+        trace_shadow_lanes(G, ShadowLanes{tb.shadow, tb.tech.valid, tb.tech.cr, tb.tech.cg, tb.tech.cb, nullptr, nullptr, nullptr,
+                                          S.jmed.data(), S.jmed.data()},
+                           n, occlude, trace);
+      else
+        for (int p = 0; p < np / packet_width; ++p) occlude(tb.tech.valid + p * packet_width, tb.shadow[p], nullptr);
       for (int k = 0; k < n; ++k) {
         if (tb.shadow[k / packet_width].tfar[k % packet_width] == -INFINITY) continue;
         const Job& jb = S.jobs[j0 + static_cast<size_t>(k)];
-        if (jb.t == 1) cam_.splat(jb.rx, jb.ry, jb.c, out);
-        else add_lane(jb.lane, jb.c);
+        const float c[3] = {tb.tech.cr[k], tb.tech.cg[k], tb.tech.cb[k]};
+        if (jb.t == 1) cam_.splat(jb.rx, jb.ry, c, out);
+        else add_lane(jb.lane, c);
       }
     }
     for (int i = 0; i < lanes; ++i) {

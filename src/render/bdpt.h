@@ -98,6 +98,7 @@ class Bdpt {
   std::vector<float> cdf_;       // their power, cumulated (last 1)
   std::vector<float> pmf_;       // per source of the table: its pick probability
   std::vector<int32_t> skies_;   // the table's skies (LightKind::infinite)
+  std::vector<int32_t> medium_out_, medium_in_;  // per source: the medium it emits into (source_media)
   float centre_[3] = {0.f, 0.f, 0.f}, radius_ = 1.f;  // the scene's bounding sphere
   std::unique_ptr<BdptPool> pool_;
 };

@@ -385,6 +385,55 @@ float emitter_alpha(const LightView& L, int32_t l, const Vec3<float>& y) {
       1.f);
 }
 
+void source_media(const Scene& scene, const SceneViews& v, std::vector<int32_t>& out, std::vector<int32_t>& in_) {
+  const LightView& L = v.lights;
+  const GeomView& G = v.geom;
+  out.assign(static_cast<size_t>(L.count), -1);
+  in_.assign(static_cast<size_t>(L.count), -1);
+  if (!G.has_media) return;
+  for (int32_t i = 0; i < L.count; ++i)
+    if (positional_light(L.type[i]) && static_cast<size_t>(i) < scene.lights.size())
+      out[static_cast<size_t>(i)] = rendered_medium(scene, scene.lights[static_cast<size_t>(i)].medium);
+  {
+    std::vector<int32_t> light_geom(static_cast<size_t>(L.count), -1);
+    const size_t tris = v.tri_light.size() - 1;
+    for (int32_t g = 0; g < G.geom_count; ++g) {
+      if (G.geom_kind[g] == static_cast<int32_t>(GeomKind::triangles)) {
+        const size_t first = static_cast<size_t>(G.geom_first[g]);
+        const size_t last = g + 1 < G.geom_count && G.geom_kind[g + 1] == static_cast<int32_t>(GeomKind::triangles)
+                                ? static_cast<size_t>(G.geom_first[g + 1])
+                                : tris;
+        for (size_t t = first; t < last; ++t)
+          if (G.tri_light[t] >= 0) light_geom[static_cast<size_t>(G.tri_light[t])] = g;
+      } else if (G.geom_light[g] >= 0) {
+        light_geom[static_cast<size_t>(G.geom_light[g])] = g;
+      }
+    }
+    // (the geometry rows: the meshes, then the spheres, in scene order)
+    const size_t meshes = scene.meshes.size();
+    for (int32_t i = 0; i < L.count; ++i) {
+      const int32_t g = light_geom[static_cast<size_t>(i)];
+      if (g < 0) continue;
+      const size_t gi = static_cast<size_t>(g);
+      const int in0 = gi < meshes ? scene.meshes[gi].medium_inside : scene.spheres[gi - meshes].medium_inside;
+      const int out0 = gi < meshes ? scene.meshes[gi].medium_outside : scene.spheres[gi - meshes].medium_outside;
+      const int32_t inside = rendered_medium(scene, in0), outside = rendered_medium(scene, out0);
+      // pbrt's outside: Embree's Ng (cross(e1, e2) for a triangle; outwards for a sphere)
+      // times the shape's side; the source's normal says which side it emits on
+      bool normal_out = true;
+      if (L.type[i] == static_cast<int32_t>(LightKind::sphere)) {
+        normal_out = G.geom_side[g] > 0.f;
+      } else {
+        const Vec3<float> e1{L.e1x[i], L.e1y[i], L.e1z[i]}, e2{L.e2x[i], L.e2y[i], L.e2z[i]};
+        const Vec3<float> n{L.nx[i], L.ny[i], L.nz[i]};
+        normal_out = dot(cross(e1, e2), n) * G.geom_side[g] > 0.f;
+      }
+      out[static_cast<size_t>(i)] = normal_out ? outside : inside;
+      in_[static_cast<size_t>(i)] = normal_out ? inside : outside;
+    }
+  }
+}
+
 LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, int width, int height, const float lo[3],
                        const float hi[3])
     : v_(v), est_(est), width_(width), height_(height) {
@@ -483,52 +532,7 @@ LightPaths::LightPaths(const Scene& scene, SceneViews& v, const Estimator& est, 
     cdf_.push_back(static_cast<float>(run / total));
   }
   cdf_.back() = 1.f;
-  // the medium each source emits into: the side of its shape its normal is on; a point or
-  // spot source's, the one it sits in
-  medium_out_.assign(static_cast<size_t>(L.count), -1);
-  medium_in_.assign(static_cast<size_t>(L.count), -1);
-  if (G.has_media)
-    for (int32_t i : lights_)
-      if (positional_light(L.type[i]) && static_cast<size_t>(i) < scene.lights.size())
-        medium_out_[static_cast<size_t>(i)] = rendered_medium(scene, scene.lights[static_cast<size_t>(i)].medium);
-  if (G.has_media) {
-    std::vector<int32_t> light_geom(static_cast<size_t>(L.count), -1);
-    const size_t tris = v.tri_light.size() - 1;
-    for (int32_t g = 0; g < G.geom_count; ++g) {
-      if (G.geom_kind[g] == static_cast<int32_t>(GeomKind::triangles)) {
-        const size_t first = static_cast<size_t>(G.geom_first[g]);
-        const size_t last = g + 1 < G.geom_count && G.geom_kind[g + 1] == static_cast<int32_t>(GeomKind::triangles)
-                                ? static_cast<size_t>(G.geom_first[g + 1])
-                                : tris;
-        for (size_t t = first; t < last; ++t)
-          if (G.tri_light[t] >= 0) light_geom[static_cast<size_t>(G.tri_light[t])] = g;
-      } else if (G.geom_light[g] >= 0) {
-        light_geom[static_cast<size_t>(G.geom_light[g])] = g;
-      }
-    }
-    // (the geometry rows: the meshes, then the spheres, in scene order)
-    const size_t meshes = scene.meshes.size();
-    for (int32_t i : lights_) {
-      const int32_t g = light_geom[static_cast<size_t>(i)];
-      if (g < 0) continue;
-      const size_t gi = static_cast<size_t>(g);
-      const int in0 = gi < meshes ? scene.meshes[gi].medium_inside : scene.spheres[gi - meshes].medium_inside;
-      const int out0 = gi < meshes ? scene.meshes[gi].medium_outside : scene.spheres[gi - meshes].medium_outside;
-      const int32_t in = rendered_medium(scene, in0), out = rendered_medium(scene, out0);
-      // pbrt's outside: Embree's Ng (cross(e1, e2) for a triangle; outwards for a sphere)
-      // times the shape's side; the source's normal says which side it emits on
-      bool normal_out = true;
-      if (L.type[i] == static_cast<int32_t>(LightKind::sphere)) {
-        normal_out = G.geom_side[g] > 0.f;
-      } else {
-        const Vec3<float> e1{L.e1x[i], L.e1y[i], L.e1z[i]}, e2{L.e2x[i], L.e2y[i], L.e2z[i]};
-        const Vec3<float> n{L.nx[i], L.ny[i], L.nz[i]};
-        normal_out = dot(cross(e1, e2), n) * G.geom_side[g] > 0.f;
-      }
-      medium_out_[static_cast<size_t>(i)] = normal_out ? out : in;
-      medium_in_[static_cast<size_t>(i)] = normal_out ? in : out;
-    }
-  }
+  source_media(scene, v, medium_out_, medium_in_);
   cam_.emplace(v.camera, width_, height_, "--light-paths");
   active_ = true;
 }

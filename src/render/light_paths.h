@@ -162,6 +162,12 @@ float adjoint_factor(const GeomView& G, int32_t mat, int32_t kind, float side, c
 // filters). The light tracer's and bdpt's.
 float emitter_alpha(const LightView& L, int32_t l, const Vec3<float>& y);
 
+// The medium each source of the light table emits into (-1: vacuum): out, an area source's
+// on the side of its shape its normal is on (in, behind it: a two-sided source's back); a
+// point or spot source's, the one it sits in (Light::medium, out); a source at infinity's,
+// -1. All -1 in a scene without media. The light tracer's and bdpt's.
+void source_media(const Scene& scene, const SceneViews& v, std::vector<int32_t>& out, std::vector<int32_t>& in);
+
 // Point and spot sources (positional: on no surface, a delta in position).
 bool positional_light(int32_t type);
 // pbrt-v4's spot falloff at cos_t from the spot's axis: smoothstep from the cone's edge

@@ -68,7 +68,7 @@ void validate(const RenderOptions& o) {
   if (e.bdpt) {
     if (e.guide) throw std::invalid_argument("--bdpt does not combine with --guide");
     if (e.light_paths) throw std::invalid_argument("--bdpt traces light paths of its own: leave out --light-paths");
-    if (e.equiangular) throw std::invalid_argument("--bdpt does not combine with --equiangular (nor renders media yet)");
+    if (e.equiangular) throw std::invalid_argument("--bdpt does not combine with --equiangular (its own strategies sample the media)");
     if (e.regularize) throw std::invalid_argument("--bdpt does not combine with --regularize");
     if (e.heuristic == Heuristic::optimal)
       throw std::invalid_argument("--bdpt weighs its strategies by the balance heuristic: --heuristic optimal does not apply");
