@@ -139,7 +139,8 @@ TEST(Mpi, GuidedRendersGiveTheSingleProcessBytes) {
 
 // --bdpt under mpirun (auto: the file asks for pbrt's bdpt): every contribution is a splat,
 // so the sample ranges are light chunks (as --light-paths'), traced on any rank and added by
-// rank 0 in the single process's order: the job renders the single process's bytes.
+// rank 0 in the single process's order: the job renders the single process's bytes (a
+// scene with a sky, a sun and a medium).
 TEST(Mpi, BdptRendersTheSingleProcessBits) {
   std::string why;
   if (!mpi_ready(why)) GTEST_SKIP() << why;
@@ -153,8 +154,11 @@ TEST(Mpi, BdptRendersTheSingleProcessBits) {
                           "Material \"diffuse\" \"rgb reflectance\" [ 0.6 0.6 0.6 ]\n"
                           "Shape \"trianglemesh\" \"point3 P\" [ -3 0 -3  3 0 -3  3 0 3  -3 0 3 ] "
                           "\"integer indices\" [ 0 2 1  0 3 2 ]\n"
-                          "Material \"dielectric\" \"float eta\" [ 1.5 ]\n"
-                          "AttributeBegin\nTranslate 0 0.5 0\nShape \"sphere\" \"float radius\" [ 0.5 ]\nAttributeEnd\n"
+                          "Material \"dielectric\" \"float eta\" [ 1.5 ]\n"  // (a glass ball full of a fog: media too)
+                          "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [ 0.2 0.3 0.4 ] "
+                          "\"rgb sigma_s\" [ 1 1 1 ] \"float scale\" [ 1 ]\n"
+                          "AttributeBegin\nMediumInterface \"fog\" \"\"\nTranslate 0 0.5 0\nShape \"sphere\" \"float radius\" [ 0.5 ]\n"
+                          "AttributeEnd\n"
                           "LightSource \"infinite\" \"rgb L\" [ 0.1 0.12 0.15 ]\n"  // (a sky and a sun: bdpt's too)
                           "LightSource \"distant\" \"point3 from\" [ 1 3 2 ] \"point3 to\" [ 0 0 0 ] \"rgb L\" [ 0.5 0.5 0.5 ]\n";
   const std::string args = " render " + scene + " --res 128x64 --spp 6 --quiet -o ";

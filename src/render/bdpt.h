@@ -36,15 +36,28 @@
 // direction from the picked sky, or takes the distant source's, and traces a shadow ray to
 // infinity. A distant source is a delta light (no strategy meets it from the camera's side).
 //
-// What it renders: surfaces of every material the path tracer knows but hair, lit by area
-// sources (triangles, parallelograms, spheres), point, spot and distant sources and skies
-// (constant or with a map); an emitter with an alpha cut-out emits its alpha times its
-// radiance where a point is drawn on it (as the path tracer's light samples weigh it), and
-// the rays that meet it pass its holes. It refuses (std::invalid_argument) participating
-// media and curves: pbrt-v4's hair BSDF is not reciprocal (its offset h belongs to the ray
-// that arrived, which on a light subpath is the light's), and under a white sky a furnace of
-// fibers, which the path tracer renders at exactly 1, came out 1.04 through bdpt's light
-// subpaths.
+// Media (homogeneous, pbrt-v4's bdpt's way): every ray of either subpath takes the path
+// tracer's free flight (medium_flights: its weight joins the throughput, interfaces are
+// passed), from the medium it starts in (the camera's, a source's by source_media, a
+// vertex's on the ray's side). A collision is a vertex whose BSDF is the medium's phase
+// function and whose normals are zero, so its joins and its densities per unit area have no
+// cosine (cos_geo, cos_shading); the joins' shadow rays carry the transmittance through
+// the media and their interfaces (trace_shadow_lanes). The weights' densities leave out
+// the distance sampling's, as pbrt-v4's do: the weights of a path still sum to one. The
+// media's emission is gathered along the camera subpath's rays from its first D vertices
+// (the path tracer's segments), weight 1: no other strategy meets it.
+//
+// What it renders: surfaces of every material the path tracer knows but hair, in vacuum or
+// homogeneous media, lit by area sources (triangles, parallelograms, spheres), point, spot
+// and distant sources and skies (constant or with a map); an emitter with an alpha cut-out
+// emits its alpha times its radiance where a point is drawn on it (as the path tracer's
+// light samples weigh it), and the rays that meet it pass its holes. It refuses
+// (std::invalid_argument) curves: pbrt-v4's hair BSDF is not reciprocal (its offset h
+// belongs to the ray that arrived, which on a light subpath is the light's), and under a
+// white sky a furnace of fibers, which the path tracer renders at exactly 1, came out 1.04
+// through bdpt's light subpaths; and a source at infinity with the camera in a medium (its
+// light subpaths would start on the disc in vacuum, where the escaped rays end in that
+// medium).
 //
 // Determinism: as the light tracer's splats (the renderer adds a tile's splats in tile
 // order), each lane's camera-side contributions summed in strategy order into one splat per
@@ -67,7 +80,8 @@ namespace tuile {
 struct Scene;
 struct BdptPool;  // the threads' scratch (bdpt.cpp)
 
-// Why bdpt does not render this scene ("" where it does): media or curves.
+// Why bdpt does not render this scene ("" where it does): curves, or a source at infinity
+// with the camera in a medium.
 std::string bdpt_refusal(const Scene& scene);
 
 class Bdpt {
