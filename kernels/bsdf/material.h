@@ -10,6 +10,7 @@
 // therefore that basis, not pbrt's dp/du). Dielectrics read which side is inside from
 // `side`: +1 where the viewer is on the surface's outside (pbrt's normal side).
 #pragma once
+#include <type_traits>
 #include "bsdf/coated.h"
 #include "bsdf/conductor.h"
 #include "bsdf/dielectric.h"
@@ -143,6 +144,13 @@ template <class T, unsigned Bsdfs> struct SurfaceBsdf {
     if constexpr (Bsdfs == bsdf_diffuse) {
       return lambert.eval(SurfacePoint<T>{n, wo}, wi);
     } else {
+      // one point in a medium (bdpt's and the light tracer's scalar joins): its phase
+      // function alone, the value the masked sum below gives it
+      if constexpr ((Bsdfs & bsdf_phase) != 0 && std::is_same_v<T, float>)
+        if (kind == static_cast<int32_t>(MaterialKind::phase)) {
+          const T p = hg_phase(dot(wo, wi), param(mp_hg_g));
+          return BsdfEval<T>{{p, p, p}, p};
+        }
       BsdfEval<T> r{{T(0.f), T(0.f), T(0.f)}, T(0.f)};
       if constexpr ((Bsdfs & bsdf_diffuse) != 0) {
         const auto m = is(MaterialKind::diffuse);
