@@ -343,6 +343,21 @@ TEST(Bdpt, InfoSaysWhatItRuns) {
   ASSERT_EQ(off.code, 0) << off.out;
   EXPECT_EQ(off.out.find("pipeline: bdpt"), std::string::npos) << off.out;
   EXPECT_NE(off.out.find("light picker:"), std::string::npos) << off.out;
+  EXPECT_EQ(r.out.find("media:"), std::string::npos) << r.out;
+  // in a medium: the flights said
+  const std::string fog = dir / "bdpt-fog.pbrt";
+  std::ofstream(fog) << "LookAt 0 1 4  0 0.5 0  0 1 0\n"
+                        "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [ 0.1 0.1 0.1 ] "
+                        "\"rgb sigma_s\" [ 0.5 0.5 0.5 ]\nMediumInterface \"fog\" \"fog\"\n"
+                        "Camera \"perspective\" \"float fov\" [ 45 ]\n"
+                        "Integrator \"bdpt\" \"integer maxdepth\" [ 5 ]\nWorldBegin\nMediumInterface \"fog\" \"fog\"\n"
+                        "LightSource \"point\" \"point3 from\" [ 0 2 0 ] \"rgb I\" [ 1 1 1 ]\n"
+                        "Shape \"trianglemesh\" \"point3 P\" [ -2 0 -2  2 0 -2  2 0 2  -2 0 2 ] "
+                        "\"integer indices\" [ 0 2 1  0 3 2 ]\n";
+  const tuile::testing::CmdResult m = tuile::testing::run_command(TUILE_BINARY, "info " + fog);
+  ASSERT_EQ(m.code, 0) << m.out;
+  EXPECT_NE(m.out.find("pipeline: bdpt"), std::string::npos) << m.out;
+  EXPECT_NE(m.out.find("media: every ray's free flight on both subpaths"), std::string::npos) << m.out;
 }
 
 TEST(Bdpt, RefusesWhatItCannotDo) {

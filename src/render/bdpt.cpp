@@ -255,6 +255,9 @@ std::string Bdpt::describe() const {
                   static_cast<double>(centre_[2]));
     s += buf;
   }
+  if (v_.geom.has_media)
+    s += "; media: every ray's free flight on both subpaths (the path tracer's), the joins through the media and "
+         "their interfaces, the media's emission on the camera subpath";
   return s;
 }
 
