@@ -997,13 +997,10 @@ void Bdpt::trace_tile(const Accel& accel, TileBuffers& tb, int tile, int tile_si
         tb.tech.cb[k] = jb.c[2];
         S.jmed[static_cast<size_t>(k)] = jb.med;
       }
-      auto occlude = [&](const int32_t* valid, Ray16& sh, int32_t* crossed) { accel.occluded16(valid, sh, false, crossed); };
-      if (media)
-        trace_shadow_lanes(G, ShadowLanes{tb.shadow, tb.tech.valid, tb.tech.cr, tb.tech.cg, tb.tech.cb, nullptr, nullptr, nullptr,
-                                          S.jmed.data(), S.jmed.data()},
-                           n, occlude, trace);
-      else
-        for (int p = 0; p < np / packet_width; ++p) occlude(tb.tech.valid + p * packet_width, tb.shadow[p], nullptr);
+      trace_shadow_lanes(G, ShadowLanes{tb.shadow, tb.tech.valid, tb.tech.cr, tb.tech.cg, tb.tech.cb, nullptr, nullptr, nullptr,
+                                        S.jmed.data(), S.jmed.data()},
+                         n, [&](const int32_t* valid, Ray16& sh, int32_t* crossed) { accel.occluded16(valid, sh, false, crossed); },
+                         trace);
       for (int k = 0; k < n; ++k) {
         if (tb.shadow[k / packet_width].tfar[k % packet_width] == -INFINITY) continue;
         const Job& jb = S.jobs[j0 + static_cast<size_t>(k)];
